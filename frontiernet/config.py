@@ -1,0 +1,74 @@
+"""Configuration: YAML files under ``configs/`` merged with user files and overrides.
+
+Every tunable number lives in a YAML file of ``configs/`` (installed as the package
+``frontiernet.configs``), with the paper's or the public code's value as default and
+a comment saying which. :func:`load_config` reads one of them by name, then merges
+an optional user file and ``key.sub=value`` overrides on top.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Iterable
+
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from .errors import InputError
+
+
+def default_config_path(name: str) -> Path:
+    """Path of the shipped config ``configs/<name>.yaml``."""
+    path = Path(str(resources.files("frontiernet.configs").joinpath(f"{name}.yaml")))
+    if not path.is_file():
+        raise InputError(f"no shipped config named '{name}' (looked for {path})")
+    return path
+
+
+def _read_yaml(path: Path) -> DictConfig:
+    if not path.is_file():
+        raise InputError(f"{path}: config file not found")
+    try:
+        conf = OmegaConf.load(path)
+    except (OSError, OmegaConfBaseException, ValueError) as error:  # yaml errors are ValueErrors
+        raise InputError(f"{path}: not a readable YAML config ({error.__class__.__name__})") from None
+    if not isinstance(conf, DictConfig):
+        raise InputError(f"{path}: a config must be a YAML mapping")
+    return conf
+
+
+def load_config(
+    name: str,
+    user_file: str | Path | None = None,
+    overrides: Iterable[str] = (),
+) -> DictConfig:
+    """Load ``configs/<name>.yaml``, then merge `user_file` and dotted `overrides`.
+
+    Args:
+        name: shipped config name, e.g. ``"sim"``.
+        user_file: optional YAML file whose keys replace the defaults.
+        overrides: ``"camera.width=320"`` style strings.
+    Returns:
+        The merged, read-only-by-convention ``DictConfig``.
+    """
+    conf = _read_yaml(default_config_path(name))
+    if user_file is not None:
+        conf = OmegaConf.merge(conf, _read_yaml(Path(user_file)))
+    overrides = list(overrides)
+    if overrides:
+        bad = [item for item in overrides if "=" not in item]
+        if bad:
+            raise InputError(f"override '{bad[0]}' is not of the form key=value")
+        try:
+            conf = OmegaConf.merge(conf, OmegaConf.from_dotlist(overrides))
+        except OmegaConfBaseException as error:
+            raise InputError(f"bad override {overrides}: {error}") from None
+    return conf
+
+
+def section(conf: DictConfig, key: str) -> DictConfig:
+    """Return ``conf[key]`` or fail with an :class:`InputError` naming the key."""
+    if key not in conf:
+        raise InputError(f"config has no section '{key}'")
+    return conf[key]

@@ -1,0 +1,83 @@
+"""Poses and rotations.
+
+Conventions (DESIGN.md): world frame Z-up, metres, radians; camera frame OpenCV
+(x right, y down, z forward). ``T_world_cam`` (4, 4) float64 maps camera
+coordinates into the world: ``p_world = T_world_cam[:3, :3] @ p_cam + T_world_cam[:3, 3]``.
+
+A *heading pose* ``(x, y, z, yaw, pitch)`` places the camera at ``(x, y, z)`` looking
+along yaw (radians, counter-clockwise about +z from +x) and pitch (radians, positive
+looks up), with no roll.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Y-up (glTF, HM3D, habitat) to Z-up (ours): a +90 degree rotation about x maps
+# +y to +z and +z to -y.
+T_ZUP_YUP = np.array(
+    [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+)
+
+
+def rotation_from_yaw_pitch(yaw: float | np.ndarray, pitch: float | np.ndarray = 0.0) -> np.ndarray:
+    """Camera-to-world rotation(s) for a camera with the given yaw and pitch (radians).
+
+    Args:
+        yaw: scalar or (N,) heading about world +z, 0 = looking along +x.
+        pitch: scalar or (N,), positive tilts the optical axis up.
+    Returns:
+        (3, 3) or (N, 3, 3) float64 ``R_world_cam`` whose columns are the camera's
+        x (right), y (down) and z (forward) axes in world coordinates.
+    """
+    yaw = np.asarray(yaw, dtype=np.float64)
+    pitch = np.broadcast_to(np.asarray(pitch, dtype=np.float64), yaw.shape)
+    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+    forward = np.stack([cp * cy, cp * sy, sp], axis=-1)
+    right = np.stack([sy, -cy, np.zeros_like(yaw)], axis=-1)
+    down = np.cross(forward, right)
+    return np.stack([right, down, forward], axis=-1)
+
+
+def pose_from_heading(x: float, y: float, z: float, yaw: float, pitch: float = 0.0) -> np.ndarray:
+    """(4, 4) float64 ``T_world_cam`` for a camera at (x, y, z) metres with yaw/pitch radians."""
+    T = np.eye(4)
+    T[:3, :3] = rotation_from_yaw_pitch(yaw, pitch)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def poses_from_headings(positions: np.ndarray, yaws: np.ndarray, pitches: np.ndarray | float = 0.0) -> np.ndarray:
+    """Batched :func:`pose_from_heading`: (N, 3) positions, (N,) yaws -> (N, 4, 4) ``T_world_cam``."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    T = np.tile(np.eye(4), (len(positions), 1, 1))
+    T[:, :3, :3] = rotation_from_yaw_pitch(np.asarray(yaws, dtype=np.float64).reshape(-1), pitches)
+    T[:, :3, 3] = positions
+    return T
+
+
+def heading_of(T_world_cam: np.ndarray) -> tuple[float, float]:
+    """(yaw, pitch) radians of a camera pose's optical axis."""
+    forward = np.asarray(T_world_cam)[:3, 2]
+    return float(np.arctan2(forward[1], forward[0])), float(np.arcsin(np.clip(forward[2], -1.0, 1.0)))
+
+
+def look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``T_world_cam`` at `eye` looking at `target` (both (3,) metres), no roll."""
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    d = target - eye
+    yaw = np.arctan2(d[1], d[0])
+    pitch = np.arctan2(d[2], np.hypot(d[0], d[1]))
+    return pose_from_heading(*eye, yaw, pitch)
+
+
+def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """Geodesic angle (radians) between two rotations (3, 3)."""
+    cos = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
+    return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a (4, 4) transform to (N, 3) points."""
+    points = np.asarray(points)
+    return points @ T[:3, :3].T + T[:3, 3]

@@ -1,0 +1,233 @@
+"""Floor plans: 2D occupancy images extruded into 3D buildings.
+
+A plan is an (H, W) image: occupied pixels become walls of ``wall_height``, the inside
+of the building gets a floor (and optionally a ceiling), and door gaps stay open with a
+lintel above ``door_height`` where doors are known (KTH/MapEx ``valid_space`` marks
+wall and door-frame pixels between spaces with 0).
+
+Plan frame to world frame (right-handed, Z-up): pixel (row r, col c) of an (H, W) plan
+at resolution ``s`` m/px covers ``x in [c*s, (c+1)*s)``, ``y in [(H-1-r)*s, (H-r)*s)``;
+the floor top is at z = 0. :func:`plan_pixel_to_world` applies it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import InputError
+from .builder import MeshBuilder
+from .scene import Material, Scene, SceneMetadata
+from .textures import make_texture
+
+IMAGE_SUFFIXES = (".png", ".pgm", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+@dataclass
+class FloorPlan:
+    """A plan read from disk.
+
+    Attributes:
+        occupied: (H, W) bool, walls and obstacles.
+        inside: (H, W) bool, pixels that belong to the building (get a floor).
+        doors: (H, W) bool, door gaps (free pixels that get a lintel), may be all False.
+        resolution: metres per pixel.
+    """
+
+    occupied: np.ndarray
+    inside: np.ndarray
+    doors: np.ndarray
+    resolution: float
+
+
+def plan_pixel_to_world(rows, cols, shape: tuple[int, int], resolution: float) -> np.ndarray:
+    """(N, 2) world x, y metres of the centres of plan pixels (rows, cols) of a plan of `shape`."""
+    rows, cols = np.asarray(rows, np.float64), np.asarray(cols, np.float64)
+    return np.stack([(cols + 0.5) * resolution, (shape[0] - rows - 0.5) * resolution], axis=-1)
+
+
+def mask_rectangles(mask: np.ndarray) -> np.ndarray:
+    """Cover a boolean (H, W) mask exactly with axis-aligned rectangles.
+
+    Horizontal runs of each row are merged with identical runs of the rows below.
+    Returns (N, 4) int64 ``[row0, col0, row1, col1)`` (half-open).
+    """
+    mask = np.asarray(mask, bool)
+    padded = np.pad(mask, ((0, 0), (1, 1))).astype(np.int8)
+    changes = np.diff(padded, axis=1)
+    run_rows, run_starts = np.nonzero(changes == 1)  # row-major order
+    _, run_ends = np.nonzero(changes == -1)
+    rectangles = []
+    open_runs: dict[tuple[int, int], int] = {}  # (col0, col1) -> first row
+    previous_row = -2
+    split_at = np.flatnonzero(np.diff(run_rows)) + 1
+    for rows, starts, ends in zip(np.split(run_rows, split_at), np.split(run_starts, split_at),
+                                  np.split(run_ends, split_at)):
+        if len(rows) == 0:
+            continue
+        row = int(rows[0])
+        runs = set(zip(starts.tolist(), ends.tolist()))
+        for key in list(open_runs):
+            if row != previous_row + 1 or key not in runs:
+                rectangles.append((open_runs.pop(key), key[0], previous_row + 1, key[1]))
+        for key in runs:
+            open_runs.setdefault(key, row)
+        previous_row = row
+    for key, first_row in open_runs.items():
+        rectangles.append((first_row, key[0], previous_row + 1, key[1]))
+    return np.asarray(rectangles, np.int64).reshape(-1, 4)
+
+
+def _rect_boxes(rects: np.ndarray, shape, resolution: float, z0: float, z1: float):
+    """Rectangles [r0, c0, r1, c1) -> box corners (N, 3) lower, (N, 3) upper in world metres."""
+    H = shape[0]
+    lower = np.stack([rects[:, 1] * resolution, (H - rects[:, 2]) * resolution, np.full(len(rects), z0)], 1)
+    upper = np.stack([rects[:, 3] * resolution, (H - rects[:, 0]) * resolution, np.full(len(rects), z1)], 1)
+    return lower, upper
+
+
+def building_inside(free: np.ndarray, resolution: float, gap_closing_m: float) -> np.ndarray:
+    """Free pixels enclosed by the building: not reachable from the image border.
+
+    Openings narrower than `gap_closing_m` (doors to the outside) are treated as
+    closed: the flood from the border only passes pixels farther than half that from
+    any obstacle, and is then grown back by the same radius.
+    """
+    radius_px = gap_closing_m / 2.0 / resolution
+    padded = np.pad(free, 1, constant_values=True)
+    clearance = ndimage.distance_transform_edt(padded)
+    labels, _ = ndimage.label(clearance > radius_px)
+    border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    flood = np.isin(labels, border[border > 0])
+    outside = ndimage.distance_transform_edt(~flood) <= radius_px
+    return (padded & ~outside)[1:-1, 1:-1]
+
+
+def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below: int, free_above: int,
+                   gap_closing_m: float, kth_resolution: float, spec_text: str) -> FloorPlan:
+    """Read a plan image, ``.npy`` array, or KTH/MapEx folder (``occ_map.npy`` + ``valid_space.npy``)."""
+    path = Path(path)
+    valid = None
+    if path.is_dir():
+        if not (path / "occ_map.npy").is_file():
+            raise InputError(f"{path}: floor-plan folder has no occ_map.npy")
+        if (path / "valid_space.npy").is_file():
+            valid = _load_array(path / "valid_space.npy")
+        resolution = kth_resolution if resolution is None else resolution
+        path = path / "occ_map.npy"
+    if not path.is_file():
+        raise InputError(f"{path}: floor-plan file not found")
+    if resolution is None:
+        raise InputError(f"{spec_text}: a floor plan needs its resolution in metres/pixel "
+                         "(add '?resolution=0.05')")
+    if not isinstance(resolution, (int, float)) or not np.isfinite(resolution) or resolution <= 0:
+        raise InputError(f"{spec_text}: resolution must be a positive number of metres/pixel, got {resolution!r}")
+    image = _load_array(path) if path.suffix.lower() == ".npy" else _load_image(path)
+    if image.ndim != 2 or min(image.shape) < 3:
+        raise InputError(f"{path}: a floor plan must be a 2D image of at least 3x3 pixels, got shape {image.shape}")
+    occupied = image < occupied_below
+    free = image > free_above
+    if valid is not None:
+        if valid.shape != image.shape:
+            raise InputError(f"{path.parent / 'valid_space.npy'}: shape {valid.shape} differs from "
+                             f"occ_map.npy {image.shape}")
+        spaces = valid > 0
+        margin = max(1, int(round(0.4 / resolution)))  # walls and door frames around the spaces
+        inside = ndimage.binary_dilation(spaces, iterations=margin) | spaces
+        doors = free & ~spaces & ndimage.binary_dilation(spaces, iterations=margin) \
+            & ~ndimage.binary_dilation(~inside, iterations=1)
+    else:
+        inside = building_inside(free, float(resolution), gap_closing_m)
+        inside = inside | (occupied & ndimage.binary_dilation(inside, iterations=2))
+        doors = np.zeros_like(free)
+    if not (free & inside).any():
+        raise InputError(f"{path}: the floor plan has no free space inside a building")
+    return FloorPlan(occupied=occupied, inside=inside | (occupied & ndimage.binary_dilation(inside)),
+                     doors=doors, resolution=float(resolution))
+
+
+def _load_array(path: Path) -> np.ndarray:
+    try:
+        array = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as error:
+        raise InputError(f"{path}: not a readable .npy array ({error})") from None
+    if not np.issubdtype(array.dtype, np.number) and array.dtype != bool:
+        raise InputError(f"{path}: floor-plan array must be numeric, got {array.dtype}")
+    return array.astype(np.float64) if array.dtype != bool else np.where(array, 254.0, 0.0)
+
+
+def _load_image(path: Path) -> np.ndarray:
+    import cv2
+
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise InputError(f"{path}: unsupported floor-plan format '{path.suffix}' "
+                         f"(use .npy or one of {', '.join(IMAGE_SUFFIXES)})")
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH)
+    if image is None:
+        raise InputError(f"{path}: cannot read image")
+    return image.astype(np.float64)
+
+
+def plan_materials(builder: MeshBuilder, rng: np.random.Generator) -> dict[str, int]:
+    """Default floor-plan materials (plaster walls, wood floor, white ceiling, door frames)."""
+    return {
+        "wall": builder.material(Material("plan-wall", (225, 220, 210), make_texture("plaster", rng, (225, 220, 210)))),
+        "floor": builder.material(Material("plan-floor", (160, 120, 80), make_texture("wood", rng, (160, 120, 80)))),
+        "ceiling": builder.material(Material("plan-ceiling", (240, 240, 240),
+                                             make_texture("plaster", rng, (240, 240, 238)))),
+        "lintel": builder.material(Material("plan-lintel", (200, 195, 185),
+                                            make_texture("plaster", rng, (200, 195, 185)))),
+    }
+
+
+def extrude_plan(builder: MeshBuilder, plan: FloorPlan, materials: dict[str, int], *, wall_height: float,
+                 door_height: float, ceiling: bool, texture_size_m: float, z0: float = 0.0) -> None:
+    """Add the plan's walls, floor, door lintels and optional ceiling to `builder`.
+
+    The floor's top face lies at ``z0``; walls span ``[z0, z0 + wall_height]``.
+    Only faces that can be seen from inside are emitted (floor top, ceiling bottom).
+    """
+    shape, s = plan.occupied.shape, plan.resolution
+    walls = mask_rectangles(plan.occupied)
+    builder.add_boxes(*_rect_boxes(walls, shape, s, z0, z0 + wall_height), materials["wall"],
+                      texture_size_m, faces=("+x", "-x", "+y", "-y", "+z"))
+    floor = mask_rectangles(plan.inside)
+    builder.add_boxes(*_rect_boxes(floor, shape, s, z0 - 0.05, z0), materials["floor"], texture_size_m,
+                      faces=("+z",))
+    if plan.doors.any() and door_height < wall_height:
+        lintels = mask_rectangles(plan.doors)
+        builder.add_boxes(*_rect_boxes(lintels, shape, s, z0 + door_height, z0 + wall_height),
+                          materials["lintel"], texture_size_m, faces=("+x", "-x", "+y", "-y", "-z"))
+    if ceiling:
+        builder.add_boxes(*_rect_boxes(floor, shape, s, z0 + wall_height, z0 + wall_height + 0.05),
+                          materials["ceiling"], texture_size_m, faces=("-z",))
+
+
+def load_floorplan(path: str | Path, spec_text: str, conf) -> Scene:
+    """Read a floor plan and extrude it into a :class:`Scene` (see module docstring).
+
+    `conf` is the ``floorplan`` section of ``configs/scenes.yaml`` merged with spec options.
+    """
+    for key in ("wall_height", "door_height"):
+        value = conf[key]
+        if not isinstance(value, (int, float)) or value <= 0:
+            raise InputError(f"{spec_text}: {key} must be a positive number of metres, got {value!r}")
+    plan = read_floorplan(path, resolution=conf.resolution, occupied_below=conf.occupied_below,
+                          free_above=conf.free_above, gap_closing_m=conf.gap_closing_m,
+                          kth_resolution=conf.kth_resolution, spec_text=spec_text)
+    builder = MeshBuilder()
+    materials = plan_materials(builder, np.random.default_rng(int(conf.texture_seed)))
+    extrude_plan(builder, plan, materials, wall_height=float(conf.wall_height),
+                 door_height=float(conf.door_height), ceiling=bool(conf.ceiling),
+                 texture_size_m=float(conf.texture_size_m))
+    path = Path(path)
+    metadata = SceneMetadata(
+        name=path.name if path.is_dir() else path.stem, source="floorplan", spec=spec_text,
+        extra={"resolution": plan.resolution, "plan_shape": list(plan.occupied.shape),
+               "wall_height": float(conf.wall_height), "ceiling": bool(conf.ceiling),
+               "door_pixels": int(plan.doors.sum())},
+    )
+    return builder.build(metadata)

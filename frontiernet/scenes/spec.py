@@ -1,0 +1,93 @@
+"""Scene specs: the strings users pass to name a scene.
+
+Syntax: ``[SOURCE:]ARGUMENT[?key=value&key=value...]``
+
+=================================  ==========================================================
+``path/to/scene.glb``              a mesh file (``.glb``, ``.gltf``, ``.obj``, ``.ply``), as stored
+``mesh:path.glb?up=y``             a mesh file, converting Y-up to Z-up (``up=z`` is the default)
+``hm3d:ROOT/SPLIT/00800-TEEsavR23oF``  an HM3D scene folder (or its ``<id>.glb``); Y-up converted
+``floorplan:path/occ.png?resolution=0.05``  a 2D occupancy image or ``.npy`` (metres/pixel)
+``floorplan:kth/50052750``         a KTH/MapEx folder (``occ_map.npy``, ``valid_space.npy``), 0.05 m/px
+``procedural:7``                   the built-in multi-room generator, seed 7
+``procedural:7?floors=2``          ... with generator options (see ``configs/scenes.yaml``)
+``default``                        ``procedural:0``
+=================================  ==========================================================
+
+A bare path is recognised by what it is: a mesh file by its extension, a folder with
+``occ_map.npy`` as a floor plan, a folder with a ``.glb`` as an HM3D scene.
+Options after ``?`` override the source's section of ``configs/scenes.yaml``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from ..errors import InputError
+
+SOURCES = ("mesh", "hm3d", "floorplan", "procedural")
+MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
+DEFAULT_SPEC = "procedural:0"
+
+
+@dataclass
+class SceneSpec:
+    """A parsed scene spec: `source`, its `argument` (path or seed) and `options`."""
+
+    source: str
+    argument: str
+    options: dict = field(default_factory=dict)
+    text: str = ""
+
+
+def _parse_value(text: str):
+    """``"0.05"`` -> 0.05, ``"true"`` -> True, anything else stays a string."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+def _guess_source(argument: str) -> str:
+    path = Path(argument)
+    if path.suffix.lower() in MESH_SUFFIXES:
+        return "mesh"
+    if path.is_dir():
+        if (path / "occ_map.npy").is_file():
+            return "floorplan"
+        if any(path.glob("*.glb")):
+            return "hm3d"
+        raise InputError(f"{argument}: folder is neither a floor plan (no occ_map.npy) "
+                         "nor an HM3D scene (no .glb)")
+    if path.suffix.lower() in (".npy", ".png", ".pgm", ".jpg", ".bmp", ".tif", ".tiff"):
+        return "floorplan"
+    if not path.exists():
+        raise InputError(f"{argument}: no such file, and not a known scene source "
+                         f"(use one of {', '.join(s + ':' for s in SOURCES)} or 'default')")
+    raise InputError(f"{argument}: unsupported scene format '{path.suffix}' "
+                     f"(supported meshes: {', '.join(MESH_SUFFIXES)})")
+
+
+def parse_spec(text: str) -> SceneSpec:
+    """Parse a scene spec string; raises :class:`InputError` on a malformed one."""
+    text = str(text).strip()
+    if not text:
+        raise InputError("empty scene spec")
+    if text == "default":
+        text = DEFAULT_SPEC
+    body, _, query = text.partition("?")
+    options = {}
+    if query:
+        for item in query.split("&"):
+            key, eq, value = item.partition("=")
+            if not eq or not key:
+                raise InputError(f"scene spec '{text}': option '{item}' is not key=value")
+            options[key] = _parse_value(value)
+    source, colon, argument = body.partition(":")
+    if colon and source in SOURCES:
+        if not argument:
+            raise InputError(f"scene spec '{text}': nothing after '{source}:'")
+        return SceneSpec(source, argument, options, text)
+    return SceneSpec(_guess_source(body), body, options, text)
