@@ -61,7 +61,7 @@ class SceneMetadata:
     extra: dict = field(default_factory=dict)
 
 
-@dataclass
+@dataclass(eq=False)  # identity semantics: scenes are hashable keys of per-scene caches
 class Scene:
     """A triangle mesh with per-triangle material, in world coordinates (Z-up, metres).
 

@@ -1,0 +1,1 @@
+"""The simulator: Open3D ray-cast camera, voxelisation, pose sampling and agent motion."""
