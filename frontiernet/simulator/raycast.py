@@ -34,7 +34,8 @@ def cast_rays(scene: Scene, rays: np.ndarray) -> dict[str, np.ndarray]:
     (``INVALID_ID`` = no hit), ``primitive_uvs`` (..., 2) barycentrics of corners 1 and 2,
     ``primitive_normals`` (..., 3) unit face normals (winding order, not oriented).
     """
-    answer = raycasting_scene(scene).cast_rays(o3d.core.Tensor(np.ascontiguousarray(rays, np.float32)))
+    rays = np.ascontiguousarray(rays, np.float32)
+    answer = raycasting_scene(scene).cast_rays(o3d.core.Tensor.from_numpy(rays))
     return {key: value.numpy() for key, value in answer.items()}
 
 

@@ -1,0 +1,233 @@
+"""The simulated camera: RGB, metric z-depth, normals and hit mask by Open3D ray casting.
+
+Defaults from the paper (DESIGN.md): 480 x 480 pixels, f = 300 px (77.32 degrees field
+of view), depth beyond 3.5 m invalid. Pixel centres sit at integer coordinates (OpenCV),
+so the principal point of a W x H image is ((W - 1) / 2, (H - 1) / 2).
+
+Open3D's ``RaycastingScene`` is built once per scene (:mod:`.raycast`). Rays are cast
+with unnormalised camera-frame directions ``((u - cx) / fx, (v - cy) / fy, 1)``, so the
+returned hit distance *is* the z-depth, with no per-pixel division.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from ..errors import InputError
+from ..scenes import Scene
+from .raycast import INVALID_ID, cast_rays
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """Pinhole intrinsics (pixels) and the depth sensor's range (metres)."""
+
+    width: int = 480
+    height: int = 480
+    fx: float = 300.0
+    fy: float = 300.0
+    cx: float = 239.5
+    cy: float = 239.5
+    max_depth: float = 3.5
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0:
+            raise InputError(f"camera size must be positive, got {self.width} x {self.height}")
+        if not (self.fx > 0 and self.fy > 0):
+            raise InputError(f"camera focal length must be positive, got fx={self.fx}, fy={self.fy}")
+        if not self.max_depth > 0:
+            raise InputError(f"camera max_depth must be positive, got {self.max_depth}")
+
+    @classmethod
+    def from_config(cls, conf) -> "PinholeCamera":
+        """From the ``camera`` section of ``configs/sim.yaml`` (centred principal point)."""
+        width, height = int(conf.width), int(conf.height)
+        return cls(width, height, float(conf.focal_px), float(conf.focal_px),
+                   (width - 1) / 2.0, (height - 1) / 2.0, float(conf.max_depth))
+
+    @classmethod
+    def from_K(cls, K: np.ndarray, width: int, height: int, max_depth: float = 3.5) -> "PinholeCamera":
+        K = np.asarray(K, np.float64)
+        return cls(int(width), int(height), float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]),
+                   float(max_depth))
+
+    @property
+    def K(self) -> np.ndarray:
+        """(3, 3) float64 intrinsic matrix."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def horizontal_fov_deg(self) -> float:
+        return float(np.degrees(2 * np.arctan(self.width / 2.0 / self.fx)))
+
+    def ray_directions(self) -> np.ndarray:
+        """(H, W, 3) float32 camera-frame directions with unit z (so hit distance = z-depth)."""
+        u, v = np.meshgrid(np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64))
+        return np.stack([(u - self.cx) / self.fx, (v - self.cy) / self.fy, np.ones_like(u)], -1).astype(np.float32)
+
+
+@dataclass
+class Frame:
+    """One rendered view (or a batch, with a leading B axis on every array).
+
+    Attributes:
+        rgb: (H, W, 3) uint8; background colour where nothing is hit.
+        depth: (H, W) float32 metres, z-depth along the optical axis; NaN where no
+            surface is hit or the hit is beyond ``max_depth`` (invalid, never 0).
+        normals: (H, W, 3) float32 unit surface normals in the *world* frame, turned
+            towards the camera; 0 where nothing is hit.
+        hit_mask: (H, W) bool, the ray hit a surface at any distance (RGB is valid
+            there even beyond the depth sensor's range).
+        T_world_cam: (4, 4) float64 camera pose.
+        K: (3, 3) float64 intrinsics.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    normals: np.ndarray
+    hit_mask: np.ndarray
+    T_world_cam: np.ndarray
+    K: np.ndarray = field(repr=False)
+
+    def __getitem__(self, index: int) -> "Frame":
+        """The `index`-th frame of a batch."""
+        return Frame(self.rgb[index], self.depth[index], self.normals[index], self.hit_mask[index],
+                     self.T_world_cam[index], self.K)
+
+
+class _Shader:
+    """Per-triangle lookup tables for colouring ray hits in one compiled pass.
+
+    Every material becomes a texture in one flat texel array: a textured material its
+    image, an untextured one a single texel of its colour. Per triangle we store its
+    UV origin and edge vectors, its texture's offset, width and height, and whether it
+    takes interpolated vertex colours instead.
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        texels, offsets, sizes = [], [], []
+        offset = 0
+        for material in scene.materials:
+            image = material.texture if material.texture is not None else material.color.reshape(1, 1, 3)
+            texels.append(image.reshape(-1, 3))
+            offsets.append(offset)
+            sizes.append(image.shape[:2])
+            offset += image.shape[0] * image.shape[1]
+        self.texels = np.ascontiguousarray(np.concatenate(texels))
+        mat = scene.triangle_material
+        sizes = np.asarray(sizes, np.int64)
+        # (T, 3) int64: texel offset, width, height
+        self.tri_texture = np.ascontiguousarray(
+            np.stack([np.asarray(offsets, np.int64)[mat], sizes[mat, 1], sizes[mat, 0]], 1))
+        if scene.triangle_uvs is not None:
+            uv = scene.triangle_uvs
+            # (T, 6) float32: uv0, uv1 - uv0, uv2 - uv0
+            self.tri_uv = np.ascontiguousarray(
+                np.concatenate([uv[:, 0], uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]], 1), np.float32)
+        else:
+            self.tri_uv = np.zeros((len(mat), 6), np.float32)
+        vertex_colored = np.array([m.use_vertex_colors for m in scene.materials], bool)
+        self.tri_vertex_colored = np.ascontiguousarray(vertex_colored[mat])
+        self.triangle_colors = (np.ascontiguousarray(scene.vertex_colors[scene.triangles], np.float32)
+                                if vertex_colored.any() else np.zeros((1, 3, 3), np.float32))
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _shade_hits(t_hit, prim, bary, face_normals, rays, max_depth, tri_texture, tri_uv, texels,
+                tri_vertex_colored, triangle_colors, background, depth, rgb, normals, hit):  # pragma: no cover
+    """One pass over N rays (N, 6): depth with range limit, texture/colour lookup, normals facing the camera."""
+    invalid = np.uint32(INVALID_ID)
+    for i in numba.prange(t_hit.shape[0]):
+        p = prim[i]
+        if p == invalid:
+            hit[i] = False
+            depth[i] = np.nan
+            for c in range(3):
+                rgb[i, c] = background[c]
+                normals[i, c] = 0.0
+            continue
+        hit[i] = True
+        depth[i] = t_hit[i] if t_hit[i] <= max_depth else np.nan
+        b1, b2 = bary[i, 0], bary[i, 1]
+        if tri_vertex_colored[p]:
+            for c in range(3):
+                value = (triangle_colors[p, 0, c] * (1.0 - b1 - b2) + triangle_colors[p, 1, c] * b1
+                         + triangle_colors[p, 2, c] * b2)
+                rgb[i, c] = np.uint8(min(max(value, 0.0), 255.0))
+        else:
+            width, height = tri_texture[p, 1], tri_texture[p, 2]
+            u = tri_uv[p, 0] + b1 * tri_uv[p, 2] + b2 * tri_uv[p, 4]
+            v = tri_uv[p, 1] + b1 * tri_uv[p, 3] + b2 * tri_uv[p, 5]
+            u -= np.floor(u)  # wrap mode repeat
+            v -= np.floor(v)
+            col = min(np.int64(u * width), width - 1)
+            row = min(np.int64((1.0 - v) * height), height - 1)  # OpenGL UVs: v up
+            texel = tri_texture[p, 0] + row * width + col
+            for c in range(3):
+                rgb[i, c] = texels[texel, c]
+        dot = (face_normals[i, 0] * rays[i, 3] + face_normals[i, 1] * rays[i, 4]
+               + face_normals[i, 2] * rays[i, 5])
+        sign = -1.0 if dot > 0 else 1.0
+        for c in range(3):
+            normals[i, c] = sign * face_normals[i, c]
+
+
+@numba.njit(parallel=True, cache=True)
+def _make_rays(directions, T, rays):  # pragma: no cover
+    """(N, 3) camera-frame directions, (B, 4, 4) poses -> fills (B, N, 6) world rays."""
+    for b in range(T.shape[0]):
+        for i in numba.prange(directions.shape[0]):
+            for c in range(3):
+                rays[b, i, c] = T[b, c, 3]
+                rays[b, i, 3 + c] = (T[b, c, 0] * directions[i, 0] + T[b, c, 1] * directions[i, 1]
+                                     + T[b, c, 2] * directions[i, 2])
+
+
+class Renderer:
+    """Renders a scene through a :class:`PinholeCamera` at any ``T_world_cam`` pose(s)."""
+
+    def __init__(self, scene: Scene, camera: PinholeCamera | None = None, background=(0, 0, 0)) -> None:
+        self.scene = scene
+        self.camera = camera or PinholeCamera()
+        self.background = np.asarray(background, np.uint8).reshape(3)
+        self._directions = self.camera.ray_directions()  # (H, W, 3) camera frame
+        self._shader = _Shader(scene)
+
+    def rays(self, T_world_cams: np.ndarray) -> np.ndarray:
+        """(B, 4, 4) poses -> (B, H, W, 6) float32 world-frame rays (origin, direction)."""
+        T = np.asarray(T_world_cams, np.float64).reshape(-1, 4, 4)
+        if not np.isfinite(T).all():
+            raise InputError("camera pose contains NaN or infinite values")
+        B, (H, W) = len(T), self._directions.shape[:2]
+        rays = np.empty((B, H * W, 6), np.float32)
+        _make_rays(self._directions.reshape(-1, 3), T.astype(np.float32), rays)
+        rays = rays.reshape(B, H, W, 6)
+        return rays
+
+    def render(self, T_world_cam: np.ndarray) -> Frame:
+        """Render one (4, 4) pose; see :class:`Frame` for the outputs."""
+        return self.render_batch(np.asarray(T_world_cam)[None])[0]
+
+    def render_batch(self, T_world_cams: np.ndarray) -> Frame:
+        """Render (B, 4, 4) poses with a single ray cast; arrays carry a leading B axis."""
+        T = np.asarray(T_world_cams, np.float64).reshape(-1, 4, 4)
+        rays = self.rays(T)
+        answer = cast_rays(self.scene, rays)
+        shape = rays.shape[:-1]
+        n = int(np.prod(shape))
+        depth = np.empty(n, np.float32)
+        rgb = np.empty((n, 3), np.uint8)
+        normals = np.empty((n, 3), np.float32)
+        hit = np.empty(n, bool)
+        shader = self._shader
+        _shade_hits(answer["t_hit"].reshape(n), answer["primitive_ids"].reshape(n),
+                    answer["primitive_uvs"].reshape(n, 2), answer["primitive_normals"].reshape(n, 3),
+                    rays.reshape(n, 6), np.float32(self.camera.max_depth), shader.tri_texture,
+                    shader.tri_uv, shader.texels, shader.tri_vertex_colored, shader.triangle_colors,
+                    self.background, depth, rgb, normals, hit)
+        depth, rgb, normals, hit = depth.reshape(shape), rgb.reshape(shape + (3,)), \
+            normals.reshape(shape + (3,)), hit.reshape(shape)
+        return Frame(rgb=rgb, depth=depth, normals=normals, hit_mask=hit, T_world_cam=T, K=self.camera.K)
