@@ -1,0 +1,71 @@
+"""Depth sources behind one interface (:class:`DepthSource`).
+
+* ``ground_truth``: the simulator's depth, unchanged.
+* ``emulated``: ground truth degraded like a monocular model (scale error, edge
+  bleeding, blur, noise, dense fill), seedable.
+* ``depth_anything_v2``: Depth Anything V2 metric (transformers), local weights.
+* ``metric3d_v2``: Metric3D v2 (torch.hub, local clone and checkpoint).
+
+Every source maps (H, W, 3) uint8 RGB and (3, 3) float64 ``K`` (plus ground truth for
+those with ``requires_ground_truth``) to (H, W) float32 metres, NaN invalid. Options
+live in ``configs/depth.yaml``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from omegaconf import DictConfig
+
+from ..errors import InputError
+from .base import DepthSource
+from .depth_anything import DepthAnythingV2
+from .emulated import EmulatedMonocularDepth
+from .ground_truth import GroundTruthDepth
+from .metric3d import Metric3DV2
+
+SOURCES: dict[str, type[DepthSource]] = {
+    "ground_truth": GroundTruthDepth,
+    "emulated": EmulatedMonocularDepth,
+    "depth_anything_v2": DepthAnythingV2,
+    "metric3d_v2": Metric3DV2,
+}
+
+
+def make_depth_source(
+    name_or_conf: str | Mapping[str, Any] | DictConfig,
+    conf: Mapping[str, Any] | DictConfig | None = None,
+) -> DepthSource:
+    """Build a depth source.
+
+    Args:
+        name_or_conf: a source name (one of :data:`SOURCES`), or a whole depth config
+            (like ``configs/depth.yaml``) whose ``source`` key names the source.
+        conf: with a name: that source's options, either its section alone or a whole
+            depth config holding a section of that name; missing keys take the shipped
+            defaults. Ignored when `name_or_conf` is a config.
+    Raises:
+        InputError: unknown source name, unknown or bad option, absent weights.
+    """
+    if isinstance(name_or_conf, str):
+        name = name_or_conf
+    else:
+        if not isinstance(name_or_conf, (Mapping, DictConfig)) or "source" not in name_or_conf:
+            raise InputError("depth config: expected a source name or a mapping with a 'source' key")
+        name, conf = str(name_or_conf["source"]), name_or_conf
+    if name not in SOURCES:
+        raise InputError(f"depth source '{name}' is unknown; valid: {', '.join(SOURCES)}")
+    if conf is not None and ("source" in conf or isinstance(conf.get(name), (Mapping, DictConfig))):
+        conf = conf.get(name)  # a whole depth config: take this source's section
+    return SOURCES[name](conf)
+
+
+__all__ = [
+    "DepthSource",
+    "GroundTruthDepth",
+    "EmulatedMonocularDepth",
+    "DepthAnythingV2",
+    "Metric3DV2",
+    "SOURCES",
+    "make_depth_source",
+]

@@ -1,0 +1,90 @@
+"""The one interface every depth source implements, and the input checks they share.
+
+A depth source turns a camera frame into a metric depth map:
+
+* ``rgb``: (H, W, 3) uint8 image.
+* ``K``: (3, 3) float64 pinhole intrinsics, OpenCV convention (pixel centres at
+  integer coordinates).
+* ``gt_depth``: optional (H, W) float32 ground-truth z-depth in metres, NaN = invalid
+  (non-finite or non-positive values are also read as invalid).
+* output: (H, W) float32 z-depth along the optical axis in metres, NaN = invalid
+  (never 0). Monocular models return dense maps.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from ..errors import InputError
+
+
+class DepthSource(ABC):
+    """A depth source. Subclasses set :attr:`name` and :attr:`requires_ground_truth`."""
+
+    name: str = "depth"
+    #: True when :meth:`estimate` needs ``gt_depth`` (simulation only).
+    requires_ground_truth: bool = False
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start a new episode; sources with randomness reseed from `seed`."""
+
+    @abstractmethod
+    def estimate(self, rgb: np.ndarray, K: np.ndarray, gt_depth: np.ndarray | None = None) -> np.ndarray:
+        """(H, W) float32 metres, NaN invalid, for one (H, W, 3) uint8 frame."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(name={self.name!r})"
+
+
+def check_rgb(rgb: np.ndarray) -> np.ndarray:
+    """Validate an (H, W, 3) uint8 image; return it as a C-contiguous array."""
+    rgb = np.asarray(rgb)
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.shape[0] < 1 or rgb.shape[1] < 1:
+        raise InputError(f"rgb: expected an (H, W, 3) image, got shape {rgb.shape}")
+    if rgb.dtype != np.uint8:
+        raise InputError(f"rgb: expected dtype uint8, got {rgb.dtype}")
+    return np.ascontiguousarray(rgb)
+
+
+def check_K(K: np.ndarray) -> np.ndarray:
+    """Validate (3, 3) pinhole intrinsics with positive focal lengths; return float64."""
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)):
+        raise InputError(f"K: expected finite (3, 3) intrinsics, got shape {K.shape}")
+    if K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise InputError(f"K: focal lengths must be positive, got fx={K[0, 0]}, fy={K[1, 1]}")
+    return K
+
+
+def check_gt_depth(gt_depth: np.ndarray | None, shape: tuple[int, int] | None, source: str) -> np.ndarray:
+    """Validate ground truth for `source`: (H, W) metres, returned float32 with NaN invalid.
+
+    Non-finite and non-positive values are turned into NaN. `shape` (H, W), when given,
+    must match.
+    """
+    if gt_depth is None:
+        raise InputError(f"gt_depth: depth source '{source}' needs ground-truth depth, got None")
+    depth = np.array(gt_depth, dtype=np.float32, copy=True)
+    if depth.ndim != 2:
+        raise InputError(f"gt_depth: expected an (H, W) depth map, got shape {depth.shape}")
+    if shape is not None and depth.shape != tuple(shape):
+        raise InputError(f"gt_depth: shape {depth.shape} does not match the image's {tuple(shape)}")
+    with np.errstate(invalid="ignore"):
+        depth[~(np.isfinite(depth) & (depth > 0))] = np.nan
+    return depth
+
+
+def resolve_device(device: str) -> str:
+    """Map a config ``device`` (``auto``, ``cpu``, ``cuda``, ``cuda:N``) to a torch device string."""
+    import torch
+
+    device = str(device)
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise InputError(f"device: '{device}' requested but CUDA is not available (use 'cpu' or 'auto')")
+    if device != "cpu" and not device.startswith("cuda"):
+        raise InputError(f"device: expected auto, cpu, cuda or cuda:N, got '{device}'")
+    return device
