@@ -1,21 +1,20 @@
 """Scene specs: the strings users pass to name a scene.
 
-Syntax: ``[SOURCE:]ARGUMENT[?key=value&key=value...]``
+Syntax: [SOURCE:]ARGUMENT[?key=value&key=value...]
 
-=================================  ==========================================================
-``path/to/scene.glb``              a mesh file (``.glb``, ``.gltf``, ``.obj``, ``.ply``), as stored
-``mesh:path.glb?up=y``             a mesh file, converting Y-up to Z-up (``up=z`` is the default)
-``hm3d:ROOT/SPLIT/00800-TEEsavR23oF``  an HM3D scene folder (or its ``<id>.glb``); Y-up converted
-``floorplan:path/occ.png?resolution=0.05``  a 2D occupancy image or ``.npy`` (metres/pixel)
-``floorplan:kth/50052750``         a KTH/MapEx folder (``occ_map.npy``, ``valid_space.npy``), 0.05 m/px
-``procedural:7``                   the built-in multi-room generator, seed 7
-``procedural:7?floors=2``          ... with generator options (see ``configs/scenes.yaml``)
-``default``                        ``procedural:0``
-=================================  ==========================================================
+  path/to/scene.glb                   a mesh file (.glb, .gltf, .obj, .ply), loaded as stored
+  mesh:path/to/scene.glb?up=y         a mesh file, converting Y-up to Z-up (up=z is the default)
+  hm3d:ROOT/SPLIT/00800-TEEsavR23oF   an HM3D scene folder (or its <id>.glb); Y-up converted
+  floorplan:plan.png?resolution=0.05  a 2D occupancy image or .npy array (metres/pixel)
+  floorplan:path/to/kth/50052750      a KTH/MapEx folder (occ_map.npy, valid_space.npy), 0.05 m/px
+  procedural:7                        the built-in multi-room generator, seed 7
+  procedural:7?floors=2               ... with generator options (configs/scenes.yaml)
+  default                             procedural:0
 
 A bare path is recognised by what it is: a mesh file by its extension, a folder with
-``occ_map.npy`` as a floor plan, a folder with a ``.glb`` as an HM3D scene.
-Options after ``?`` override the source's section of ``configs/scenes.yaml``.
+occ_map.npy as a floor plan, a folder with a .glb as an HM3D scene. Options after '?'
+override the source's section of configs/scenes.yaml (e.g. floorplan: wall_height,
+ceiling, door_height; mesh: up, scale).
 """
 
 from __future__ import annotations

@@ -1,0 +1,1 @@
+"""The ``frontiernet`` command line: one console script, one module per subcommand."""

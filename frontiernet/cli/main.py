@@ -1,0 +1,58 @@
+"""``frontiernet`` entry point: dispatches subcommands, turns bad input into exit code 2.
+
+Each subcommand module exposes ``add_parser(subparsers)``, which registers its parser
+and sets ``func`` to the function that runs it with the parsed arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from .. import __version__
+from ..errors import InputError
+from . import bench, demo, render, scene
+
+COMMANDS = (scene, render, demo, bench)
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but usage errors are one line with exit code 2 (argparse's own code)."""
+
+    def error(self, message: str):  # noqa: D401
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="frontiernet",
+                     description="frontiernet: visual frontier learning (FrontierNet, RA-L 2025). "
+                                 "Scenes, the ray-cast simulator, data generation, training and exploration.")
+    parser.add_argument("--version", action="version", version=f"frontiernet {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="%(levelname)s: %(message)s")
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except InputError as error:
+        print(f"frontiernet {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"frontiernet {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""Writing outputs atomically, so an interrupted run never leaves a half-written file."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+
+def ensure_dir(path: str | Path) -> Path:
+    """Create output folder `path` (and parents); fail with a clear message if impossible."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: output path exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InputError(f"{path}: cannot create output folder ({error.strerror})") from None
+    return path
+
+
+def atomic_write(path: str | Path, write) -> Path:
+    """Call ``write(tmp_path)`` on a temporary file beside `path`, then rename it into place."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def write_json(path: str | Path, data) -> Path:
+    return atomic_write(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
+
+
+def write_npy(path: str | Path, array: np.ndarray) -> Path:
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as handle:
+            np.save(handle, array)
+
+    return atomic_write(path, write)
+
+
+def write_image(path: str | Path, rgb: np.ndarray) -> Path:
+    """Write an (H, W, 3) uint8 RGB image (format from the suffix, e.g. .png)."""
+    import cv2
+
+    def write(tmp: Path) -> None:
+        ok, data = cv2.imencode(Path(path).suffix, np.ascontiguousarray(rgb[..., ::-1]))
+        if not ok:
+            raise InputError(f"{path}: cannot encode image")
+        tmp.write_bytes(data.tobytes())
+
+    return atomic_write(path, write)
+
+
+def colorize_depth(depth: np.ndarray, max_depth: float) -> np.ndarray:
+    """(H, W) float metres (NaN invalid) -> (H, W, 3) uint8 turbo colour image, invalid black."""
+    import cv2
+
+    valid = np.isfinite(depth)
+    scaled = np.zeros(depth.shape, np.uint8)
+    scaled[valid] = (np.clip(depth[valid] / max_depth, 0, 1) * 255).astype(np.uint8)
+    colored = cv2.applyColorMap(scaled, cv2.COLORMAP_TURBO)[..., ::-1].copy()
+    colored[~valid] = 0
+    return colored

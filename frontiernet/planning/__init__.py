@@ -1,0 +1,1 @@
+"""Planning: grid path search (and, later, the frontier-tree planner)."""
