@@ -75,7 +75,7 @@ def run(args) -> int:
     voxels = voxelize_scene(scene, sim.voxels)
     poses = plan_flythrough(scene, voxels, conf.flythrough)
     renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), sim.camera.background)
-    agent = Agent(scene, sim.agent, poses[0])
+    agent = Agent(scene, poses[0], sim.agent, voxels)
     frames, trajectory, collisions = [], [], 0
     with Progress(transient=True) as progress:
         task = progress.add_task(f"fly-through of {scene.name}", total=len(poses))

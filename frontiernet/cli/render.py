@@ -61,7 +61,7 @@ def run(args) -> int:
         from ..simulator.poses import check_pose
         from ..simulator.voxels import voxelize_scene
 
-        check_pose(scene, voxelize_scene(scene, conf.voxels), np.array([x, y, z]), conf.poses.min_clearance)
+        check_pose(scene, voxelize_scene(scene, conf.voxels), np.array([x, y, z]), conf=conf.poses)
     out = ensure_dir(args.out)
     camera = PinholeCamera.from_config(conf.camera)
     frame = Renderer(scene, camera, conf.camera.background).render(pose_from_heading(x, y, z, yaw, pitch))

@@ -19,6 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
+from ..simulator.voxels import enclosed_free as building_inside  # shared with 3D voxelisation
 from .builder import MeshBuilder
 from .scene import Material, Scene, SceneMetadata
 from .textures import make_texture
@@ -89,28 +90,13 @@ def _rect_boxes(rects: np.ndarray, shape, resolution: float, z0: float, z1: floa
     return lower, upper
 
 
-def building_inside(free: np.ndarray, resolution: float, gap_closing_m: float) -> np.ndarray:
-    """Free pixels enclosed by the building: not reachable from the image border.
-
-    Openings narrower than `gap_closing_m` (doors to the outside) are treated as
-    closed: the flood from the border only passes pixels farther than half that from
-    any obstacle, and is then grown back by the same radius.
-    """
-    radius_px = gap_closing_m / 2.0 / resolution
-    padded = np.pad(free, 1, constant_values=True)
-    clearance = ndimage.distance_transform_edt(padded)
-    labels, _ = ndimage.label(clearance > radius_px)
-    border = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-    flood = np.isin(labels, border[border > 0])
-    outside = ndimage.distance_transform_edt(~flood) <= radius_px
-    return (padded & ~outside)[1:-1, 1:-1]
-
-
 def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below: int, free_above: int,
                    gap_closing_m: float, kth_resolution: float, spec_text: str) -> FloorPlan:
     """Read a plan image, ``.npy`` array, or KTH/MapEx folder (``occ_map.npy`` + ``valid_space.npy``)."""
     path = Path(path)
     valid = None
+    if resolution is not None:
+        _check_resolution(resolution, spec_text)
     if path.is_dir():
         if not (path / "occ_map.npy").is_file():
             raise InputError(f"{path}: floor-plan folder has no occ_map.npy")
@@ -123,8 +109,7 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
     if resolution is None:
         raise InputError(f"{spec_text}: a floor plan needs its resolution in metres/pixel "
                          "(add '?resolution=0.05')")
-    if not isinstance(resolution, (int, float)) or not np.isfinite(resolution) or resolution <= 0:
-        raise InputError(f"{spec_text}: resolution must be a positive number of metres/pixel, got {resolution!r}")
+    _check_resolution(resolution, spec_text)
     image = _load_array(path) if path.suffix.lower() == ".npy" else _load_image(path)
     if image.ndim != 2 or min(image.shape) < 3:
         raise InputError(f"{path}: a floor plan must be a 2D image of at least 3x3 pixels, got shape {image.shape}")
@@ -147,6 +132,12 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
         raise InputError(f"{path}: the floor plan has no free space inside a building")
     return FloorPlan(occupied=occupied, inside=inside | (occupied & ndimage.binary_dilation(inside)),
                      doors=doors, resolution=float(resolution))
+
+
+def _check_resolution(resolution, spec_text: str) -> None:
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) \
+            or not np.isfinite(resolution) or resolution <= 0:
+        raise InputError(f"{spec_text}: resolution must be a positive number of metres/pixel, got {resolution!r}")
 
 
 def _load_array(path: Path) -> np.ndarray:

@@ -1,0 +1,353 @@
+"""Voxelise a scene: occupied (surface) voxels, the explorable free interior, and the outside.
+
+Frames and units: world frame Z-up, metres. A :class:`VoxelGrid` of shape (X, Y, Z)
+covers ``origin + [0, shape) * voxel_size``; voxel ``(i, j, k)`` spans
+``origin + [i, i+1) * voxel_size`` on x (likewise y, z) and its centre is
+``origin + (i + 0.5) * voxel_size``.
+
+Three classes of voxels:
+
+* **occupied**: voxels a scene triangle intersects (exact triangle/box overlap test,
+  separating-axis theorem, vectorised in numpy: thin walls are closed, no holes).
+* **explorable**: the free interior, the volume an exploration run must discover
+  (Vox@k in DESIGN.md is a fraction of it).
+* **outside**: everything else (the outside of the building, the inside of walls and
+  closed furniture); neither occupied nor explorable.
+
+The interior is found per horizontal slice, so scenes without a ceiling (the shared
+house) and buildings with open doors to the outside still give a sensible volume: a
+free voxel is *outside* when a flood fill from the grid's lateral border reaches it,
+where the flood only passes voxels farther than ``gap_closing_m / 2`` (in-plane) from
+occupied ones and is then grown back by that radius, so openings narrower than
+``gap_closing_m`` (doors, windows) seal the inside. The largest 6-connected component
+of the remaining free voxels is the explorable volume (this drops closed cabinets and
+wall interiors). The grid's z-range is the scene's bounds: there is no free space
+above the scene's top.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import InputError
+
+if TYPE_CHECKING:  # the scenes package imports this module (floor plans), keep it lazy
+    from omegaconf import DictConfig
+
+    from ..scenes import Scene
+
+
+@dataclass
+class VoxelGrid:
+    """A voxelised scene (world frame, Z-up, metres).
+
+    Attributes:
+        origin: (3,) float64, world position (metres) of the corner of voxel (0, 0, 0).
+        voxel_size: edge length of a voxel in metres.
+        occupied: (X, Y, Z) bool, voxels intersected by the scene's surface.
+        explorable: (X, Y, Z) bool, the free interior (disjoint from `occupied`).
+        enclosed: (X, Y, Z) bool or None, every free voxel inside the building's walls
+            (a superset of `explorable`: also wall interiors and closed cabinets); tells
+            "inside an obstacle" from "outside the building".
+    """
+
+    origin: np.ndarray
+    voxel_size: float
+    occupied: np.ndarray
+    explorable: np.ndarray
+    enclosed: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.origin = np.asarray(self.origin, np.float64).reshape(3)
+        self.voxel_size = float(self.voxel_size)
+        if self.occupied.shape != self.explorable.shape or self.occupied.ndim != 3:
+            raise ValueError(f"occupied {self.occupied.shape} and explorable {self.explorable.shape} "
+                             "must be equal 3D shapes")
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return tuple(int(n) for n in self.occupied.shape)  # type: ignore[return-value]
+
+    @property
+    def outside(self) -> np.ndarray:
+        """(X, Y, Z) bool, voxels neither occupied nor explorable."""
+        return ~(self.occupied | self.explorable)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64 world [min, max] corners of the grid, metres."""
+        return np.stack([self.origin, self.origin + np.asarray(self.shape) * self.voxel_size])
+
+    @property
+    def num_occupied(self) -> int:
+        return int(np.count_nonzero(self.occupied))
+
+    @property
+    def num_explorable(self) -> int:
+        return int(np.count_nonzero(self.explorable))
+
+    @property
+    def explorable_volume_m3(self) -> float:
+        """Explorable volume in cubic metres."""
+        return self.num_explorable * self.voxel_size ** 3
+
+    def world_to_index(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points (metres) -> (..., 3) int64 voxel indices (may be out of range; -1 if not finite)."""
+        scaled = (np.asarray(points, np.float64) - self.origin) / self.voxel_size
+        scaled = np.where(np.isfinite(scaled), scaled, -1.0)
+        return np.floor(np.clip(scaled, -2.0**62, 2.0**62)).astype(np.int64)
+
+    def index_to_world(self, index: np.ndarray) -> np.ndarray:
+        """(..., 3) integer voxel indices -> (..., 3) float64 world positions of the voxel centres."""
+        return self.origin + (np.asarray(index, np.float64) + 0.5) * self.voxel_size
+
+    def in_grid(self, index: np.ndarray) -> np.ndarray:
+        """(..., 3) indices -> (...,) bool, inside the grid."""
+        index = np.asarray(index)
+        return np.all((index >= 0) & (index < np.asarray(self.shape)), axis=-1)
+
+    def _lookup(self, array: np.ndarray, points: np.ndarray) -> np.ndarray:
+        index = self.world_to_index(points)
+        inside = self.in_grid(index)
+        out = np.zeros(index.shape[:-1], bool)
+        i = index[inside]
+        out[inside] = array[i[:, 0], i[:, 1], i[:, 2]]
+        return out
+
+    def is_explorable(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points (metres) -> (...,) bool, in an explorable voxel (False off the grid)."""
+        return self._lookup(self.explorable, points)
+
+    def is_enclosed(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points -> (...,) bool, in a free voxel enclosed by the building (explorable or not)."""
+        return self._lookup(self.explorable if self.enclosed is None else self.enclosed, points)
+
+    def is_occupied(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points (metres) -> (...,) bool, in an occupied voxel (False off the grid)."""
+        return self._lookup(self.occupied, points)
+
+    def explorable_centres(self) -> np.ndarray:
+        """(N, 3) float64 world centres of the explorable voxels (metres)."""
+        return self.index_to_world(np.argwhere(self.explorable))
+
+
+def voxels_config(conf: "DictConfig | None") -> "DictConfig":
+    """The ``voxels`` section from `conf` (a whole sim config or the section), default when None."""
+    if conf is None:
+        from ..config import load_config
+
+        conf = load_config("sim")
+    return conf["voxels"] if "voxels" in conf else conf
+
+
+def _positive(conf, key: str, *, allow_zero: bool = False) -> float:
+    value = conf[key]
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value) \
+        and (value >= 0 if allow_zero else value > 0)
+    if not ok:
+        raise InputError(f"voxels.{key} must be a {'non-negative' if allow_zero else 'positive'} "
+                         f"number of metres, got {value!r}")
+    return float(value)
+
+
+def voxelize_scene(scene: "Scene", conf: "DictConfig | None" = None) -> VoxelGrid:
+    """Voxelise `scene` into occupied / explorable / outside voxels (see module docstring).
+
+    Args:
+        scene: a :class:`~frontiernet.scenes.Scene` (world frame, Z-up, metres).
+        conf: the ``voxels`` section of ``configs/sim.yaml`` (or the whole sim config);
+            loaded when None.
+    Returns:
+        A :class:`VoxelGrid` whose lateral extent is the scene bounds plus
+        ``lateral_margin_m`` and whose z-range is the scene bounds.
+    Raises:
+        InputError: non-positive ``voxel_size`` (or other bad values), a grid larger than
+            ``max_voxels``, or a scene with no explorable interior.
+    """
+    conf = voxels_config(conf)
+    size = _positive(conf, "voxel_size")
+    gap = _positive(conf, "gap_closing_m", allow_zero=True)
+    margin = _positive(conf, "lateral_margin_m", allow_zero=True)
+    bounds = scene.bounds
+    origin = bounds[0] - np.array([margin, margin, 0.0])
+    extent = bounds[1] + np.array([margin, margin, 0.0]) - origin
+    shape = np.floor(extent / size).astype(np.int64) + 1  # closed upper bound: a top face gets a layer
+    if int(np.prod(shape)) > int(conf.max_voxels):
+        raise InputError(f"{scene.metadata.spec}: voxel_size {size} m gives a {tuple(shape.tolist())} grid "
+                         f"({int(np.prod(shape)):,} voxels > voxels.max_voxels {int(conf.max_voxels):,}); "
+                         "use a larger voxel size")
+    occupied = surface_voxels(scene.vertices, scene.triangles, origin, size, tuple(shape.tolist()),
+                              chunk=int(conf.chunk_candidates))
+    interior = enclosed_free(~occupied, size, gap)
+    explorable = largest_component(interior) if bool(conf.keep_largest_component) else interior
+    if not explorable.any():
+        raise InputError(f"{scene.metadata.spec}: the scene has no explorable free space at voxel size "
+                         f"{size} m (no enclosed interior; gap_closing_m = {gap})")
+    return VoxelGrid(origin=origin, voxel_size=size, occupied=occupied, explorable=explorable, enclosed=interior)
+
+
+# ----------------------------------------------------------------------------- surfaces
+
+
+def _split_jobs(lo: np.ndarray, hi: np.ndarray, tri: np.ndarray, chunk: int):
+    """Split (triangle, inclusive index box) jobs until each box holds <= `chunk` voxels."""
+    while True:
+        counts = np.prod(hi - lo + 1, axis=1)
+        big = counts > chunk
+        if not big.any():
+            return lo, hi, tri, counts
+        blo, bhi = lo[big], hi[big]
+        axis = np.argmax(bhi - blo, axis=1)
+        rows = np.arange(len(blo))
+        mid = (blo[rows, axis] + bhi[rows, axis]) // 2
+        hi_a, lo_b = bhi.copy(), blo.copy()
+        hi_a[rows, axis] = mid
+        lo_b[rows, axis] = mid + 1
+        lo = np.concatenate([lo[~big], blo, lo_b])
+        hi = np.concatenate([hi[~big], hi_a, bhi])
+        tri = np.concatenate([tri[~big], tri[big], tri[big]])
+
+
+def surface_voxels(vertices: np.ndarray, triangles: np.ndarray, origin: np.ndarray, voxel_size: float,
+                   shape: tuple[int, int, int], chunk: int = 4_000_000) -> np.ndarray:
+    """Voxels intersected by triangles (exact triangle/box overlap, separating-axis theorem).
+
+    Args:
+        vertices: (V, 3) metres; triangles: (T, 3) vertex indices.
+        origin: (3,) world corner of voxel (0, 0, 0); voxel_size: metres; shape: (X, Y, Z).
+        chunk: triangle/voxel candidate pairs tested per batch (bounds memory, ~200 B each).
+    Returns:
+        (X, Y, Z) bool. Voxels are half-open: a face lying exactly on a voxel boundary
+        marks the voxel above it (larger index) only. Parts outside the grid are dropped.
+    """
+    v = (np.asarray(vertices, np.float64) - np.asarray(origin, np.float64)) / voxel_size  # voxel units
+    tris = v[np.asarray(triangles, np.int64)]  # (T, 3, 3)
+    grid_max = np.asarray(shape) - 1
+    lo = np.clip(np.floor(tris.min(axis=1)), 0, grid_max).astype(np.int64)
+    hi = np.clip(np.floor(tris.max(axis=1)), 0, grid_max).astype(np.int64)
+    keep = np.all(tris.max(axis=1) >= 0, axis=1) & np.all(tris.min(axis=1) < np.asarray(shape), axis=1)
+    tri_ids = np.flatnonzero(keep)
+    occupied = np.zeros(shape, bool)
+    if len(tri_ids) == 0:
+        return occupied
+    # Per-triangle separating axes: the plane normal and the 9 edge x box-axis crosses,
+    # in a frame local to each triangle's lowest voxel (small numbers: float32 is exact enough).
+    tlo = lo[tri_ids]
+    t = tris[tri_ids] - tlo[:, None, :]
+    edges = np.stack([t[:, 1] - t[:, 0], t[:, 2] - t[:, 1], t[:, 0] - t[:, 2]], axis=1)  # (T, 3, 3)
+    zero = np.zeros_like(edges[..., 0])
+    crosses = [np.stack([zero, edges[..., 2], -edges[..., 1]], -1),   # e x (1, 0, 0)
+               np.stack([-edges[..., 2], zero, edges[..., 0]], -1),   # e x (0, 1, 0)
+               np.stack([edges[..., 1], -edges[..., 0], zero], -1)]   # e x (0, 0, 1)
+    normal = np.cross(edges[:, 0], -edges[:, 2])[:, None, :]  # (T, 1, 3)
+    axes = np.concatenate([normal] + crosses, axis=1)  # (T, 10, 3)
+    axes /= np.maximum(np.abs(axes).max(axis=2, keepdims=True), 1e-300)  # scale-free, exact zeros kept
+    proj = np.einsum("tad,tvd->tav", axes, t)  # (T, 10, 3) vertex projections
+    radius = 0.5 * np.abs(axes).sum(axis=2)  # box half-extent projected on each axis
+    eps = 1e-6 * (1.0 + np.abs(proj).max(axis=2))  # float32 rounding; << a voxel
+    low = (proj.min(axis=2) - radius - eps).astype(np.float32).T.copy()  # (10, T)
+    high = (proj.max(axis=2) + radius + eps).astype(np.float32).T.copy()
+    axis_xyz = [axes[:, :, d].astype(np.float32).T.copy() for d in range(3)]  # 3 x (10, T)
+
+    tlo32 = tlo.astype(np.int32)
+    job_lo, job_hi, job_tri, counts = _split_jobs(tlo, hi[tri_ids], np.arange(len(tri_ids)), chunk)
+    # Batches of consecutive jobs of about `chunk` candidates (at most 2 * chunk).
+    group = (np.cumsum(counts) - counts) // chunk
+    bounds = np.flatnonzero(np.diff(group)) + 1
+    for sl in (slice(a, b) for a, b in zip(np.r_[0, bounds], np.r_[bounds, len(counts)])):
+        c = counts[sl]
+        job = np.repeat(np.arange(len(c), dtype=np.int32), c)
+        local = np.arange(int(c.sum()), dtype=np.int32) - np.repeat((np.cumsum(c) - c).astype(np.int32), c)
+        dims = (job_hi[sl] - job_lo[sl] + 1).astype(np.int32)
+        nz, nyz = dims[:, 2][job], (dims[:, 1] * dims[:, 2])[job]
+        ix = local // nyz
+        rest = local - ix * nyz
+        iy = rest // nz
+        lo_job = job_lo[sl].astype(np.int32)
+        cols = [ix + lo_job[:, 0][job], iy + lo_job[:, 1][job], rest - iy * nz + lo_job[:, 2][job]]
+        tri = job_tri[sl].astype(np.int32)[job]
+        # local voxel-centre coordinates (small: exact in float32)
+        centre = [(cols[d] - tlo32[:, d][tri]).astype(np.float32) + np.float32(0.5) for d in range(3)]
+        hit = None
+        for a in range(10):
+            p = axis_xyz[0][a][tri] * centre[0] + axis_xyz[1][a][tri] * centre[1] + axis_xyz[2][a][tri] * centre[2]
+            keep = (p >= low[a][tri]) & (p <= high[a][tri])
+            hit = keep if hit is None else hit & keep
+            if a in (0, 3, 6) and np.count_nonzero(hit) < 0.7 * len(hit):  # compact when it pays
+                tri, cols, centre = tri[hit], [x[hit] for x in cols], [x[hit] for x in centre]
+                hit = None
+        if hit is not None:
+            cols = [x[hit] for x in cols]
+        occupied[cols[0], cols[1], cols[2]] = True
+    return occupied
+
+
+# ----------------------------------------------------------------------------- interior
+
+
+_TIE = 1e-4  # cells; float32 distances equal to the radius count as within it
+
+
+def _inplane_edt(mask: np.ndarray) -> np.ndarray:
+    """float32 distance (cells) from each True cell of `mask` to the nearest False cell of its slice.
+
+    `mask` is (H, W) or (H, W, Z) with horizontal slices along the last axis; a slice
+    without any False cell gets a huge distance. Exact Euclidean distance transform
+    (OpenCV, DIST_MASK_PRECISE), one slice at a time: 20x faster than a 3D scipy EDT.
+    """
+    import cv2
+
+    if mask.ndim == 2:
+        return cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    out = np.empty(mask.shape, np.float32)
+    for k in range(mask.shape[2]):
+        out[:, :, k] = cv2.distanceTransform(mask[:, :, k].astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return out
+
+
+def enclosed_free(free: np.ndarray, resolution: float, gap_closing_m: float) -> np.ndarray:
+    """Free cells enclosed by the building: not reachable from the lateral border.
+
+    Works on one 2D plan (H, W) or on a stack of horizontal slices (X, Y, Z) at once
+    (the in-plane axes are the first two). Openings narrower than `gap_closing_m`
+    (doors and windows to the outside) are treated as closed: the flood from the border
+    only passes cells farther than half that from any non-free cell (in-plane), and is
+    then grown back by the same radius.
+
+    Args:
+        free: (H, W) or (X, Y, Z) bool, free cells.
+        resolution: metres per cell; gap_closing_m: metres.
+    Returns:
+        bool array like `free`: free cells inside the building.
+    """
+    free = np.asarray(free, bool)
+    radius = gap_closing_m / 2.0 / resolution
+    pad = int(np.ceil(radius)) + 2
+    width = ((pad, pad), (pad, pad)) + ((0, 0),) * (free.ndim - 2)
+    padded = np.pad(free, width, constant_values=True)
+    clearance = _inplane_edt(padded)
+    structure = ndimage.generate_binary_structure(2, 1)  # 4-connected in-plane
+    if free.ndim == 3:
+        structure = np.stack([np.zeros_like(structure), structure, np.zeros_like(structure)], axis=-1)
+    labels, _ = ndimage.label(clearance > radius + _TIE, structure=structure)
+    border = np.unique(np.concatenate([labels[0].ravel(), labels[-1].ravel(),
+                                       labels[:, 0].ravel(), labels[:, -1].ravel()]))
+    flood = np.isin(labels, border[border > 0])
+    del labels, clearance
+    outside = _inplane_edt(~flood) <= radius + _TIE
+    inside = padded & ~outside
+    return inside[pad:-pad, pad:-pad]
+
+
+def largest_component(mask: np.ndarray) -> np.ndarray:
+    """The largest 6-connected (face-connected) component of a 3D bool mask (all False if empty)."""
+    labels, count = ndimage.label(mask)
+    if count == 0:
+        return np.zeros_like(mask, bool)
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    return labels == int(np.argmax(sizes))

@@ -1,0 +1,84 @@
+"""Shared fixtures: the shared real data folder and a small synthetic two-room scene."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from frontiernet.scenes import Scene, SceneMetadata
+from frontiernet.scenes.builder import MeshBuilder
+from frontiernet.scenes.scene import Material
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+# Two-room box (see two_room_scene): interior [0, 6] x [0, 4] x [0, 2.5] m, walls 0.2 m
+# thick outside it, a 0.2 m partition at x in [2.9, 3.1] with a door y in [1.5, 2.4],
+# z in [0, 2.0] (lintel above).
+TWO_ROOM = {
+    "interior": (np.array([0.0, 0.0, 0.0]), np.array([6.0, 4.0, 2.5])),
+    "partition_x": (2.9, 3.1),
+    "door_y": (1.5, 2.4),
+    "door_height": 2.0,
+    "wall": 0.2,
+}
+TWO_ROOM_FREE_VOLUME = 6.0 * 4.0 * 2.5 - (0.2 * 4.0 * 2.5 - 0.2 * 0.9 * 2.0)  # 58.36 m^3
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """Path of the shared real data (``../shared/data`` or ``$FRONTIERNET_SHARED_DATA``); skips if absent."""
+    path = Path(os.environ.get("FRONTIERNET_SHARED_DATA", REPO_ROOT.parent / "shared" / "data"))
+    if not path.is_dir():
+        pytest.skip(f"shared data not found at {path} (set FRONTIERNET_SHARED_DATA)")
+    return path
+
+
+def box_scene(lower, upper, name: str = "boxes") -> Scene:
+    """A scene made of axis-aligned boxes: (N, 3) lower and upper corners in metres."""
+    builder = MeshBuilder()
+    mid = builder.material(Material("grey", (150, 150, 150)))
+    builder.add_boxes(np.asarray(lower, float), np.asarray(upper, float), mid)
+    return builder.build(SceneMetadata(name=name, source="procedural", spec=f"test:{name}"))
+
+
+def room_boxes(x1: float, y1: float, height: float, wall: float = 0.2, ceiling: bool = True,
+               door: tuple[float, float] | None = None, door_height: float = 2.0):
+    """Boxes of a closed room with interior [0, x1] x [0, y1] x [0, height].
+
+    `door` = (y0, y1) cuts a door into the wall at x = x1 (from the floor to `door_height`).
+    Returns (lower, upper) lists.
+    """
+    w = wall
+    lower = [(-w, -w, -w), (-w, -w, 0), (-w, y1, 0), (-w, -w, 0)]
+    upper = [(x1 + w, y1 + w, 0), (x1 + w, 0, height), (x1 + w, y1 + w, height), (0, y1 + w, height)]
+    if ceiling:
+        lower.append((-w, -w, height))
+        upper.append((x1 + w, y1 + w, height + w))
+    if door is None:
+        lower.append((x1, -w, 0))
+        upper.append((x1 + w, y1 + w, height))
+    else:
+        lower += [(x1, 0, 0), (x1, door[1], 0), (x1, door[0], door_height)]
+        upper += [(x1 + w, door[0], height), (x1 + w, y1, height), (x1 + w, door[1], height)]
+    return lower, upper
+
+
+@pytest.fixture(scope="session")
+def two_room_scene() -> Scene:
+    """A closed box (floor, ceiling, 4 walls) split into two rooms joined by a door; see TWO_ROOM."""
+    lower, upper = room_boxes(6.0, 4.0, 2.5)
+    (px0, px1), (dy0, dy1) = TWO_ROOM["partition_x"], TWO_ROOM["door_y"]
+    lower += [(px0, 0, 0), (px0, dy1, 0), (px0, dy0, TWO_ROOM["door_height"])]
+    upper += [(px1, dy0, 2.5), (px1, 4.0, 2.5), (px1, dy1, 2.5)]
+    return box_scene(lower, upper, "two-room")
+
+
+@pytest.fixture(scope="session")
+def two_room_voxels(two_room_scene):
+    """The two-room scene voxelised with the default config."""
+    from frontiernet.simulator.voxels import voxelize_scene
+
+    return voxelize_scene(two_room_scene)

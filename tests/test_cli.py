@@ -1,0 +1,85 @@
+"""The command line: outputs users rely on, and bad input as one line with exit code 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from frontiernet.cli.main import main
+
+
+@pytest.fixture(scope="module")
+def plan_spec(tmp_path_factory) -> str:
+    """Two 3 x 4 m rooms joined by a 1 m door, as a floor-plan image (0.05 m/px)."""
+    folder = tmp_path_factory.mktemp("plan")
+    plan = np.full((100, 160), 254, np.uint8)
+    plan[10:90, 10:16] = plan[10:90, 144:150] = 0
+    plan[10:16, 10:150] = plan[84:90, 10:150] = 0
+    plan[10:90, 77:83] = 0
+    plan[40:60, 77:83] = 254  # the door
+    Image.fromarray(plan).save(folder / "plan.png")
+    return f"floorplan:{folder / 'plan.png'}?resolution=0.05"
+
+
+def test_scene_info_reports_bounds_triangles_and_explorable_volume(plan_spec, capsys):
+    assert main(["scene", "info", plan_spec]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["source"] == "floorplan"
+    assert np.allclose(info["size_m"], [7.0, 4.0, 2.6], atol=1e-3)  # walls span cols 10-150, rows 10-90
+    # two rooms of 3.05 x 3.4 m inside, 2.6 m high, less the voxels their surfaces touch
+    rooms = 2 * 3.05 * 3.4 * 2.6
+    assert 0.75 * rooms < info["explorable_volume_m3"] < 1.05 * rooms
+    assert info["voxels_explorable"] * 0.001 == pytest.approx(info["explorable_volume_m3"], rel=1e-3)
+
+
+def test_render_writes_rgb_depth_in_metres_and_camera(plan_spec, tmp_path, capsys):
+    out = tmp_path / "view"
+    assert main(["render", plan_spec, "--pose", "2.0,1.5,1.2,0deg", "--out", str(out)]) == 0
+    depth = np.load(out / "depth.npy")
+    assert depth.shape == (480, 480) and depth.dtype == np.float32
+    # looking along +x from x = 2.0 at the middle wall, whose face is at x = 3.85 m
+    assert depth[240, 240] == pytest.approx(3.85 - 2.0, abs=0.01)
+    rgb = np.asarray(Image.open(out / "rgb.png"))
+    assert rgb.shape == (480, 480, 3)
+    camera = json.loads((out / "camera.json").read_text())
+    assert np.allclose(np.array(camera["T_world_cam"])[:3, 3], [2.0, 1.5, 1.2])
+    assert (out / "depth.png").is_file() and (out / "normals.png").is_file()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["render", "{plan}", "--pose", "50,50,1.2,0", "--out", "{out}"], "outside"),
+    (["render", "{plan}", "--pose", "0.6,2.5,1.2,0", "--out", "{out}"], "obstacle"),
+    (["render", "{plan}", "--pose", "2,2.5,abc,0", "--out", "{out}"], "not a number"),
+    (["render", "{plan}", "--pose", "2,2.5,1.2", "--out", "{out}"], "expected x,y,z,yaw"),
+    (["scene", "info", "no/such/scene.glb"], "not found"),
+    (["scene", "info", "floorplan:x.png?resolution=-1"], "positive"),
+])
+def test_bad_input_is_one_line_and_exit_code_2(plan_spec, tmp_path, capsys, args, message):
+    args = [a.format(plan=plan_spec, out=tmp_path / "out") for a in args]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and "Traceback" not in err
+    assert not (tmp_path / "out" / "rgb.png").exists()
+
+
+def test_the_installed_command_exits_2_without_traceback(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "frontiernet.cli.main", "render", str(tmp_path / "none.obj"),
+                             "--pose", "0,0,1,0", "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert "none.obj" in result.stderr
+
+
+def test_demo_writes_a_flythrough(plan_spec, tmp_path):
+    out = tmp_path / "demo"
+    assert main(["demo", "--scene", plan_spec, "--frames", "12", "--out", str(out)]) == 0
+    trajectory = json.loads((out / "trajectory.json").read_text())
+    assert trajectory["frames"] == 12 and trajectory["collisions"] == 0
+    assert trajectory["path_length_m"] > 0.5
+    assert (out / "flythrough.mp4").stat().st_size > 1000
+    assert np.asarray(Image.open(out / "contact_sheet.png")).ndim == 3
