@@ -43,7 +43,9 @@ def plan_flythrough(scene, voxels, conf) -> np.ndarray:
     size = voxels.voxel_size
     z = scene.bounds[0, 2] + float(conf.camera_height)
     k = int(np.clip((z - voxels.origin[2]) / size, 0, voxels.shape[2] - 1))
-    free = voxels.explorable[:, :, k]
+    # free in a vertical band around camera height, so obstacles just above or below count
+    band = int(np.ceil(float(conf.min_clearance) / size))
+    free = voxels.explorable[:, :, max(k - band, 0):k + band + 1].all(axis=2)
     if not free.any():
         raise InputError(f"{scene.metadata.spec}: no explorable space at camera height {conf.camera_height} m")
     clearance = ndimage.distance_transform_edt(free) * size
