@@ -1,8 +1,8 @@
 """A fly-through of a scene: a smooth collision-free camera path through its rooms.
 
 Used by ``frontiernet demo`` (until the exploration demo exists) and handy to preview
-scenes. The path is planned on the horizontal slice of the explorable voxels at
-camera height: it starts at the most open spot, then repeatedly goes to the
+scenes. The path is planned on the explorable voxels around camera height (free over
+a band of +- the clearance, so obstacles just above or below count): it starts at the most open spot, then repeatedly goes to the
 reachable cell farthest (geodesically) from where it is, keeping to corridor centres.
 """
 
