@@ -39,6 +39,11 @@ def plaster(rng, base_color, size: int = 64) -> np.ndarray:
     return _shade(base_color, 0.92 + 0.12 * _periodic_noise(rng, size, 3))
 
 
+def paint(rng, base_color, size: int = 64) -> np.ndarray:
+    """Smooth painted surface: very faint large-scale mottling (walls, ceilings)."""
+    return _shade(base_color, 0.96 + 0.05 * _periodic_noise(rng, size, 2))
+
+
 def wood(rng, base_color, size: int = 128) -> np.ndarray:
     """Floor boards: planks along u with grain and per-plank tone."""
     planks = int(rng.integers(4, 9))
@@ -57,7 +62,7 @@ def tiles(rng, base_color, size: int = 128) -> np.ndarray:
     y, x = np.mgrid[:size, :size]
     grout = ((x % step) < 2) | ((y % step) < 2)
     tone = 0.9 + 0.15 * rng.random((count + 1, count + 1))[y // step, x // step]
-    intensity = np.where(grout, 0.55, tone * (0.95 + 0.08 * _periodic_noise(rng, size, 2)))
+    intensity = np.where(grout, 0.75, tone * (0.95 + 0.08 * _periodic_noise(rng, size, 2)))
     return _shade(base_color, intensity)
 
 
@@ -83,7 +88,7 @@ def brick(rng, base_color, size: int = 128) -> np.ndarray:
     offset = (row % 2) * (size // 4)
     w = size // 2
     mortar = ((y % h) < 2) | (((x + offset) % w) < 2)
-    tone = 0.85 + 0.3 * rng.random((rows + 1, 4))[row, ((x + offset) // w) % 4]
+    tone = 0.85 + 0.3 * rng.random((size // h + 1, 4))[row, ((x + offset) // w) % 4]
     return _shade(base_color, np.where(mortar, 1.4, tone))
 
 
@@ -92,9 +97,39 @@ def concrete(rng, base_color, size: int = 64) -> np.ndarray:
     return _shade(base_color, 0.8 + 0.35 * _periodic_noise(rng, size, 5))
 
 
+def fabric(rng, base_color, size: int = 64) -> np.ndarray:
+    """Woven upholstery: fine cross-hatch weave with soft mottling."""
+    period = int(rng.choice([4, 8]))
+    y, x = np.mgrid[:size, :size]
+    weave = np.where(((x // (period // 2)) + (y // (period // 2))) % 2 == 0, 1.0, 0.88)
+    return _shade(base_color, weave * (0.9 + 0.15 * _periodic_noise(rng, size, 3)))
+
+
+def marble(rng, base_color, size: int = 128) -> np.ndarray:
+    """Polished stone: bright base with thin dark veins (ridges of periodic noise)."""
+    noise = _periodic_noise(rng, size, 5)
+    veins = np.abs(np.sin(np.pi * 6 * noise))
+    intensity = 0.97 - 0.3 * np.clip(1.0 - veins / 0.15, 0.0, 1.0) + 0.06 * _periodic_noise(rng, size, 2)
+    return _shade(base_color, intensity)
+
+
+def parquet(rng, base_color, size: int = 128) -> np.ndarray:
+    """Parquet: square blocks of short planks, alternating direction, per-plank tone."""
+    blocks, planks = 4, int(rng.choice([2, 4]))
+    step = size // blocks
+    y, x = np.mgrid[:size, :size]
+    by, bx, ly, lx = y // step, x // step, y % step, x % step
+    vertical = (by + bx) % 2 == 0
+    plank = np.where(vertical, lx * planks // step, ly * planks // step)
+    seam = np.where(vertical, (lx * planks) % step < planks, (ly * planks) % step < planks) | (lx < 1) | (ly < 1)
+    tone = 0.8 + 0.3 * rng.random((blocks, blocks, planks))[by, bx, plank]
+    return _shade(base_color, np.where(seam, 0.6, tone * (0.93 + 0.1 * _periodic_noise(rng, size, 3))))
+
+
 TEXTURES = {
-    "plaster": plaster, "wood": wood, "tiles": tiles, "carpet": carpet,
+    "plaster": plaster, "paint": paint, "wood": wood, "tiles": tiles, "carpet": carpet,
     "wallpaper": wallpaper, "brick": brick, "concrete": concrete,
+    "fabric": fabric, "marble": marble, "parquet": parquet,
 }
 
 

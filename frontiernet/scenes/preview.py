@@ -1,0 +1,97 @@
+"""Quick looks at scenes: orthographic cut-away top views and contact sheets.
+
+Used to eyeball generated and loaded scenes (``docs/images/procedural_contact_sheet.png``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scene import Scene
+
+
+def material_colors(scene: Scene) -> np.ndarray:
+    """(M, 3) float32 RGB 0-255 per material: the texture's mean colour, else `color`."""
+    return np.array([m.texture.reshape(-1, 3).mean(0) if m.texture is not None else m.color
+                     for m in scene.materials], np.float32).reshape(-1, 3)
+
+
+def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.8) -> np.ndarray:
+    """Orthographic top view of `scene` cut at ``bounds_min_z + cut_height`` metres.
+
+    One ray per pixel is cast straight down from the cut plane (so ceilings and upper
+    floors are not in the way); hits are coloured by material colour, brighter the
+    higher the hit and the more the surface faces up. Pixels whose downward ray starts
+    inside a solid (a wall cut by the plane, seen by an upward ray hitting its top from
+    inside) are drawn dark grey, as walls in a plan drawing; nothing hit is black.
+
+    Args:
+        scene: any :class:`Scene` (Z-up, metres).
+        pixel_size: metres per image pixel.
+        cut_height: metres above the scene's lowest point.
+    Returns:
+        (H, W, 3) uint8 image; row 0 is the scene's largest y (north up), column 0 its smallest x.
+    """
+    from ..simulator.raycast import INVALID_ID, cast_rays
+
+    lo, hi = scene.bounds
+    cut = lo[2] + cut_height
+    xs = np.arange(lo[0] + pixel_size / 2, hi[0], pixel_size)
+    ys = np.arange(hi[1] - pixel_size / 2, lo[1], -pixel_size)
+    X, Y = np.meshgrid(xs, ys)
+    origins = np.stack([X, Y, np.full_like(X, cut)], -1)
+    down = np.concatenate([origins, np.broadcast_to([0.0, 0.0, -1.0], origins.shape)], -1).astype(np.float32)
+    hit = cast_rays(scene, down)
+    up = cast_rays(scene, np.concatenate([origins, np.broadcast_to([0.0, 0.0, 1.0], origins.shape)], -1)
+                   .astype(np.float32))
+    colors = material_colors(scene)
+    prim = hit["primitive_ids"]
+    found = prim != INVALID_ID
+    image = np.zeros(X.shape + (3,), np.float32)
+    material = scene.triangle_material[np.where(found, prim, 0)]
+    z = cut - hit["t_hit"]
+    height = np.clip((z - lo[2]) / max(cut_height, 1e-6), 0.0, 1.0)
+    facing = np.abs(hit["primitive_normals"][..., 2])
+    shade = (0.75 + 0.35 * height) * (0.8 + 0.2 * facing)
+    image[found] = colors[material[found]] * shade[found, None]
+    # a wall cut by the plane: the ray down starts inside it, the ray up meets its top from below
+    up_prim = up["primitive_ids"]
+    inside = (up_prim != INVALID_ID) & (up["t_hit"] < max(hi[2] - cut, 0) + 1) & \
+        (np.abs(up["primitive_normals"][..., 2]) > 0.5)
+    up_material = scene.triangle_material[np.where(inside, up_prim, 0)]
+    wall = inside & (~found | (hit["t_hit"] > 0.0)) & _solid_above(scene, up, inside, up_material)
+    image[wall] = 0.2 * colors[up_material[wall]] + 10.0
+    return np.clip(image, 0, 255).astype(np.uint8)
+
+
+def _solid_above(scene: Scene, up: dict, inside: np.ndarray, up_material: np.ndarray) -> np.ndarray:
+    """True where the upward hit is the top face of a solid (its normal points up, i.e. we are inside)."""
+    v = scene.vertices[scene.triangles[np.where(inside, up["primitive_ids"], 0)]]
+    normal_z = np.cross(v[..., 1, :] - v[..., 0, :], v[..., 2, :] - v[..., 0, :])[..., 2]
+    return inside & (normal_z > 0)
+
+
+def contact_sheet(images: list[np.ndarray], columns: int, labels: list[str] | None = None,
+                  background: int = 255) -> np.ndarray:
+    """Tile (H_i, W_i, 3) uint8 images into a grid with `columns` columns, each labelled.
+
+    Every cell is as large as the largest image (images are centred, not scaled); a label
+    is written in the cell's top-left corner. Returns one (H, W, 3) uint8 image.
+    """
+    import cv2
+
+    if not images:
+        raise ValueError("contact_sheet needs at least one image")
+    h = max(im.shape[0] for im in images) + 30
+    w = max(im.shape[1] for im in images) + 10
+    rows = (len(images) + columns - 1) // columns
+    sheet = np.full((rows * h, columns * w, 3), background, np.uint8)
+    for index, im in enumerate(images):
+        r, c = divmod(index, columns)
+        y0 = r * h + 25 + (h - 30 - im.shape[0]) // 2
+        x0 = c * w + 5 + (w - 10 - im.shape[1]) // 2
+        sheet[y0:y0 + im.shape[0], x0:x0 + im.shape[1]] = im
+        if labels is not None and index < len(labels):
+            cv2.putText(sheet, str(labels[index]), (c * w + 6, r * h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
+                        (0, 0, 0), 1, cv2.LINE_AA)
+    return sheet
