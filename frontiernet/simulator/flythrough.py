@@ -71,7 +71,9 @@ def plan_flythrough(scene, voxels, conf) -> np.ndarray:
                    float(conf.step_m))[: int(conf.max_frames)]
     if len(xy) < 2:
         raise InputError(f"{scene.metadata.spec}: too little free space for a fly-through")
-    heading = np.gradient(xy, axis=0)
+    # look at the path a little ahead, so the camera turns into doorways before it reaches them
+    ahead = xy[np.minimum(np.arange(len(xy)) + int(conf.lookahead_frames), len(xy) - 1)]
+    heading = np.where((np.arange(len(xy)) < len(xy) - 1)[:, None], ahead - xy, xy[-1] - xy[-2])
     yaw = np.unwrap(np.arctan2(heading[:, 1], heading[:, 0]))
     yaw = ndimage.gaussian_filter1d(yaw, float(conf.yaw_smoothing_frames), mode="nearest")
     positions = np.concatenate([xy, np.full((len(xy), 1), z)], axis=1)
