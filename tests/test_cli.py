@@ -83,3 +83,24 @@ def test_demo_writes_a_flythrough(plan_spec, tmp_path):
     assert trajectory["path_length_m"] > 0.5
     assert (out / "flythrough.mp4").stat().st_size > 1000
     assert np.asarray(Image.open(out / "contact_sheet.png")).ndim == 3
+
+
+def test_outputs_are_written_atomically_with_normal_permissions(tmp_path):
+    import os
+
+    from frontiernet.io import atomic_write, write_json
+
+    target = write_json(tmp_path / "a.json", {"x": 1})
+    assert oct(target.stat().st_mode & 0o777) == oct(0o666 & ~_umask())
+    with pytest.raises(RuntimeError):
+        atomic_write(tmp_path / "a.json", lambda tmp: (tmp.write_text("half"), (_ for _ in ()).throw(RuntimeError())))
+    assert json.loads((tmp_path / "a.json").read_text()) == {"x": 1}  # the old file is intact
+    assert os.listdir(tmp_path) == ["a.json"]  # no temporary left behind
+
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
