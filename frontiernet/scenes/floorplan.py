@@ -82,7 +82,7 @@ def mask_rectangles(mask: np.ndarray) -> np.ndarray:
     return np.asarray(rectangles, np.int64).reshape(-1, 4)
 
 
-def _rect_boxes(rects: np.ndarray, shape, resolution: float, z0: float, z1: float):
+def rect_boxes(rects: np.ndarray, shape, resolution: float, z0: float, z1: float):
     """Rectangles [r0, c0, r1, c1) -> box corners (N, 3) lower, (N, 3) upper in world metres."""
     H = shape[0]
     lower = np.stack([rects[:, 1] * resolution, (H - rects[:, 2]) * resolution, np.full(len(rects), z0)], 1)
@@ -183,17 +183,17 @@ def extrude_plan(builder: MeshBuilder, plan: FloorPlan, materials: dict[str, int
     """
     shape, s = plan.occupied.shape, plan.resolution
     walls = mask_rectangles(plan.occupied)
-    builder.add_boxes(*_rect_boxes(walls, shape, s, z0, z0 + wall_height), materials["wall"],
+    builder.add_boxes(*rect_boxes(walls, shape, s, z0, z0 + wall_height), materials["wall"],
                       texture_size_m, faces=("+x", "-x", "+y", "-y", "+z"))
     floor = mask_rectangles(plan.inside)
-    builder.add_boxes(*_rect_boxes(floor, shape, s, z0 - 0.05, z0), materials["floor"], texture_size_m,
+    builder.add_boxes(*rect_boxes(floor, shape, s, z0 - 0.05, z0), materials["floor"], texture_size_m,
                       faces=("+z",))
     if plan.doors.any() and door_height < wall_height:
         lintels = mask_rectangles(plan.doors)
-        builder.add_boxes(*_rect_boxes(lintels, shape, s, z0 + door_height, z0 + wall_height),
+        builder.add_boxes(*rect_boxes(lintels, shape, s, z0 + door_height, z0 + wall_height),
                           materials["lintel"], texture_size_m, faces=("+x", "-x", "+y", "-y", "-z"))
     if ceiling:
-        builder.add_boxes(*_rect_boxes(floor, shape, s, z0 + wall_height, z0 + wall_height + 0.05),
+        builder.add_boxes(*rect_boxes(floor, shape, s, z0 + wall_height, z0 + wall_height + 0.05),
                           materials["ceiling"], texture_size_m, faces=("-z",))
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import InputError
 from .builder import MeshBuilder
-from .floorplan import _rect_boxes, mask_rectangles
+from .floorplan import rect_boxes, mask_rectangles
 from .furniture import furniture_materials
 from .furniture_placement import Boxes, FloorFurnisher, Placed
 from .procedural_doors import FloorLayout, Stair, make_floor, make_stair, wall_split
@@ -198,7 +198,7 @@ def _room_materials(builder: MeshBuilder, rng, p, floor_index: int, room_index: 
 
 def _add_rects(builder, mask, shape, s, z0, z1, material, texture_size, faces) -> None:
     if mask.any():
-        builder.add_boxes(*_rect_boxes(mask_rectangles(mask), shape, s, z0, z1), material, texture_size, faces)
+        builder.add_boxes(*rect_boxes(mask_rectangles(mask), shape, s, z0, z1), material, texture_size, faces)
 
 
 def _extrude_floor(builder, rng, layout: ProceduralLayout, index: int, floor: FloorLayout, ceiling_id: int) -> None:
@@ -247,14 +247,14 @@ def _add_stair(builder, layout: ProceduralLayout, material: int, rail: int) -> N
             r[a], r[2 + a] = f[a] + k * st.tread_px, min(f[a] + (k + 1) * st.tread_px, f[2 + a])
         else:
             r[a], r[2 + a] = max(f[2 + a] - (k + 1) * st.tread_px, f[a]), f[2 + a] - k * st.tread_px
-        lo, hi = _rect_boxes(r[None], (H, 0), s, 0.0, (k + 1) * st.rise)
+        lo, hi = rect_boxes(r[None], (H, 0), s, 0.0, (k + 1) * st.rise)
         lower.append(lo[0])
         upper.append(hi[0])
     builder.add_boxes(np.array(lower), np.array(upper), material, layout.params.texture_size_m,
                       ("+x", "-x", "+y", "-y", "+z"))
     z0 = layout.floors[1].z0
     for r in (st.open_side, st.bottom_rail):
-        lo, hi = _rect_boxes(np.asarray(r)[None], (H, 0), s, z0, z0 + 1.0)
+        lo, hi = rect_boxes(np.asarray(r)[None], (H, 0), s, z0, z0 + 1.0)
         builder.add_boxes(lo, hi, rail, layout.params.texture_size_m)
 
 
