@@ -168,3 +168,28 @@ def test_spec_parsing_reads_typed_options():
     assert (spec.source, spec.argument) == ("procedural", "7")
     assert spec.options == {"floors": 2, "ceiling": False, "wall_height": 2.8}
     assert parse_spec("default").text == "procedural:0"
+
+
+def test_kth_layout_door_gaps_get_lintels_but_wall_strips_do_not(tmp_path):
+    # KTH/MapEx layout: occ_map.npy (0 occupied, 254 free) and valid_space.npy (room ids).
+    occ = np.full((60, 100), 254, np.uint8)
+    occ[10:50, 10:13] = occ[10:50, 87:90] = occ[10:13, 10:90] = occ[47:50, 10:90] = 0
+    occ[10:50, 48:52] = 0
+    occ[25:35, 48:52] = 254                  # a 0.5 m door gap in the middle wall
+    valid = np.zeros_like(occ)
+    valid[13:47, 13:48] = 1
+    valid[13:47, 52:87] = 2
+    valid[13:47, 13:15] = 0                  # an unlabelled free strip along room 1's west wall
+    np.save(tmp_path / "occ_map.npy", occ)
+    np.save(tmp_path / "valid_space.npy", valid)
+    scene = load_scene(f"floorplan:{tmp_path}?door_height=2.0&wall_height=2.6")
+    H, s = occ.shape[0], 0.05
+
+    def up_hit(row, col):
+        x, y = (col + 0.5) * s, (H - row - 0.5) * s
+        return cast_rays(scene, [[x, y, 1.0, 0, 0, 1]])["t_hit"][0] + 1.0
+
+    assert up_hit(30, 50) == pytest.approx(2.0, abs=1e-4)   # lintel above the door gap
+    assert up_hit(30, 13) == pytest.approx(2.6, abs=1e-4)   # ceiling above the strip: no lintel
+    assert up_hit(30, 30) == pytest.approx(2.6, abs=1e-4)   # ceiling in the room
+    assert scene.metadata.extra["door_pixels"] == 10 * 4

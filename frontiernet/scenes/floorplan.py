@@ -122,8 +122,7 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
         spaces = valid > 0
         margin = max(1, int(round(0.4 / resolution)))  # walls and door frames around the spaces
         inside = ndimage.binary_dilation(spaces, iterations=margin) | spaces
-        doors = free & ~spaces & ndimage.binary_dilation(spaces, iterations=margin) \
-            & ~ndimage.binary_dilation(~inside, iterations=1)
+        doors = _door_gaps(free & ~spaces & inside, valid, free)
     else:
         inside = building_inside(free, float(resolution), gap_closing_m)
         inside = inside | (occupied & ndimage.binary_dilation(inside, iterations=2))
@@ -132,6 +131,29 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
         raise InputError(f"{path}: the floor plan has no free space inside a building")
     return FloorPlan(occupied=occupied, inside=inside | (occupied & ndimage.binary_dilation(inside)),
                      doors=doors, resolution=float(resolution))
+
+
+def _door_gaps(candidates: np.ndarray, space_labels: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Door gaps: free pixels outside every labelled space that join two different spaces.
+
+    Connected groups of `candidates` (free, unlabelled, inside pixels) are kept when they
+    border free pixels of at least two distinct spaces; unlabelled strips along a single
+    room's walls are not doors. (KTH plans draw some thick walls as outlines; their
+    hollow insides stay free, enclosed and unreachable.)
+    """
+    groups, count = ndimage.label(candidates)
+    if count == 0:
+        return candidates
+    free_labels = np.where(free, space_labels, 0)
+    pairs = []
+    for axis in (0, 1):
+        for shift in (1, -1):
+            neighbour = np.roll(free_labels, shift, axis=axis)
+            touching = (groups > 0) & (neighbour > 0)
+            pairs.append(np.stack([groups[touching], neighbour[touching]], axis=1))
+    pairs = np.unique(np.concatenate(pairs).astype(np.int64), axis=0)
+    spaces_touched = np.bincount(pairs[:, 0], minlength=count + 1)
+    return np.isin(groups, np.flatnonzero(spaces_touched >= 2))
 
 
 def _check_resolution(resolution, spec_text: str) -> None:
