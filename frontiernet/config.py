@@ -65,10 +65,3 @@ def load_config(
         except OmegaConfBaseException as error:
             raise InputError(f"bad override {overrides}: {error}") from None
     return conf
-
-
-def section(conf: DictConfig, key: str) -> DictConfig:
-    """Return ``conf[key]`` or fail with an :class:`InputError` naming the key."""
-    if key not in conf:
-        raise InputError(f"config has no section '{key}'")
-    return conf[key]

@@ -8,9 +8,3 @@ the user is wrong, and names that input in the message.
 
 class InputError(ValueError):
     """Bad user input: a missing or corrupt file, an unsupported format, a bad value."""
-
-
-def require(condition: bool, message: str) -> None:
-    """Raise :class:`InputError` with `message` unless `condition` holds."""
-    if not condition:
-        raise InputError(message)

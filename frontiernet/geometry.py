@@ -56,28 +56,7 @@ def poses_from_headings(positions: np.ndarray, yaws: np.ndarray, pitches: np.nda
     return T
 
 
-def heading_of(T_world_cam: np.ndarray) -> tuple[float, float]:
-    """(yaw, pitch) radians of a camera pose's optical axis."""
-    forward = np.asarray(T_world_cam)[:3, 2]
-    return float(np.arctan2(forward[1], forward[0])), float(np.arcsin(np.clip(forward[2], -1.0, 1.0)))
-
-
-def look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """``T_world_cam`` at `eye` looking at `target` (both (3,) metres), no roll."""
-    eye, target = np.asarray(eye, float), np.asarray(target, float)
-    d = target - eye
-    yaw = np.arctan2(d[1], d[0])
-    pitch = np.arctan2(d[2], np.hypot(d[0], d[1]))
-    return pose_from_heading(*eye, yaw, pitch)
-
-
 def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Geodesic angle (radians) between two rotations (3, 3)."""
     cos = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
     return float(np.arccos(np.clip(cos, -1.0, 1.0)))
-
-
-def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Apply a (4, 4) transform to (N, 3) points."""
-    points = np.asarray(points)
-    return points @ T[:3, :3].T + T[:3, 3]

@@ -45,19 +45,6 @@ class MeshBuilder:
             self.materials.append(material)
         return self._material_index[material.name]
 
-    def add_triangles(self, vertices: np.ndarray, triangles: np.ndarray, material_id: int,
-                      triangle_uvs: np.ndarray | None = None) -> None:
-        """Add a mesh: (V, 3) metres, (T, 3) indices into it, optional (T, 3, 2) UVs."""
-        vertices = np.asarray(vertices, np.float64).reshape(-1, 3)
-        triangles = np.asarray(triangles, np.int64).reshape(-1, 3)
-        if triangle_uvs is None:
-            triangle_uvs = np.zeros((len(triangles), 3, 2), np.float32)
-        self._vertices.append(vertices)
-        self._triangles.append(triangles + self._num_vertices)
-        self._triangle_material.append(np.full(len(triangles), material_id, np.int32))
-        self._uvs.append(np.asarray(triangle_uvs, np.float32).reshape(-1, 3, 2))
-        self._num_vertices += len(vertices)
-
     def add_boxes(self, lower: np.ndarray, upper: np.ndarray, material_id: int | np.ndarray,
                   texture_size_m: float = 1.0, faces: tuple[str, ...] = ALL_FACES) -> None:
         """Add axis-aligned boxes (vectorised).

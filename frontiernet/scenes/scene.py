@@ -139,46 +139,8 @@ class Scene:
         v = self.vertices.astype(np.float64)[self.triangles]
         return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
 
-    def to_open3d(self):
-        """The geometry as an ``open3d.t.geometry.TriangleMesh`` (positions and indices only)."""
-        import open3d as o3d
-
-        mesh = o3d.t.geometry.TriangleMesh()
-        mesh.vertex.positions = o3d.core.Tensor(self.vertices)
-        mesh.triangle.indices = o3d.core.Tensor(self.triangles)
-        return mesh
-
     def to_trimesh(self):
         """The geometry as a ``trimesh.Trimesh`` (no materials), for analysis and export."""
         import trimesh
 
         return trimesh.Trimesh(self.vertices, self.triangles, process=False)
-
-
-def concatenate_scenes(parts: list[Scene], metadata: SceneMetadata) -> Scene:
-    """Merge scenes into one (materials are appended, ids re-indexed)."""
-    vertices, triangles, materials_ids, uvs, colors, materials = [], [], [], [], [], []
-    offset = 0
-    any_uvs = any(part.triangle_uvs is not None for part in parts)
-    any_colors = any(part.vertex_colors is not None for part in parts)
-    for part in parts:
-        vertices.append(part.vertices)
-        triangles.append(part.triangles + offset)
-        materials_ids.append(part.triangle_material + len(materials))
-        materials.extend(part.materials)
-        if any_uvs:
-            uvs.append(part.triangle_uvs if part.triangle_uvs is not None
-                       else np.zeros((part.num_triangles, 3, 2), np.float32))
-        if any_colors:
-            colors.append(part.vertex_colors if part.vertex_colors is not None
-                          else np.broadcast_to(np.uint8(255), part.vertices.shape))
-        offset += len(part.vertices)
-    return Scene(
-        vertices=np.concatenate(vertices),
-        triangles=np.concatenate(triangles),
-        triangle_material=np.concatenate(materials_ids),
-        materials=materials,
-        metadata=metadata,
-        triangle_uvs=np.concatenate(uvs) if any_uvs else None,
-        vertex_colors=np.concatenate(colors) if any_colors else None,
-    )
