@@ -144,6 +144,7 @@ def test_kth_floorplan_slice_matches_plan_occupancy(shared_data):
     ("floorplan:plan.png", "needs its resolution"),
     ("floorplan:plan.png?resolution=-0.1", "positive"),
     ("floorplan:plan.png?resolution=0", "positive"),
+    ("floorplan:plan.png?resolution=0.05&wall_height=.nan", "wall_height must be a positive number"),
     ("floorplan:empty.png?resolution=0.05", "no free space"),
     ("corrupt.glb", "cannot read mesh"),
     ("nan.obj", "NaN or infinite"),

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError
+from ..errors import InputError, positive_number
 from ..simulator.voxels import enclosed_free as building_inside  # shared with 3D voxelisation
 from .builder import MeshBuilder
 from .scene import Material, Scene, SceneMetadata
@@ -96,7 +96,7 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
     path = Path(path)
     valid = None
     if resolution is not None:
-        _check_resolution(resolution, spec_text)
+        positive_number(resolution, f"{spec_text}: resolution", "metres/pixel")
     if path.is_dir():
         if not (path / "occ_map.npy").is_file():
             raise InputError(f"{path}: floor-plan folder has no occ_map.npy")
@@ -109,7 +109,7 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
     if resolution is None:
         raise InputError(f"{spec_text}: a floor plan needs its resolution in metres/pixel "
                          "(add '?resolution=0.05')")
-    _check_resolution(resolution, spec_text)
+    positive_number(resolution, f"{spec_text}: resolution", "metres/pixel")
     image = _load_array(path) if path.suffix.lower() == ".npy" else _load_image(path)
     if image.ndim != 2 or min(image.shape) < 3:
         raise InputError(f"{path}: a floor plan must be a 2D image of at least 3x3 pixels, got shape {image.shape}")
@@ -154,12 +154,6 @@ def _door_gaps(candidates: np.ndarray, space_labels: np.ndarray, free: np.ndarra
     pairs = np.unique(np.concatenate(pairs).astype(np.int64), axis=0)
     spaces_touched = np.bincount(pairs[:, 0], minlength=count + 1)
     return np.isin(groups, np.flatnonzero(spaces_touched >= 2))
-
-
-def _check_resolution(resolution, spec_text: str) -> None:
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) \
-            or not np.isfinite(resolution) or resolution <= 0:
-        raise InputError(f"{spec_text}: resolution must be a positive number of metres/pixel, got {resolution!r}")
 
 
 def _load_array(path: Path) -> np.ndarray:
@@ -225,9 +219,7 @@ def load_floorplan(path: str | Path, spec_text: str, conf) -> Scene:
     `conf` is the ``floorplan`` section of ``configs/scenes.yaml`` merged with spec options.
     """
     for key in ("wall_height", "door_height"):
-        value = conf[key]
-        if not isinstance(value, (int, float)) or value <= 0:
-            raise InputError(f"{spec_text}: {key} must be a positive number of metres, got {value!r}")
+        positive_number(conf[key], f"{spec_text}: {key}", "metres")
     plan = read_floorplan(path, resolution=conf.resolution, occupied_below=conf.occupied_below,
                           free_above=conf.free_above, gap_closing_m=conf.gap_closing_m,
                           kth_resolution=conf.kth_resolution, spec_text=spec_text)

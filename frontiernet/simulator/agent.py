@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Iterable
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..errors import InputError
+from ..errors import InputError, positive_number
 from ..geometry import rotation_angle
 from .raycast import distance_to_surface
 from .voxels import VoxelGrid
@@ -159,10 +159,8 @@ class Agent:
                  voxels: VoxelGrid | None = None) -> None:
         conf = agent_config(conf)
         self.scene, self.voxels = scene, voxels
-        self.radius = float(conf.radius_m)
+        self.radius = positive_number(conf.radius_m, "agent.radius_m", "metres")
         fraction = float(conf.substep_fraction)
-        if not self.radius > 0:
-            raise InputError(f"agent.radius_m must be a positive number of metres, got {conf.radius_m!r}")
         if not 0 < fraction <= 0.5:
             raise InputError(f"agent.substep_fraction must be in (0, 0.5], got {conf.substep_fraction!r}")
         self.substep = self.radius * fraction

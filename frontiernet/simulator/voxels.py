@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError
+from ..errors import InputError, positive_number
 
 if TYPE_CHECKING:  # the scenes package imports this module (floor plans), keep it lazy
     from omegaconf import DictConfig
@@ -145,13 +145,7 @@ def voxels_config(conf: "DictConfig | None") -> "DictConfig":
 
 
 def _positive(conf, key: str, *, allow_zero: bool = False) -> float:
-    value = conf[key]
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value) \
-        and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        raise InputError(f"voxels.{key} must be a {'non-negative' if allow_zero else 'positive'} "
-                         f"number of metres, got {value!r}")
-    return float(value)
+    return positive_number(conf[key], f"voxels.{key}", "metres", allow_zero=allow_zero)
 
 
 def voxelize_scene(scene: "Scene", conf: "DictConfig | None" = None) -> VoxelGrid:
