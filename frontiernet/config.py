@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -39,20 +39,22 @@ def _read_yaml(path: Path) -> DictConfig:
 
 
 def load_config(
-    name: str,
+    name: str | Sequence[str],
     user_file: str | Path | None = None,
     overrides: Iterable[str] = (),
 ) -> DictConfig:
     """Load ``configs/<name>.yaml``, then merge `user_file` and dotted `overrides`.
 
     Args:
-        name: shipped config name, e.g. ``"sim"``.
+        name: shipped config name, e.g. ``"sim"``, or several names whose files are
+            merged in order (``("sim", "datagen")``: datagen's keys win).
         user_file: optional YAML file whose keys replace the defaults.
         overrides: ``"camera.width=320"`` style strings.
     Returns:
         The merged, read-only-by-convention ``DictConfig``.
     """
-    conf = _read_yaml(default_config_path(name))
+    names = [name] if isinstance(name, str) else list(name)
+    conf = OmegaConf.merge(*[_read_yaml(default_config_path(n)) for n in names])
     if user_file is not None:
         conf = OmegaConf.merge(conf, _read_yaml(Path(user_file)))
     overrides = list(overrides)

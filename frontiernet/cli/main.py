@@ -1,7 +1,10 @@
 """``frontiernet`` entry point: dispatches subcommands, turns bad input into exit code 2.
 
 Each subcommand module exposes ``add_parser(subparsers)``, which registers its parser
-and sets ``func`` to the function that runs it with the parsed arguments.
+and sets ``func`` to the function that runs it with the parsed arguments. Packages built
+on the library (``datagen``, ``train``, ``deploy``, or a user's own) add commands through
+the ``frontiernet.commands`` entry point group, naming such a module; the library never
+imports them.
 """
 
 from __future__ import annotations
@@ -16,6 +19,21 @@ from ..errors import InputError
 from . import bench, demo, render, scene
 
 COMMANDS = (scene, render, demo, bench)
+PLUGIN_GROUP = "frontiernet.commands"
+
+
+def plugin_commands() -> list:
+    """Command modules registered under the ``frontiernet.commands`` entry point group."""
+    from importlib.metadata import entry_points
+
+    modules = []
+    for entry in sorted(entry_points(group=PLUGIN_GROUP), key=lambda e: e.name):
+        try:
+            modules.append(entry.load())
+        except Exception as error:  # a broken plugin must not take the whole CLI down
+            logging.getLogger(__name__).warning("command '%s' (%s) failed to load: %s", entry.name, entry.value,
+                                                error)
+    return modules
 
 
 class _Parser(argparse.ArgumentParser):
@@ -32,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"frontiernet {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for command in COMMANDS:
+    for command in (*COMMANDS, *plugin_commands()):
         command.add_parser(subparsers)
     return parser
 

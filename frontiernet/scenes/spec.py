@@ -11,6 +11,12 @@ Syntax: [SOURCE:]ARGUMENT[?key=value&key=value...]
   procedural:7?floors=2               ... with generator options (configs/scenes.yaml)
   default                             procedural:0
 
+Several scenes at once (:func:`expand_specs`, for commands that take many):
+
+  procedural:0-199                    seeds 0 to 199 (options after '?' apply to each)
+  'scans/*.glb', 'hm3d:ROOT/train/*'  a glob (quoted, so the shell leaves it alone)
+  ROOT/train                          a folder of scene folders (HM3D scenes, KTH floor plans)
+
 A bare path is recognised by what it is: a mesh file by its extension, a folder with
 occ_map.npy as a floor plan, a folder with a .glb as an HM3D scene. Options after '?'
 override the source's section of configs/scenes.yaml (e.g. floorplan: wall_height,
@@ -19,6 +25,7 @@ ceiling, door_height; mesh: up, scale).
 
 from __future__ import annotations
 
+import glob
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -90,3 +97,51 @@ def parse_spec(text: str) -> SceneSpec:
             raise InputError(f"scene spec '{text}': nothing after '{source}:'")
         return SceneSpec(source, argument, options, text)
     return SceneSpec(_guess_source(body), body, options, text)
+
+
+def _is_scene_folder(path: Path) -> bool:
+    return (path / "occ_map.npy").is_file() or any(path.glob("*.glb"))
+
+
+def expand_specs(texts) -> list[str]:
+    """Expand seed ranges, globs and folders of scene folders into single scene specs.
+
+    ``procedural:A-B`` gives seeds A..B inclusive; a spec with ``*``, ``?`` or ``[``
+    gives the sorted paths it matches; a folder that is not itself a scene but holds
+    scene folders (an HM3D split, a folder of KTH plans) gives those folders. Options
+    after '?' and an explicit ``source:`` prefix carry over to every expanded spec.
+    Duplicates are dropped, order is kept. Raises :class:`InputError` when a range is
+    malformed or a pattern or folder yields no scene.
+    """
+    out: list[str] = []
+    for text in texts:
+        text = str(text).strip()
+        body, mark, query = text.partition("?")
+        suffix = mark + query
+        source, colon, argument = body.partition(":")
+        prefix = source + colon if colon and source in SOURCES else ""
+        argument = argument if prefix else body
+        if prefix == "procedural:" and "-" in argument.lstrip("-"):
+            first, _, last = argument.partition("-")
+            try:
+                low, high = int(first), int(last)
+            except ValueError:
+                raise InputError(f"scene spec '{text}': a seed range is procedural:FIRST-LAST, "
+                                 "e.g. procedural:0-199") from None
+            if not 0 <= low <= high:
+                raise InputError(f"scene spec '{text}': seed range must satisfy 0 <= FIRST <= LAST")
+            out += [f"procedural:{seed}{suffix}" for seed in range(low, high + 1)]
+        elif any(c in argument for c in "*?["):
+            matches = sorted(glob.glob(argument))
+            if not matches:
+                raise InputError(f"scene spec '{text}': the pattern matches no file or folder")
+            out += [f"{prefix}{path}{suffix}" for path in matches]
+        elif not prefix and Path(argument).is_dir() and not _is_scene_folder(Path(argument)):
+            folders = sorted(p for p in Path(argument).iterdir() if p.is_dir() and _is_scene_folder(p))
+            if not folders:
+                raise InputError(f"{argument}: folder is not a scene and holds no scene folders "
+                                 "(floor plans with occ_map.npy, HM3D scenes with a .glb)")
+            out += [f"{path}{suffix}" for path in folders]
+        else:
+            out.append(text)
+    return list(dict.fromkeys(out))

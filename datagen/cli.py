@@ -1,0 +1,122 @@
+"""``frontiernet datagen``: make a dataset, look at it, time it.
+
+Registered with the ``frontiernet`` command through the ``frontiernet.commands`` entry
+point (``frontiernet`` itself never imports ``datagen``).
+
+  frontiernet datagen --scenes SPEC [SPEC ...] --views-per-scene N --out DIR
+                      [--workers W] [--backend local|ray] [--seed S] [--resume] [--config FILE]
+  frontiernet datagen preview DIR [--n 16] [--out DIR/preview]
+  frontiernet datagen bench [--scene SPEC] [--views N]
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "datagen", help="generate training data (frontier distance fields, gain classes) from scenes",
+        description="Generate a sharded FrontierNet dataset from scenes (DESIGN.md section 3). "
+                    "Subcommands: 'preview DIR' draws contact sheets, 'bench' times one view.")
+    parser.add_argument("--scenes", nargs="+", metavar="SPEC",
+                        help="scene specs: files, hm3d:/floorplan: folders, procedural:SEED, seed ranges "
+                             "procedural:0-199, quoted globs, folders of scene folders")
+    parser.add_argument("--views-per-scene", type=int, metavar="N", help="views per scene")
+    parser.add_argument("--out", metavar="DIR", help="dataset folder")
+    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes or Ray tasks (default 1)")
+    parser.add_argument("--backend", choices=("local", "ray"), default="local",
+                        help="local processes, or Ray tasks (set RAY_ADDRESS to use a cluster)")
+    parser.add_argument("--seed", type=int, default=0, help="run seed: same seed, same bytes (default 0)")
+    parser.add_argument("--resume", action="store_true", help="continue the dataset in --out")
+    parser.add_argument("--config", metavar="FILE", help="YAML overriding configs/sim.yaml and configs/datagen.yaml")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="config overrides, e.g. writer.shard_size=16")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=run_generate)
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser))
+    preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
+    preview.add_argument("dataset", metavar="DIR", help="dataset folder (or one shard .zip)")
+    preview.add_argument("--n", type=int, default=16, help="number of samples (spread over the dataset)")
+    preview.add_argument("--out", metavar="DIR", help="where to write (default: DIR/preview)")
+    preview.set_defaults(func=run_preview)
+    bench = actions.add_parser("bench", help="cost of one ground-truth view in depth renders, views/s per core")
+    bench.add_argument("--scene", default=None, help="scene spec (default: the shared house when present, "
+                                                     "else procedural:0)")
+    bench.add_argument("--views", type=int, default=20, help="views to time (default 20)")
+    bench.add_argument("--json", action="store_true", help="print JSON only")
+    bench.set_defaults(func=run_bench)
+
+
+def run_generate(args) -> int:
+    from frontiernet.errors import InputError
+
+    from .config import load_datagen_config
+    from .generate import generate
+
+    missing = [flag for flag, value in (("--scenes", args.scenes), ("--views-per-scene", args.views_per_scene),
+                                        ("--out", args.out)) if value is None]
+    if missing:
+        raise InputError(f"missing {', '.join(missing)} (see frontiernet datagen --help)")
+    conf = load_datagen_config(args.config, args.set)
+    summary = generate(args.scenes, args.views_per_scene, args.out, conf, seed=args.seed, workers=args.workers,
+                       backend=args.backend, resume=args.resume, progress=not args.no_progress)
+    print_summary(summary, Path(args.out))
+    return 1 if summary["failed_scenes"] else 0
+
+
+def print_summary(summary: dict, out: Path) -> None:
+    """Print a run's summary in a few lines (the full one is in out/summary.json)."""
+    hist = summary["gain_class_pixels"]
+    gain_pixels = sum(hist[1:]) if hist else 0
+    shares = " ".join(f"{100 * c / gain_pixels:.1f}" for c in hist[1:]) if gain_pixels else "-"
+    print(f"datagen: {summary['views']} views of {summary['scenes']} scene(s) in {out} "
+          f"({summary['shards']}/{summary['shards_planned']} shards)")
+    print(f"  this run: {summary['views_this_run']} views in {summary['seconds']:.1f} s "
+          f"({summary['views_per_second']:.2f} views/s)")
+    print(f"  views with frontier pixels {100 * summary['frontier_view_fraction']:.1f} %, frontier pixels "
+          f"{100 * summary['frontier_pixel_ratio']:.2f} % of all, {summary['candidates_per_view']:.2f} "
+          "candidates per view")
+    print(f"  gain classes 1-{max(len(hist) - 1, 1)} (% of gain pixels): {shares}")
+    for failure in summary["failed_scenes"]:
+        print(f"  FAILED {failure['scene']}: {failure['error']}")
+
+
+def run_preview(args) -> int:
+    from frontiernet.errors import InputError
+
+    from .dataset import open_dataset
+    from .preview import write_previews
+
+    if args.n < 1:
+        raise InputError(f"--n must be a positive integer, got {args.n}")
+    dataset = open_dataset(args.dataset)
+    if len(dataset) == 0:
+        raise InputError(f"{args.dataset}: the dataset has no samples yet")
+    root = Path(args.dataset)
+    out = Path(args.out) if args.out else (root if root.is_dir() else root.parent) / "preview"
+    max_depth = float(dataset.records[0].get("max_depth", 3.5))
+    paths = write_previews(dataset, out, n=args.n, max_depth=max_depth, truncation_px=dataset.truncation_px)
+    print(f"datagen preview: {len(paths)} contact sheet(s) in {out}")
+    return 0
+
+
+def run_bench(args) -> int:
+    from .bench import bench_ground_truth
+
+    result = bench_ground_truth(args.scene, args.views)
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"bench datagen: {result['scene']}, {result['resolution'][0]}x{result['resolution'][1]}, "
+          f"{result['views']} views (median per view)")
+    print(f"  depth render             {result['render_ms']:8.1f} ms   1.00x (baseline)")
+    print(f"  ground-truth view        {result['view_ms']:8.1f} ms   {result['view_in_renders']:.2f}x   goal < 10x")
+    for stage, ms in result["stages_ms"].items():
+        print(f"    {stage:<22} {ms:8.1f} ms   {ms / result['render_ms']:.2f}x")
+    print(f"  views per second per core {result['views_per_second_per_core']:.2f} "
+          f"({result['threads']} thread(s) on {result['cores']} core(s))")
+    print(f"  scene setup (load, voxels, generator) {result['setup_s']:.2f} s; "
+          f"peak memory of this process {result['peak_rss_mb']:.0f} MB")
+    return 0

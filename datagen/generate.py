@@ -1,0 +1,157 @@
+"""Generate a dataset: scenes in, sharded ground-truth views out (``frontiernet datagen``).
+
+The work is a list of shards, each a fixed number of views of one scene with its own
+seed, derived from the run's seed and the scene spec (so adding a scene leaves the others'
+shards unchanged). Shards are independent: they run in any order, on processes
+(``local``) or Ray tasks (``ray``), and each is written atomically. ``resume`` skips the
+shards already on disk, so a killed run continues without gaps or duplicates, and the
+same seed gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import re
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from frontiernet import __version__
+from frontiernet.errors import InputError
+from frontiernet.io import write_json
+from frontiernet.scenes.spec import expand_specs, parse_spec
+
+from .config import config_hash
+from .shards import (INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
+                     write_dataset_info)
+
+GENERATOR_VERSION = f"frontiernet-datagen/{__version__}/gt1"
+"""Names the ground-truth algorithm; bump the ``gt`` number when the labels change."""
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ShardTask:
+    """One shard to generate: `num_views` views of scene `spec`, seeded with `seed`."""
+
+    spec: str
+    scene_index: int
+    shard_index: int
+    num_views: int
+    seed: int
+    path: str
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+
+def _slug(spec: str) -> str:
+    """A short, file-name-safe label for a scene spec."""
+    text = re.sub(r"[^A-Za-z0-9]+", "-", Path(spec.split("?")[0]).name or spec).strip("-")
+    return (text or "scene")[:40]
+
+
+def shard_seed(seed: int, spec: str, shard_index: int) -> int:
+    """A 63-bit seed for one shard, from the run seed, the scene spec and the shard index."""
+    digest = hashlib.sha256(f"{seed}\0{spec}\0{shard_index}".encode()).digest()
+    return int.from_bytes(digest[:8], "little") >> 1
+
+
+def plan_shards(specs: list[str], views_per_scene: int, shard_size: int, seed: int, out: Path) -> list[ShardTask]:
+    """The shards of a run, in order (scene by scene)."""
+    tasks = []
+    for scene_index, spec in enumerate(specs):
+        for shard_index, start in enumerate(range(0, views_per_scene, shard_size)):
+            name = f"{scene_index:05d}-{_slug(spec)}-{shard_index:04d}.zip"
+            tasks.append(ShardTask(spec, scene_index, shard_index, min(shard_size, views_per_scene - start),
+                                   shard_seed(seed, spec, shard_index), str(out / SHARDS_DIR / name)))
+    return tasks
+
+
+def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[str], int]:
+    if not specs:
+        raise InputError("no scenes given (--scenes SPEC ...)")
+    if not isinstance(views_per_scene, int) or views_per_scene < 1:
+        raise InputError(f"--views-per-scene must be a positive integer, got {views_per_scene!r}")
+    if not isinstance(seed, int) or seed < 0:
+        raise InputError(f"--seed must be an integer >= 0, got {seed!r}")
+    shard_size = conf.writer.shard_size
+    if not isinstance(shard_size, int) or shard_size < 1:
+        raise InputError(f"writer.shard_size must be a positive integer, got {shard_size!r}")
+    expanded = expand_specs(specs)
+    for spec in expanded:
+        parse_spec(spec)  # a malformed or missing scene fails before any work starts
+    return expanded, shard_size
+
+
+def _prepare_output(out: Path, info: dict, resume: bool) -> None:
+    """Create `out` with its dataset.json, or check that it matches when resuming."""
+    if (out / INFO_NAME).exists():
+        if not resume:
+            raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")
+        previous = read_dataset_info(out)
+        for key in ("config_hash", "seed", "scenes", "views_per_scene", "generator_version"):
+            if previous.get(key) != info[key]:
+                raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
+                                 f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
+        return
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / SHARDS_DIR).is_dir():
+        raise InputError(f"{out}: folder is not empty and holds no dataset; choose another --out")
+    try:
+        (out / SHARDS_DIR).mkdir(parents=True, exist_ok=True)
+        write_dataset_info(out, info)
+    except OSError as error:
+        raise InputError(f"{out}: cannot write the dataset there ({error.strerror or error})") from None
+
+
+def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: DictConfig, *, seed: int = 0,
+             workers: int = 1, backend: str = "local", resume: bool = False, progress: bool = True) -> dict:
+    """Generate (or resume) a dataset; returns the summary also written to ``out/summary.json``.
+
+    Args:
+        scenes: scene specs (ranges, globs and folders of scenes are expanded).
+        views_per_scene: views per scene.
+        out: the dataset folder.
+        conf: the merged datagen config (:func:`datagen.config.load_datagen_config`).
+        seed: the run's seed; the same seed and config give the same bytes.
+        workers: parallel processes (local) or concurrent Ray tasks (ray).
+        backend: ``local`` or ``ray``.
+        resume: continue a dataset in `out` (shards on disk are kept, the rest are made).
+        progress: show a progress bar.
+    Raises:
+        InputError: bad arguments, an unusable output folder, a resume that does not
+            match the dataset on disk. Failing scenes do not raise: they are reported.
+    """
+    from .backends import run_tasks
+
+    out = Path(out)
+    specs, shard_size = _check_args(scenes, views_per_scene, seed, conf)
+    if not isinstance(workers, int) or workers < 1:
+        raise InputError(f"--workers must be a positive integer, got {workers!r}")
+    conf_dict = OmegaConf.to_container(conf, resolve=True)
+    info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed,
+            "scenes": specs, "views_per_scene": views_per_scene, "shard_size": shard_size, "config": conf_dict}
+    _prepare_output(out, info, resume)
+    removed = remove_stale_temporaries(out / SHARDS_DIR)
+    if removed:
+        log.info("removed %d unfinished shard file(s) of an interrupted run", removed)
+    tasks = plan_shards(specs, views_per_scene, shard_size, seed, out)
+    todo = [task for task in tasks if not shard_complete(task.path)]
+    start = time.perf_counter()
+    results = run_tasks([asdict(task) for task in todo], conf_dict, info, backend=backend, workers=workers,
+                        progress=progress, total_views=sum(task.num_views for task in todo))
+    elapsed = time.perf_counter() - start
+    remove_stale_temporaries(out / SHARDS_DIR)  # left by workers that died (their shards were redone)
+    from .summary import summarise
+
+    summary = summarise(out, tasks, results, elapsed, done_before=len(tasks) - len(todo))
+    write_json(out / "summary.json", summary)
+    return summary

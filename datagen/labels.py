@@ -1,0 +1,93 @@
+"""Image-space labels: depth discontinuities F_d, the distance field D and gain classes.
+
+DESIGN.md section 3, paper section III-D. All images are (H, W) in pixel coordinates
+(row v, column u); depth is metric z-depth in metres with NaN where invalid, as the
+simulator renders it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+
+def discontinuity_mask(depth: np.ndarray, window_px: int = 3, relative_jump: float = 0.1,
+                       min_jump_m: float = 0.1, invalid_is_far: bool = True) -> np.ndarray:
+    """F_d: pixels whose depth window spans a jump (a thresholded depth gradient).
+
+    A pixel is a discontinuity when, over the ``window_px`` x ``window_px`` window around
+    it, ``max - min > max(min_jump_m, relative_jump * min)``. Comparing the jump with the
+    nearer depth keeps slanted floors and walls (smooth depth) out of the mask while
+    occlusion edges (a door frame in front of the next room) mark both of their sides.
+
+    Args:
+        depth: (H, W) float32 metres, NaN where invalid.
+        invalid_is_far: invalid pixels count as farther than every valid one (the end of
+            the sensor's range is an edge); otherwise they are ignored.
+    Returns:
+        (H, W) bool.
+    """
+    depth = np.asarray(depth, np.float32)
+    valid = np.isfinite(depth)
+    if not valid.any():
+        return np.zeros(depth.shape, bool)
+    size = int(window_px)
+    far = np.float32(np.inf)
+    # minimum over valid pixels only; maximum with invalid pixels as +inf (or ignored)
+    low = ndimage.minimum_filter(np.where(valid, depth, far), size=size, mode="nearest")
+    high = ndimage.maximum_filter(np.where(valid, depth, far if invalid_is_far else -far), size=size,
+                                  mode="nearest")
+    with np.errstate(invalid="ignore"):
+        jump = high - low
+        mask = np.isfinite(low) & (jump > np.maximum(min_jump_m, relative_jump * low))
+    return mask
+
+
+def distance_field(frontier_mask: np.ndarray, truncation_px: float = 10.0,
+                   return_nearest: bool = False):
+    """D: Euclidean distance (pixels) from each pixel to the nearest pixel of F, truncated.
+
+    Exactly 0 on F; ``truncation_px`` everywhere when F is empty (paper: r = 10 px).
+    Stored in plain pixels; training normalises it to ``-log(D / r)``.
+
+    Args:
+        frontier_mask: (H, W) bool, F.
+        return_nearest: also return the (2, H, W) int64 row/column of the nearest F pixel
+            (meaningless where F is empty).
+    Returns:
+        (H, W) float32 pixels in [0, truncation_px] (and the nearest indices when asked).
+    """
+    frontier_mask = np.asarray(frontier_mask, bool)
+    if not frontier_mask.any():
+        field = np.full(frontier_mask.shape, truncation_px, np.float32)
+        if return_nearest:
+            return field, np.zeros((2,) + frontier_mask.shape, np.int64)
+        return field
+    if return_nearest:
+        distance, nearest = ndimage.distance_transform_edt(~frontier_mask, return_indices=True)
+    else:
+        distance = ndimage.distance_transform_edt(~frontier_mask)
+    field = np.minimum(distance, truncation_px).astype(np.float32)
+    return (field, nearest) if return_nearest else field
+
+
+def gain_classes(gain_m3: np.ndarray, bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
+    """Bin gains (cubic metres) into K = len(bin_edges) classes.
+
+    The edges are the classes' upper bounds: class 0 holds ``g <= edge[0]`` (no gain),
+    class i holds ``edge[i-1] < g <= edge[i]``, and gains above the last edge fall in the
+    last class (K - 1). Edges are in units of `bin_unit_m3` (public code: 0.01 m^3, edges
+    1 ... 3500, so K = 11 and the largest class is 25 to 35 m^3, about one full frustum).
+
+    Returns:
+        int64 array of the input's shape, values in [0, K - 1].
+    """
+    edges = np.asarray(bin_edges, np.float64) * float(bin_unit_m3)
+    classes = np.searchsorted(edges, np.asarray(gain_m3, np.float64), side="left")
+    return np.minimum(classes, len(edges) - 1).astype(np.int64)
+
+
+def class_lower_bounds(bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
+    """(K,) float64 lower bound (m^3) of each class of :func:`gain_classes`: 0, then edges[:-1]."""
+    edges = np.asarray(bin_edges, np.float64) * float(bin_unit_m3)
+    return np.concatenate([[0.0], edges[:-1]])
