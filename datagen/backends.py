@@ -25,13 +25,19 @@ log = logging.getLogger(__name__)
 
 BACKENDS = ("local", "ray")
 MAX_ATTEMPTS = 2
-_CACHE: dict = {}  # per process: scene spec -> (scene, voxels, generator), the last two scenes
+_CACHE: dict = {}  # per process: (scene spec, config hash) -> (scene, voxels, generator), the last two
 _PROGRESS = None  # per worker process: a queue that receives one item per computed view
 
 
 def _scene_state(spec: str, conf):
-    """Scene, voxel grid and ground-truth generator of `spec`, cached per process."""
-    if spec not in _CACHE:
+    """Scene, voxel grid and ground-truth generator of `spec`, cached per process.
+
+    The cache key includes the config: one process may run datasets of different configs
+    (workers=1 runs in the caller's process, a Ray worker serves several runs)."""
+    from .config import config_hash
+
+    key = (spec, config_hash(conf))
+    if key not in _CACHE:
         from frontiernet.scenes import load_scene
         from frontiernet.simulator.voxels import voxelize_scene
 
@@ -41,8 +47,8 @@ def _scene_state(spec: str, conf):
             _CACHE.pop(next(iter(_CACHE)))
         scene = load_scene(spec)
         voxels = voxelize_scene(scene, conf.voxels)
-        _CACHE[spec] = (scene, voxels, GroundTruthGenerator(scene, voxels, conf))
-    return _CACHE[spec]
+        _CACHE[key] = (scene, voxels, GroundTruthGenerator(scene, voxels, conf))
+    return _CACHE[key]
 
 
 def _record(truth, kind: str, spec: str, camera, num_classes: int) -> dict:

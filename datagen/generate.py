@@ -86,7 +86,9 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
         raise InputError(f"writer.shard_size must be a positive integer, got {shard_size!r}")
     expanded = expand_specs(specs)
     for spec in expanded:
-        parse_spec(spec)  # a malformed or missing scene fails before any work starts
+        parsed = parse_spec(spec)  # a malformed or missing scene fails before any work starts
+        if parsed.source != "procedural" and not Path(parsed.argument).exists():
+            raise InputError(f"{spec}: no such scene file or folder")
     return expanded, shard_size
 
 
