@@ -53,7 +53,7 @@ def shard_views(generator: GroundTruthGenerator, n: int, rng: np.random.Generato
         n: views to keep.
         rng: the shard's generator (the only source of randomness: same seed, same views).
         conf: the merged datagen config.
-        on_view: optional callable(), called once per candidate view computed (progress).
+        on_view: optional callable(), called once per view kept (progress).
     Returns:
         ([(ground truth, pose kind)] in acceptance order, number of candidates computed).
     """
@@ -75,17 +75,20 @@ def shard_views(generator: GroundTruthGenerator, n: int, rng: np.random.Generato
         for T, kind in zip(poses, kinds):
             truth = generator(T, rng)
             tried += 1
-            if on_view is not None:
-                on_view()
             has_frontier = bool(truth.frontier_mask.any())
             if quota[has_frontier] > 0:
                 quota[has_frontier] -= 1
                 kept.append((truth, kind))
+                if on_view is not None:
+                    on_view()
             elif len(spare) < n:
                 spare.append((truth, kind))
             if len(kept) == n:
                 break
-    kept += spare[: n - len(kept)]
+    for view in spare[: n - len(kept)]:
+        kept.append(view)
+        if on_view is not None:
+            on_view()
     if len(kept) < n:  # every candidate was kept or spared; cannot happen unless budget < n
         raise InputError(f"{generator.scene.metadata.spec}: only {len(kept)} of {n} views generated")
     return kept, tried
