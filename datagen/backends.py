@@ -92,7 +92,6 @@ def run_shard_task(task: dict, conf_dict: dict, info: dict) -> dict:
         for truth, kind in views:
             samples.append({**truth.arrays(), "record": _record(truth, kind, task["spec"], generator.camera,
                                                                   num_classes)})
-        for truth, _ in views:
             for stage, seconds in truth.timings.items():
                 timings[stage] = timings.get(stage, 0.0) + seconds
         meta = {"scene": task["spec"], "scene_index": task["scene_index"], "shard_index": task["shard_index"],

@@ -11,17 +11,15 @@ from __future__ import annotations
 import os
 import resource
 import time
-from pathlib import Path
 
 import numpy as np
-
-HOUSE = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "scenes" / "aws_small_house.glb"
 
 
 def bench_ground_truth(spec: str | None = None, views: int = 20) -> dict:
     """Time `views` ground-truth views of a scene; returns the figures as a dict."""
     import numba
 
+    from frontiernet.cli.bench import default_bench_scene
     from frontiernet.errors import InputError
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.poses import sample_poses
@@ -33,7 +31,7 @@ def bench_ground_truth(spec: str | None = None, views: int = 20) -> dict:
 
     if views < 1:
         raise InputError(f"--views must be a positive integer, got {views}")
-    spec = spec or (str(HOUSE) if HOUSE.is_file() else "procedural:0")
+    spec = default_bench_scene(spec)
     conf = load_datagen_config()
     start = time.perf_counter()
     scene = load_scene(spec)

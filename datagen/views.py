@@ -30,10 +30,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import ndimage
 
-from frontiernet.errors import InputError, positive_number
-from frontiernet.geometry import poses_from_headings
+from frontiernet.errors import InputError, number_range, positive_number
+from frontiernet.geometry import arc_lengths, points_at_arc, poses_from_headings
 from frontiernet.planning.grid import clearance_cost, geodesic_distance, shortest_path
-from frontiernet.simulator.poses import _rng, height_above_surface
+from frontiernet.simulator.poses import as_generator, height_above_surface
 from frontiernet.simulator.raycast import distance_to_surface
 from frontiernet.simulator.voxels import VoxelGrid
 
@@ -52,14 +52,7 @@ def _number(conf, key: str, prefix: str, *, allow_zero: bool) -> float:
 
 
 def _pair(conf, key: str, prefix: str, lower: float, upper: float) -> tuple[float, float]:
-    value = conf[key]
-    try:
-        low, high = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise InputError(f"{prefix}.{key} must be a [min, max] pair of numbers, got {value!r}") from None
-    if not (math.isfinite(low) and math.isfinite(high) and lower <= low <= high <= upper):
-        raise InputError(f"{prefix}.{key} must satisfy {lower} <= min <= max <= {upper}, got {[low, high]}")
-    return low, high
+    return number_range(conf[key], f"{prefix}.{key}", lower, upper)
 
 
 def _trajectory_settings(conf, poses_conf) -> dict:
@@ -95,16 +88,6 @@ def slice_cost(voxels: VoxelGrid, k: int, clearance_m: float) -> np.ndarray:
     return clearance_cost(clearance, clearance_m + size, _CENTRE_WEIGHT)
 
 
-def _at(points: np.ndarray, arc: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """(K, D) points of the polyline `points` (N, D) with cumulative arc lengths `arc` (N,) at arc lengths `s` (K,)."""
-    return np.stack([np.interp(s, arc, points[:, i]) for i in range(points.shape[1])], axis=1)
-
-
-def _arc(points: np.ndarray) -> np.ndarray:
-    """(N,) cumulative arc length (metres) along an (N, D) polyline."""
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-
-
 def path_headings(xy: np.ndarray, spacing: float, lookahead: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Resample an (N, 2) path every `spacing` metres and aim each point `lookahead` metres ahead.
 
@@ -113,15 +96,15 @@ def path_headings(xy: np.ndarray, spacing: float, lookahead: float) -> tuple[np.
         point to the path point `lookahead` further on, or along the last segment), and
         the path length in metres.
     """
-    arc = _arc(xy)
+    arc = arc_lengths(xy)
     length = float(arc[-1])
     s = np.arange(0.0, length, spacing) if length > 0 else np.zeros(1)
-    positions = _at(xy, arc, s)
-    target = _at(xy, arc, np.minimum(s + max(lookahead, 1e-3), length))
+    positions = points_at_arc(xy, arc, s)
+    target = points_at_arc(xy, arc, np.minimum(s + max(lookahead, 1e-3), length))
     heading = target - positions
     short = np.linalg.norm(heading, axis=1) < 1e-6
     if short.any():  # lookahead reaches the end: look along the path's last stretch
-        tangent = xy[-1] - _at(xy, arc, np.array([max(length - max(spacing, lookahead), 0.0)]))[0]
+        tangent = xy[-1] - points_at_arc(xy, arc, np.array([max(length - max(spacing, lookahead), 0.0)]))[0]
         heading[short] = tangent
     return positions, np.arctan2(heading[:, 1], heading[:, 0]), length
 
@@ -156,8 +139,8 @@ def _draw_path(scene: Scene, voxels: VoxelGrid, rng: np.random.Generator, s: dic
     if path is None or len(path) < 2:
         return None
     xy = voxels.origin[:2] + (path + 0.5) * size
-    arc = _arc(xy)  # smooth the 8-connected staircase, sampled every half voxel
-    fine = _at(xy, arc, np.append(np.arange(0.0, arc[-1], size / 2), arc[-1]))
+    arc = arc_lengths(xy)  # smooth the 8-connected staircase, sampled every half voxel
+    fine = points_at_arc(xy, arc, np.append(np.arange(0.0, arc[-1], size / 2), arc[-1]))
     fine = ndimage.gaussian_filter1d(fine, 2.0 * _SMOOTHING_VOXELS, axis=0, mode="nearest")
     positions, yaw, path_length = path_headings(fine, s["spacing"], s["lookahead"])
     if path_length < s["min_path"] - 1e-9:
@@ -204,7 +187,7 @@ def sample_trajectory_poses(scene: Scene, voxels: VoxelGrid, n: int, rng, conf: 
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 0:
         raise InputError(f"number of poses must be an integer >= 0, got {n!r}")
     s = _trajectory_settings(conf, poses_conf)
-    rng = _rng(rng)
+    rng = as_generator(rng)
     free_index = np.flatnonzero(voxels.explorable)
     if len(free_index) == 0:
         raise InputError(f"{scene.metadata.spec}: no explorable voxels to plan trajectories in")

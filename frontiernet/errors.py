@@ -25,3 +25,19 @@ def positive_number(value, name: str, unit: str = "", *, allow_zero: bool = Fals
         kind = "non-negative" if allow_zero else "positive"
         raise InputError(f"{name} must be a {kind} number{' of ' + unit if unit else ''}, got {value!r}")
     return float(value)
+
+
+def number_range(value, name: str, lower: float = -math.inf, upper: float = math.inf) -> tuple[float, float]:
+    """`value` as a ``(min, max)`` pair of finite floats with ``lower <= min <= max <= upper``.
+
+    Otherwise raise :class:`InputError` naming `name`, e.g. ``"poses.height_range_m must
+    satisfy 0.0 <= min <= max, got [2.0, 1.0]"``.
+    """
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a [min, max] pair of numbers, got {value!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and lower <= low <= high <= upper):
+        bound = f" <= {upper}" if math.isfinite(upper) else ""
+        raise InputError(f"{name} must satisfy {lower} <= min <= max{bound}, got {[low, high]}")
+    return low, high

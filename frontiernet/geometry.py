@@ -56,6 +56,19 @@ def poses_from_headings(positions: np.ndarray, yaws: np.ndarray, pitches: np.nda
     return T
 
 
+def arc_lengths(points: np.ndarray) -> np.ndarray:
+    """(N,) cumulative arc length (metres) along an (N, D) polyline, starting at 0."""
+    points = np.asarray(points, np.float64)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+
+
+def points_at_arc(points: np.ndarray, arc: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(K, D) points of the (N, D) polyline `points` at arc lengths `s` (K,), given its
+    :func:`arc_lengths` `arc` (N,); linear between vertices, clamped at the ends."""
+    points = np.asarray(points, np.float64)
+    return np.stack([np.interp(s, arc, points[:, i]) for i in range(points.shape[1])], axis=1)
+
+
 def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Geodesic angle (radians) between two rotations (3, 3)."""
     cos = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0

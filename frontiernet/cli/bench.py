@@ -10,12 +10,19 @@ from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 
 from ..config import load_config
 
-HOUSE = "../shared/data/scenes/aws_small_house.glb"
+HOUSE = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "scenes" / "aws_small_house.glb"
+"""The shared textured house next to a checkout (``../shared/data``), the default benchmark scene."""
+
+
+def default_bench_scene(spec: str | None) -> str:
+    """`spec`, else the shared house when it is there, else ``procedural:0``."""
+    return spec or (str(HOUSE) if HOUSE.is_file() else "procedural:0")
 
 
 def add_parser(subparsers) -> None:
@@ -45,8 +52,6 @@ def median_seconds(function, repeats: int, warmup: int = 2) -> float:
 
 
 def run_render(args) -> int:
-    from pathlib import Path
-
     import open3d as o3d
 
     from ..scenes import load_scene
@@ -55,7 +60,7 @@ def run_render(args) -> int:
     from ..simulator.raycast import raycasting_scene
     from ..simulator.voxels import voxelize_scene
 
-    spec = args.scene or (HOUSE if Path(HOUSE).is_file() else "procedural:0")
+    spec = default_bench_scene(args.scene)
     sim = load_config("sim")
     start = time.perf_counter()
     scene = load_scene(spec)

@@ -12,7 +12,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
-from ..geometry import poses_from_headings
+from ..geometry import arc_lengths, points_at_arc, poses_from_headings
 from ..planning.grid import clearance_cost, geodesic_distance, shortest_path
 
 
@@ -24,12 +24,10 @@ def _smooth_polyline(points: np.ndarray, sigma: float) -> np.ndarray:
 
 def _resample(points: np.ndarray, step: float) -> np.ndarray:
     """Resample an (N, 2) polyline at constant arc-length `step` (metres)."""
-    segment = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    arc = np.concatenate([[0.0], np.cumsum(segment)])
+    arc = arc_lengths(points)
     if arc[-1] < step:
         return points[:1]
-    samples = np.arange(0.0, arc[-1], step)
-    return np.stack([np.interp(samples, arc, points[:, i]) for i in range(points.shape[1])], axis=1)
+    return points_at_arc(points, arc, np.arange(0.0, arc[-1], step))
 
 
 def plan_flythrough(scene, voxels, conf) -> np.ndarray:

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, number_range
 from ..geometry import poses_from_headings
 from .raycast import cast_rays, distance_to_surface
 from .voxels import VoxelGrid
@@ -60,17 +60,11 @@ def poses_config(conf: "DictConfig | None") -> "DictConfig":
 
 
 def _range(conf, key: str, lower: float = -np.inf) -> tuple[float, float]:
-    value = conf[key]
-    try:
-        low, high = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise InputError(f"poses.{key} must be a [min, max] pair of numbers, got {value!r}") from None
-    if not (np.isfinite(low) and np.isfinite(high) and lower <= low <= high):
-        raise InputError(f"poses.{key} must satisfy {lower} <= min <= max, got {[low, high]}")
-    return low, high
+    return number_range(conf[key], f"poses.{key}", lower)
 
 
-def _rng(rng_or_seed) -> np.random.Generator:
+def as_generator(rng_or_seed) -> np.random.Generator:
+    """A numpy Generator as given, or a new one from an integer seed >= 0."""
     if isinstance(rng_or_seed, np.random.Generator):
         return rng_or_seed
     if isinstance(rng_or_seed, (int, np.integer)) and not isinstance(rng_or_seed, bool) and rng_or_seed >= 0:
@@ -104,7 +98,7 @@ def sample_poses_detailed(scene: "Scene", voxels: VoxelGrid, n: int, rng_or_seed
     conf = poses_config(conf)
     if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 0:
         raise InputError(f"number of poses must be an integer >= 0, got {n!r}")
-    rng = _rng(rng_or_seed)
+    rng = as_generator(rng_or_seed)
     h_min, h_max = _range(conf, "height_range_m", lower=0.0)
     p_min, p_max = np.deg2rad(_range(conf, "pitch_range_deg", lower=-89.0))
     if p_max >= np.deg2rad(89.0) + 1e-12:
