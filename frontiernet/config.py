@@ -57,6 +57,11 @@ def load_config(
     conf = OmegaConf.merge(*[_read_yaml(default_config_path(n)) for n in names])
     if user_file is not None:
         conf = OmegaConf.merge(conf, _read_yaml(Path(user_file)))
+    return apply_overrides(conf, overrides)
+
+
+def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConfig:
+    """`conf` with ``key.sub=value`` strings merged on top (InputError for a malformed one)."""
     overrides = list(overrides)
     if overrides:
         bad = [item for item in overrides if "=" not in item]

@@ -20,6 +20,10 @@ HOUSE = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "scenes
 """The shared textured house next to a checkout (``../shared/data``), the default benchmark scene."""
 
 
+BENCH_GROUP = "frontiernet.bench"
+"""Entry point group of benchmarks added by packages built on the library."""
+
+
 def default_bench_scene(spec: str | None) -> str:
     """`spec`, else the shared house when it is there, else ``procedural:0``."""
     return spec or (str(HOUSE) if HOUSE.is_file() else "procedural:0")
@@ -37,6 +41,10 @@ def add_parser(subparsers) -> None:
     render.add_argument("--batch", type=int, default=8, help="poses per batched render")
     render.add_argument("--json", action="store_true", help="print JSON only")
     render.set_defaults(func=run_render)
+    from .main import plugin_commands
+
+    for module in plugin_commands(BENCH_GROUP):  # e.g. deploy's `bench inference`
+        module.add_parser(actions)
 
 
 def median_seconds(function, repeats: int, warmup: int = 2) -> float:

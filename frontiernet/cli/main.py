@@ -22,12 +22,12 @@ COMMANDS = (scene, render, demo, bench)
 PLUGIN_GROUP = "frontiernet.commands"
 
 
-def plugin_commands() -> list:
-    """Command modules registered under the ``frontiernet.commands`` entry point group."""
+def plugin_commands(group: str = PLUGIN_GROUP) -> list:
+    """Command modules registered under an entry point group (default ``frontiernet.commands``)."""
     from importlib.metadata import entry_points
 
     modules = []
-    for entry in sorted(entry_points(group=PLUGIN_GROUP), key=lambda e: e.name):
+    for entry in sorted(entry_points(group=group), key=lambda e: e.name):
         try:
             modules.append(entry.load())
         except Exception as error:  # a broken plugin must not take the whole CLI down

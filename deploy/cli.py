@@ -1,0 +1,63 @@
+"""``frontiernet export`` and ``frontiernet predict`` (registered through the
+``frontiernet.commands`` entry point), and ``frontiernet bench inference`` (through
+``frontiernet.bench``).
+
+  frontiernet export MODEL --format onnx|torchscript|safetensors --out FILE [--half]
+  frontiernet predict --image RGB [--depth D] [--model M] --out DIR [--size PX] [--depth-scale S]
+"""
+
+from __future__ import annotations
+
+
+def add_parser(subparsers) -> None:
+    export = subparsers.add_parser(
+        "export", help="export a model to ONNX, TorchScript or a compact safetensors file",
+        description="Export a FrontierNet model file or training checkpoint. ONNX and TorchScript take any "
+                    "batch and image size; each file carries the model config for the runtime.")
+    export.add_argument("model", metavar="MODEL", help="model file (.safetensors) or checkpoint (.ckpt)")
+    export.add_argument("--format", required=True, choices=("onnx", "torchscript", "safetensors"))
+    export.add_argument("--out", required=True, metavar="FILE", help="output file")
+    export.add_argument("--half", action="store_true", help="safetensors: float16 weights (half the size)")
+    export.set_defaults(func=run_export)
+
+    predict = subparsers.add_parser(
+        "predict", help="frontier pixels and gain of one image (overlay picture and arrays)",
+        description="Run FrontierNet on one RGB image (and depth map) and write overlay.png, distance.png, "
+                    "input.png and outputs.npz.")
+    predict.add_argument("--image", metavar="RGB", help="RGB image (8-bit, 3 channels)")
+    predict.add_argument("--depth", metavar="D", help="depth map: .npy metres, or an image (integer images "
+                                                      "are divided by --depth-scale)")
+    predict.add_argument("--model", metavar="M", help="model file, checkpoint, .onnx or TorchScript .pt "
+                                                      "(default: the shipped model)")
+    predict.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    predict.add_argument("--size", type=int, metavar="PX", help="network input size: the short side is resized "
+                                                                "to PX and centre-cropped (default: the model's, "
+                                                                "320; 0 keeps the image as is)")
+    predict.add_argument("--depth-scale", type=float, default=1000.0,
+                         help="integer depth units per metre (default 1000: millimetres; TUM: 5000)")
+    predict.add_argument("--threads", type=int, help="CPU threads for the network")
+    predict.set_defaults(func=run_predict)
+
+
+def run_export(args) -> int:
+    from .export import export
+
+    path = export(args.model, args.format, args.out, half=args.half)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
+def run_predict(args) -> int:
+    from frontiernet.errors import InputError, positive_number
+
+    from .predict import predict_files
+
+    if args.size is not None and args.size < 0:
+        raise InputError(f"--size must be >= 0, got {args.size}")
+    positive_number(args.depth_scale, "--depth-scale")
+    result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
+                           depth_scale=args.depth_scale, threads=args.threads)
+    frontier = result["frontier_mask"]
+    print(f"{int(frontier.sum())} frontier pixels ({100 * frontier.mean():.2f} % of the image); "
+          f"wrote {args.out}/overlay.png, distance.png, outputs.npz")
+    return 0

@@ -1,0 +1,74 @@
+"""``export(model, format, out)``: ONNX, TorchScript or a compact safetensors model file.
+
+Every exported file carries the model config (input kind, normalisation, label encoding) so
+``deploy.runtime.load_runtime`` needs nothing else: ONNX in its ``metadata_props`` under
+``frontiernet_model``, TorchScript as the extra file ``frontiernet_model.json``. Exported
+graphs take any batch size and any image size (dynamic axes; the network pads to a
+multiple of 32 inside the graph).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import torch
+
+from frontiernet.errors import InputError
+from frontiernet.io import atomic_write
+from frontiernet.model import load_model, save_model
+
+FORMATS = ("onnx", "torchscript", "safetensors")
+CONFIG_KEY = "frontiernet_model"
+TORCHSCRIPT_EXTRA = "frontiernet_model.json"
+OPSET = 18
+
+
+def _config_json(conf: dict) -> str:
+    return json.dumps({key: conf[key] for key in ("network", "input", "labels", "inference", "info") if key in conf})
+
+
+def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool = False) -> Path:
+    """Write the model (a model file or training checkpoint; None: the shipped one) as `fmt`.
+
+    Args:
+        fmt: ``onnx`` | ``torchscript`` | ``safetensors``.
+        half: safetensors only: store float16 weights (half the size).
+    Returns:
+        The written path (written atomically: a failed export leaves nothing behind).
+    """
+    if fmt not in FORMATS:
+        raise InputError(f"--format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    out = Path(out)
+    if not out.parent.is_dir():
+        raise InputError(f"{out.parent}: output folder does not exist")
+    model, conf = load_model(model_path)
+    if fmt == "safetensors":
+        return save_model(out, model, conf, info=conf.get("info"), half=half)
+    channels = model.config.in_channels
+    size = int(conf["inference"]["size"])
+    example = torch.zeros(1, channels, size, size)
+    if fmt == "torchscript":
+        extra = {TORCHSCRIPT_EXTRA: _config_json(conf)}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)  # torch.jit is deprecated, still supported
+            scripted = torch.jit.script(model)
+            return atomic_write(out, lambda temporary: torch.jit.save(scripted, str(temporary), _extra_files=extra))
+    return atomic_write(out, lambda temporary: _export_onnx(model, example, temporary, conf))
+
+
+def _export_onnx(model, example: torch.Tensor, path: Path, conf: dict) -> None:
+    import onnx
+
+    dims = {0: torch.export.Dim("batch", min=1, max=256), 2: torch.export.Dim("height", min=8, max=8192),
+            3: torch.export.Dim("width", min=8, max=8192)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        program = torch.onnx.export(model, (example,), dynamo=True, input_names=["image"],
+                                    output_names=["distance", "gain_logits"], dynamic_shapes=({**dims},),
+                                    opset_version=OPSET, verbose=False)
+    proto = program.model_proto
+    entry = proto.metadata_props.add()
+    entry.key, entry.value = CONFIG_KEY, _config_json(conf)
+    onnx.save_model(proto, str(path))

@@ -1,0 +1,94 @@
+"""``load_runtime(path)``: one ``predict(rgb, depth) -> (distance_field, gain_logits)`` for
+every model format.
+
+- ``.onnx``: onnxruntime (CPU, or CUDA when onnxruntime-gpu is installed);
+- ``.pt`` / ``.ts`` TorchScript: ``torch.jit.load``;
+- ``.safetensors`` model files and ``.ckpt`` checkpoints: :class:`frontiernet.model.Predictor`.
+
+All share :class:`frontiernet.model.Runtime`'s input checks, normalisation and decoding, so
+the three agree to float precision (``tests/test_deploy.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from frontiernet.errors import InputError
+from frontiernet.model import Predictor, Runtime
+from frontiernet.model.predictor import torch_threads
+
+from .export import CONFIG_KEY, TORCHSCRIPT_EXTRA
+
+
+class OnnxRuntime(Runtime):
+    """An exported ONNX model run by onnxruntime (``threads``: intra-op threads, None = all)."""
+
+    def __init__(self, path: str | Path, threads: int | None = None):
+        import onnxruntime
+
+        path = Path(path)
+        options = onnxruntime.SessionOptions()
+        if threads:
+            options.intra_op_num_threads = int(threads)
+            options.inter_op_num_threads = 1
+        try:
+            self.session = onnxruntime.InferenceSession(str(path), options,
+                                                        providers=onnxruntime.get_available_providers())
+        except Exception as error:  # noqa: BLE001  onnxruntime raises its own exception types
+            raise InputError(f"{path}: not a loadable ONNX model ({str(error).splitlines()[0][:120]})") from None
+        metadata = self.session.get_modelmeta().custom_metadata_map
+        if CONFIG_KEY not in metadata:
+            raise InputError(f"{path}: ONNX model without a FrontierNet config (export it with frontiernet export)")
+        self.conf = json.loads(metadata[CONFIG_KEY])
+
+    def run(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        distance, logits = self.session.run(None, {"image": image})
+        return distance, logits
+
+
+class TorchScriptRuntime(Runtime):
+    """An exported TorchScript model (``threads``: torch intra-op threads while predicting)."""
+
+    def __init__(self, path: str | Path, threads: int | None = None):
+        path = Path(path)
+        extra = {TORCHSCRIPT_EXTRA: ""}
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", FutureWarning)  # torch.jit is deprecated, still supported
+                self.module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
+        except Exception as error:  # noqa: BLE001  torch.jit raises RuntimeError and others
+            raise InputError(f"{path}: not a loadable TorchScript model ({str(error).splitlines()[0][:120]})") from None
+        if not extra[TORCHSCRIPT_EXTRA]:
+            raise InputError(f"{path}: TorchScript model without a FrontierNet config (export it with "
+                             f"frontiernet export)")
+        self.conf = json.loads(extra[TORCHSCRIPT_EXTRA])
+        self.module.eval()
+        self.threads = threads
+
+    @torch.inference_mode()
+    def run(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        with torch_threads(self.threads):
+            distance, logits = self.module(torch.from_numpy(image))
+        return distance.numpy(), logits.numpy()
+
+
+def load_runtime(path: str | Path | None = None, threads: int | None = None) -> Runtime:
+    """The runtime for a model file, chosen by its suffix (None: the shipped model, torch)."""
+    if path is None:
+        return Predictor(None, threads=threads)
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: model file not found")
+    suffix = path.suffix.lower()
+    if suffix == ".onnx":
+        return OnnxRuntime(path, threads)
+    if suffix in (".pt", ".ts", ".torchscript"):
+        return TorchScriptRuntime(path, threads)
+    if suffix in (".safetensors", ".ckpt"):
+        return Predictor(path, threads=threads)
+    raise InputError(f"{path}: unknown model format '{suffix}' (expected .safetensors, .ckpt, .onnx or .pt)")

@@ -1,0 +1,133 @@
+"""Network input and output encoding: normalisation, checks, resizing, decoding.
+
+Input normalisation (``configs/model.yaml`` section ``input``):
+
+- RGB: uint8 (H, W, 3) -> float in [0, 1] -> ``(x - mean) / std`` with ImageNet statistics;
+- depth: float metres (H, W) -> ``clip(depth, 0, max_depth) / max_depth`` in [0, 1], where
+  0 means invalid (the sensor convention of TUM, Redwood and most RGB-D drivers). NaN is
+  refused: callers map their invalid pixels to 0 first (:func:`invalid_to_zero`).
+
+Channel order is RGB then depth. Output decoding (``labels`` section): the distance head's
+``y`` gives ``D = r * exp(-y)`` pixels, frontier pixels are ``D < l`` (DESIGN.md section 4).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import torch
+
+from ..errors import InputError
+
+
+def invalid_to_zero(depth: np.ndarray) -> np.ndarray:
+    """(H, W) float32 depth with NaN / inf / negative values replaced by 0 (invalid)."""
+    depth = np.asarray(depth, np.float32)
+    return np.where(np.isfinite(depth) & (depth > 0), depth, 0.0).astype(np.float32)
+
+
+def check_images(rgb: np.ndarray | None, depth: np.ndarray | None, inputs: str) -> tuple[int, int]:
+    """Validate what a model with input kind `inputs` (rgbd | rgb | depth) is given.
+
+    Returns the image size (H, W). Raises :class:`InputError` with a one-line reason.
+    """
+    if inputs in ("rgbd", "rgb"):
+        if rgb is None:
+            raise InputError(f"this model takes {'RGB + depth' if inputs == 'rgbd' else 'RGB'} input; "
+                             f"no RGB image was given")
+        rgb = np.asarray(rgb)
+        if rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise InputError(f"RGB image must be (H, W, 3), got shape {tuple(rgb.shape)}")
+        if rgb.dtype != np.uint8:
+            raise InputError(f"RGB image must be uint8, got {rgb.dtype}")
+    if inputs in ("rgbd", "depth"):
+        if depth is None:
+            raise InputError(f"this model takes {'RGB + depth' if inputs == 'rgbd' else 'depth'} input; "
+                             f"no depth map was given")
+        depth = np.asarray(depth)
+        if depth.ndim != 2:
+            raise InputError(f"depth map must be (H, W), got shape {tuple(depth.shape)}")
+        if not np.issubdtype(depth.dtype, np.floating):
+            raise InputError(f"depth map must be float metres, got {depth.dtype} (convert units first)")
+        if np.isnan(depth).any():
+            raise InputError(f"depth map has {int(np.isnan(depth).sum())} NaN pixels; mark invalid pixels "
+                             f"with 0 (frontiernet.model.invalid_to_zero)")
+    if inputs == "rgbd" and rgb.shape[:2] != depth.shape:
+        raise InputError(f"depth map is {depth.shape[1]} x {depth.shape[0]} but the RGB image is "
+                         f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
+    size = rgb.shape[:2] if rgb is not None and inputs != "depth" else depth.shape
+    if min(size) < 8:
+        raise InputError(f"image of {size[1]} x {size[0]} pixels is too small for the network")
+    return int(size[0]), int(size[1])
+
+
+def network_input(rgb: np.ndarray | None, depth: np.ndarray | None, inputs: str, input_conf) -> torch.Tensor:
+    """(1, C, H, W) float32 tensor of the normalised channels for input kind `inputs`.
+
+    Args:
+        rgb: (H, W, 3) uint8, or None for depth-only models.
+        depth: (H, W) float metres, 0 = invalid, or None for RGB-only models.
+        input_conf: the ``input`` section of ``configs/model.yaml``.
+    """
+    check_images(rgb, depth, inputs)
+    return torch.from_numpy(normalise_batch(
+        None if rgb is None else np.asarray(rgb)[None],
+        None if depth is None else np.asarray(depth, np.float32)[None], inputs, input_conf))
+
+
+def normalise_batch(rgb: np.ndarray | None, depth: np.ndarray | None, inputs: str, input_conf) -> np.ndarray:
+    """(B, C, H, W) float32 from (B, H, W, 3) uint8 RGB and (B, H, W) float depth (unchecked)."""
+    channels = []
+    if inputs in ("rgbd", "rgb"):
+        mean = np.asarray(input_conf["rgb_mean"], np.float32)
+        std = np.asarray(input_conf["rgb_std"], np.float32)
+        channels.append(((rgb.astype(np.float32) / 255.0 - mean) / std).transpose(0, 3, 1, 2))
+    if inputs in ("rgbd", "depth"):
+        max_depth = float(input_conf["max_depth_m"])
+        channels.append((np.clip(depth, 0.0, max_depth) / max_depth)[:, None].astype(np.float32))
+    return np.ascontiguousarray(np.concatenate(channels, axis=1), dtype=np.float32)
+
+
+def encode_distance(distance_px: torch.Tensor, labels_conf) -> torch.Tensor:
+    """Normalised target ``-log(max(D, d_min) / r)`` (>= 0) from D in pixels (any shape)."""
+    r = float(labels_conf["truncation_px"])
+    clamped = distance_px.clamp(min=float(labels_conf["min_distance_px"]), max=r)
+    return -torch.log(clamped / r)
+
+
+def decode_distance(normalised, labels_conf):
+    """D in pixels ``r * exp(-y)`` from the distance head's output y (tensor or array)."""
+    r = float(labels_conf["truncation_px"])
+    if isinstance(normalised, torch.Tensor):
+        return r * torch.exp(-normalised)
+    return (r * np.exp(-np.asarray(normalised, np.float32))).astype(np.float32)
+
+
+def resize_and_crop(rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndarray | None, size: int):
+    """Resize so the short side is `size`, centre-crop to ``size x size``, adjust intrinsics.
+
+    The public demo code's preprocessing (resize + centre crop to 320 x 320). RGB is resized
+    with area averaging, depth with nearest neighbour (no invented depths across edges).
+
+    Args:
+        rgb: (H, W, 3) uint8 or None; depth: (H, W) float32 metres or None; K: (3, 3) or None.
+    Returns:
+        (rgb, depth, K) at ``size x size`` (None stays None).
+    """
+    height, width = (rgb if rgb is not None else depth).shape[:2]
+    scale = size / min(height, width)
+    new_w, new_h = max(size, round(width * scale)), max(size, round(height * scale))
+    left, top = (new_w - size) // 2, (new_h - size) // 2
+    if rgb is not None:
+        rgb = cv2.resize(np.ascontiguousarray(rgb), (new_w, new_h), interpolation=cv2.INTER_AREA)
+        rgb = np.ascontiguousarray(rgb[top:top + size, left:left + size])
+    if depth is not None:
+        depth = cv2.resize(np.ascontiguousarray(depth, np.float32), (new_w, new_h), interpolation=cv2.INTER_NEAREST)
+        depth = np.ascontiguousarray(depth[top:top + size, left:left + size])
+    if K is not None:
+        K = np.asarray(K, np.float64).copy()
+        K[0, 0] *= new_w / width
+        K[1, 1] *= new_h / height
+        K[0, 2] = (K[0, 2] + 0.5) * new_w / width - 0.5 - left
+        K[1, 2] = (K[1, 2] + 0.5) * new_h / height - 0.5 - top
+    return rgb, depth, K

@@ -1,0 +1,205 @@
+"""The FrontierNet network: a UNet on a torchvision ResNet encoder with two heads.
+
+DESIGN.md section 2, paper section III-C. The encoder is a ResNet (18, 34 or 50) whose first
+convolution takes the configured input channels (RGB + depth prior, RGB only or depth only);
+a shared UNet decoder upsamples back to full resolution; two heads of three convolutions each
+predict
+
+- the normalised distance field ``y = -log(max(D, d_min) / r)`` (1 channel, non-negative by a
+  softplus: D <= r everywhere, so y >= 0);
+- the information-gain class logits (K = 11 channels).
+
+Inputs of any size work: they are zero-padded on the right and bottom to a multiple of the
+encoder stride (32) and the outputs are cropped back, so nothing is resized inside the network.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import torch
+import torch.nn.functional as F
+import torchvision
+from torch import nn
+
+from ..errors import InputError
+
+ENCODERS = ("resnet18", "resnet34", "resnet50")
+INPUT_CHANNELS = {"rgbd": 4, "rgb": 3, "depth": 1}
+
+
+@dataclass(frozen=True)
+class NetworkConfig:
+    """Architecture of :class:`FrontierNet` (``configs/model.yaml`` section ``network``)."""
+
+    encoder: str = "resnet18"
+    inputs: str = "rgbd"
+    decoder_channels: tuple[int, ...] = (128, 64, 32, 16, 16)
+    head_channels: int = 16
+    num_classes: int = 11
+    pad_multiple: int = 32
+
+    def __post_init__(self):
+        if self.encoder not in ENCODERS:
+            raise InputError(f"network.encoder must be one of {', '.join(ENCODERS)}, got {self.encoder!r}")
+        if self.inputs not in INPUT_CHANNELS:
+            raise InputError(f"network.inputs must be one of {', '.join(INPUT_CHANNELS)}, got {self.inputs!r}")
+        if len(self.decoder_channels) != 5 or min(self.decoder_channels) < 1:
+            raise InputError(f"network.decoder_channels must list 5 positive widths, got "
+                             f"{list(self.decoder_channels)}")
+        if self.num_classes < 2 or self.head_channels < 1 or self.pad_multiple < 1:
+            raise InputError("network.num_classes must be >= 2, head_channels and pad_multiple >= 1")
+
+    @property
+    def in_channels(self) -> int:
+        return INPUT_CHANNELS[self.inputs]
+
+    def to_dict(self) -> dict:
+        values = asdict(self)
+        values["decoder_channels"] = list(self.decoder_channels)
+        return values
+
+    @classmethod
+    def from_dict(cls, values) -> NetworkConfig:
+        values = dict(values)
+        known = {name for name in cls.__dataclass_fields__}
+        unknown = sorted(set(values) - known - {"pretrained"})
+        if unknown:
+            raise InputError(f"unknown network setting(s): {', '.join(unknown)}")
+        values.pop("pretrained", None)
+        if "decoder_channels" in values:
+            values["decoder_channels"] = tuple(int(c) for c in values["decoder_channels"])
+        return cls(**values)
+
+
+def _conv_block(in_channels: int, out_channels: int) -> nn.Sequential:
+    """3x3 conv, batch norm, ReLU."""
+    return nn.Sequential(nn.Conv2d(in_channels, out_channels, 3, padding=1, bias=False),
+                         nn.BatchNorm2d(out_channels), nn.ReLU(inplace=True))
+
+
+class DecoderStage(nn.Module):
+    """Upsample x2, concatenate the skip feature (if any), two conv blocks."""
+
+    def __init__(self, in_channels: int, skip_channels: int, out_channels: int):
+        super().__init__()
+        self.convs = nn.Sequential(_conv_block(in_channels + skip_channels, out_channels),
+                                   _conv_block(out_channels, out_channels))
+
+    def forward(self, x: torch.Tensor, skip: Optional[torch.Tensor]) -> torch.Tensor:
+        x = F.interpolate(x, scale_factor=2.0, mode="nearest")
+        if skip is not None:
+            x = torch.cat([x, skip], dim=1)
+        return self.convs(x)
+
+
+def _head(in_channels: int, width: int, out_channels: int) -> nn.Sequential:
+    """Three convolutions (paper: each head has three conv layers)."""
+    return nn.Sequential(nn.Conv2d(in_channels, width, 3, padding=1), nn.ReLU(inplace=True),
+                         nn.Conv2d(width, width, 3, padding=1), nn.ReLU(inplace=True),
+                         nn.Conv2d(width, out_channels, 1))
+
+
+class FrontierNet(nn.Module):
+    """UNet with a ResNet encoder, a shared decoder and two heads.
+
+    ``forward(x)`` takes the normalised input (B, C, H, W) float32 (see
+    :func:`frontiernet.model.inputs.network_input`) and returns
+
+    - ``distance``: (B, 1, H, W) float32, the normalised distance field y >= 0
+      (``D = r * exp(-y)`` pixels, :func:`frontiernet.model.inputs.decode_distance`);
+    - ``gain_logits``: (B, K, H, W) float32 logits of the gain classes.
+    """
+
+    def __init__(self, config: NetworkConfig):
+        super().__init__()
+        self.config = config
+        resnet = getattr(torchvision.models, config.encoder)(weights=None)
+        conv1 = nn.Conv2d(config.in_channels, 64, kernel_size=7, stride=2, padding=3, bias=False)
+        self.stem = nn.Sequential(conv1, resnet.bn1, resnet.relu)               # stride 2, 64 ch
+        self.pool = resnet.maxpool
+        self.layers = nn.ModuleList([resnet.layer1, resnet.layer2, resnet.layer3, resnet.layer4])
+        expansion = 4 if config.encoder == "resnet50" else 1
+        skips = [64] + [c * expansion for c in (64, 128, 256)]                     # strides 2, 4, 8, 16
+        deepest = 512 * expansion                                                  # stride 32
+        stages, previous = [], deepest
+        for out_channels, skip in zip(config.decoder_channels, [*reversed(skips), 0]):
+            stages.append(DecoderStage(previous, skip, out_channels))
+            previous = out_channels
+        self.decoder = nn.ModuleList(stages)
+        self.distance_head = _head(previous, config.head_channels, 1)
+        self.gain_head = _head(previous, config.head_channels, config.num_classes)
+        self.pad_multiple = int(config.pad_multiple)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        # written for TorchScript and ONNX export too: shape arithmetic stays symbolic
+        height, width = x.shape[-2], x.shape[-1]
+        multiple = self.pad_multiple
+        pad_bottom = (multiple - height % multiple) % multiple
+        pad_right = (multiple - width % multiple) % multiple
+        x = F.pad(x, [0, pad_right, 0, pad_bottom])
+        skips: list[torch.Tensor] = [self.stem(x)]
+        y = self.pool(skips[0])
+        for index, layer in enumerate(self.layers):
+            y = layer(y)
+            if index < 3:
+                skips.append(y)
+        for index, stage in enumerate(self.decoder):
+            skip: Optional[torch.Tensor] = skips[3 - index] if index < 4 else None
+            y = stage(y, skip)
+        distance = F.softplus(self.distance_head(y))
+        gain_logits = self.gain_head(y)
+        return distance[:, :, :height, :width], gain_logits[:, :, :height, :width]
+
+
+def load_imagenet_encoder(model: FrontierNet, source: str | Path) -> list[str]:
+    """Copy ImageNet ResNet weights into the encoder of `model`, in place.
+
+    Args:
+        source: a torchvision ResNet state-dict file (``resnet18-f37072fd.pth`` and the like),
+            or ``"hub"`` for that file in the torch hub cache. Nothing is downloaded.
+    Returns:
+        The names of the encoder parameters that were set.
+    The first convolution's RGB filters are copied to the RGB channels; a depth channel gets
+    their mean (the usual way to extend an RGB encoder).
+    """
+    path = _resolve_pretrained(model.config.encoder, source)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # noqa: BLE001  a corrupt file or a pickle with code in it
+        raise InputError(f"{path}: not a loadable torchvision state dict ({error.__class__.__name__})") from None
+    rgb_filters = state.get("conv1.weight")
+    if rgb_filters is None or rgb_filters.shape[1] != 3:
+        raise InputError(f"{path}: not a torchvision ResNet state dict (no 3-channel conv1.weight)")
+    inputs = model.config.inputs
+    conv1 = {"rgbd": torch.cat([rgb_filters, rgb_filters.mean(1, keepdim=True)], 1),
+             "rgb": rgb_filters, "depth": rgb_filters.mean(1, keepdim=True)}[inputs]
+    mapping = {"stem.0.weight": conv1}
+    for name, value in state.items():
+        if name.startswith("bn1."):
+            mapping["stem.1." + name[4:]] = value
+        elif name.startswith("layer"):
+            index, rest = name[5], name[7:]
+            mapping[f"layers.{int(index) - 1}.{rest}"] = value
+    own = model.state_dict()
+    bad = [n for n, v in mapping.items() if n not in own or own[n].shape != v.shape]
+    if bad:
+        raise InputError(f"{path}: does not fit a {model.config.encoder} encoder (first mismatch: {bad[0]})")
+    model.load_state_dict(mapping, strict=False)
+    return sorted(mapping)
+
+
+def _resolve_pretrained(encoder: str, source: str | Path) -> Path:
+    if str(source) != "hub":
+        path = Path(source).expanduser()
+        if not path.is_file():
+            raise InputError(f"{path}: ImageNet weights file not found (network.pretrained)")
+        return path
+    checkpoints = Path(torch.hub.get_dir()) / "checkpoints"
+    found = sorted(checkpoints.glob(f"{encoder}-*.pth"))
+    if not found:
+        raise InputError(f"network.pretrained=hub: no {encoder}-*.pth in {checkpoints}; put torchvision's "
+                         f"ImageNet file there (nothing is downloaded) or set network.pretrained=null")
+    return found[-1]

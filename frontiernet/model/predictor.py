@@ -1,0 +1,91 @@
+"""Runtimes: ``predict(rgb, depth) -> (distance_field, gain_logits)`` for any model format.
+
+:class:`Runtime` holds what every format shares (input checks and normalisation, output
+decoding); :class:`Predictor` runs a torch model file or checkpoint. ``deploy.runtime`` adds
+ONNX (onnxruntime) and TorchScript behind the same call.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .checkpoint import load_model
+from .inputs import decode_distance, network_input
+
+
+@contextmanager
+def torch_threads(threads: int | None):
+    """Run the block with `threads` torch intra-op threads (None: unchanged), then restore."""
+    previous = torch.get_num_threads()
+    if threads:
+        torch.set_num_threads(int(threads))
+    try:
+        yield
+    finally:
+        if threads:
+            torch.set_num_threads(previous)
+
+
+class Runtime:
+    """Base of the runtimes. Subclasses set ``conf`` (a model config dict with ``network``,
+    ``input``, ``labels``, ``inference``) and implement :meth:`run`."""
+
+    conf: dict
+
+    @property
+    def inputs(self) -> str:
+        """Input kind of the model: rgbd, rgb or depth."""
+        return self.conf["network"]["inputs"]
+
+    @property
+    def labels(self) -> dict:
+        return self.conf["labels"]
+
+    def run(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Raw network on a normalised (1, C, H, W) float32 input: (1, 1, H, W) y, (1, K, H, W) logits."""
+        raise NotImplementedError
+
+    def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Run the network on one image.
+
+        Args:
+            rgb: (H, W, 3) uint8 RGB (ignored by depth-only models; may be None for them).
+            depth: (H, W) float32 metres, 0 = invalid, no NaN (ignored by RGB-only models).
+        Returns:
+            distance_field: (H, W) float32 pixels in (0, r], distance to the nearest frontier pixel;
+            gain_logits: (K, H, W) float32 gain-class logits.
+        """
+        if self.inputs == "depth":
+            rgb = None
+        elif self.inputs == "rgb":
+            depth = None
+        image = network_input(rgb, depth, self.inputs, self.conf["input"]).numpy()
+        distance, logits = self.run(image)
+        distance_px = decode_distance(np.asarray(distance, np.float32)[0, 0], self.labels)
+        return distance_px, np.asarray(logits, np.float32)[0]
+
+
+class Predictor(Runtime):
+    """A torch model file (``.safetensors``) or training checkpoint (``.ckpt``).
+
+    Args:
+        model: the file (None: the shipped model).
+        threads: torch intra-op threads while predicting (None: leave torch's setting).
+        device: "cpu" or "cuda".
+    """
+
+    def __init__(self, model: str | Path | None = None, threads: int | None = None, device: str = "cpu"):
+        self.model, self.conf = load_model(model)
+        self.device = torch.device(device)
+        self.model.to(self.device)
+        self.threads = threads
+
+    @torch.inference_mode()
+    def run(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        with torch_threads(self.threads):
+            distance, logits = self.model(torch.from_numpy(image).to(self.device))
+        return distance.float().cpu().numpy(), logits.float().cpu().numpy()

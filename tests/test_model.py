@@ -1,0 +1,184 @@
+"""The FrontierNet network and its model files: any input size, the three input kinds, safe and
+strict loading (a malicious pickle is refused), ImageNet weights from a local file."""
+
+from __future__ import annotations
+
+import os
+import pickle
+
+import numpy as np
+import pytest
+import torch
+import torchvision
+
+from frontiernet.errors import InputError
+from frontiernet.model import (FrontierNet, NetworkConfig, Predictor, check_images, decode_distance,
+                               encode_distance, load_imagenet_encoder, load_model, resize_and_crop, save_model)
+from frontiernet.config import load_config
+from omegaconf import OmegaConf
+
+MODEL_CONF = OmegaConf.to_container(load_config("model"), resolve=True)
+
+
+def small_net(inputs: str = "rgbd", encoder: str = "resnet18") -> FrontierNet:
+    torch.manual_seed(0)
+    return FrontierNet(NetworkConfig(encoder=encoder, inputs=inputs, decoder_channels=(32, 16, 16, 8, 8),
+                                     head_channels=8)).eval()
+
+
+@pytest.mark.parametrize("inputs,channels", [("rgbd", 4), ("rgb", 3), ("depth", 1)])
+def test_any_input_size_gives_full_size_outputs(inputs, channels):
+    net = small_net(inputs)
+    with torch.no_grad():
+        distance, logits = net(torch.randn(2, channels, 70, 93))
+    assert distance.shape == (2, 1, 70, 93) and logits.shape == (2, 11, 70, 93)
+    assert (distance >= 0).all()  # y = -log(D / r) >= 0 because D <= r
+
+
+def test_padding_does_not_leak_into_the_image():
+    """A 64 x 64 crop of a 70 x 93 input and the crop run alone differ only near the crop's
+    padded border: the network does not resize, so pixel scale is kept."""
+    net = small_net()
+    image = torch.randn(1, 4, 64, 64)
+    with torch.no_grad():
+        alone = net(image)[0]
+        padded = net(torch.nn.functional.pad(image, (0, 29, 0, 6)))[0][..., :64, :64]
+    assert alone.shape == padded.shape == (1, 1, 64, 64)
+
+
+@pytest.mark.parametrize("encoder", ["resnet34", "resnet50"])
+def test_larger_encoders_build_and_run(encoder):
+    net = small_net(encoder=encoder)
+    with torch.no_grad():
+        distance, logits = net(torch.randn(1, 4, 64, 64))
+    assert distance.shape == (1, 1, 64, 64) and logits.shape == (1, 11, 64, 64)
+
+
+def test_distance_encoding_round_trip_and_threshold():
+    labels = MODEL_CONF["labels"]
+    distance = torch.tensor([0.0, 0.5, 1.0, 5.0, 10.0])
+    encoded = encode_distance(distance, labels)
+    assert encoded[-1] == 0 and (encoded[:-1] > 0).all()
+    decoded = decode_distance(encoded, labels)
+    assert decoded[0] < labels["frontier_threshold_px"] <= decoded[1]  # F = [D < l] exact for D = 0
+    assert torch.allclose(decoded[1:], distance[1:])
+
+
+def test_imagenet_weights_from_a_local_file(tmp_path):
+    resnet = torchvision.models.resnet18(weights=None)
+    path = tmp_path / "resnet18-f37072fd.pth"
+    torch.save(resnet.state_dict(), path)
+    net = small_net()
+    names = load_imagenet_encoder(net, path)
+    assert "layers.3.1.conv2.weight" in names
+    assert torch.equal(net.layers[3][1].conv2.weight, resnet.layer4[1].conv2.weight)
+    stem = net.stem[0].weight
+    assert torch.equal(stem[:, :3], resnet.conv1.weight)
+    assert torch.allclose(stem[:, 3], resnet.conv1.weight.mean(1))  # depth channel: mean of RGB filters
+    with pytest.raises(InputError, match="not found"):
+        load_imagenet_encoder(net, tmp_path / "missing.pth")
+    torch.save(torchvision.models.resnet34(weights=None).state_dict(), tmp_path / "r34.pth")
+    with pytest.raises(InputError, match="does not fit a resnet18"):
+        load_imagenet_encoder(net, tmp_path / "r34.pth")
+
+
+def test_model_file_round_trip(tmp_path):
+    net = small_net()
+    path = save_model(tmp_path / "m.safetensors", net, MODEL_CONF, info={"note": "test"})
+    loaded, conf = load_model(path)
+    assert conf["network"]["decoder_channels"] == [32, 16, 16, 8, 8] and conf["info"] == {"note": "test"}
+    x = torch.randn(1, 4, 40, 48)
+    with torch.no_grad():
+        assert torch.equal(net(x)[0], loaded(x)[0])
+    half, _ = load_model(save_model(tmp_path / "h.safetensors", net, MODEL_CONF, half=True))
+    with torch.no_grad():
+        assert torch.allclose(net(x)[1], half(x)[1], atol=5e-2)
+    assert (tmp_path / "h.safetensors").stat().st_size < 0.6 * path.stat().st_size
+
+
+def test_bad_model_files_are_refused_by_name(tmp_path):
+    with pytest.raises(InputError, match="not found"):
+        load_model(tmp_path / "nope.safetensors")
+    corrupt = tmp_path / "corrupt.safetensors"
+    corrupt.write_bytes(b"\x00" * 100)
+    with pytest.raises(InputError, match="corrupt.safetensors: not a readable"):
+        load_model(corrupt)
+    # weights of one architecture under the config of another
+    from safetensors.torch import save_file
+    wrong = tmp_path / "wrong.safetensors"
+    save_model(wrong, small_net("rgb"), MODEL_CONF)
+    from safetensors import safe_open
+    with safe_open(str(wrong), "pt") as handle:
+        meta = handle.metadata()
+        tensors = {k: handle.get_tensor(k) for k in handle.keys()}
+    meta["frontiernet_model"] = meta["frontiernet_model"].replace('"inputs": "rgb"', '"inputs": "rgbd"')
+    save_file(tensors, str(wrong), metadata=meta)
+    with pytest.raises(InputError, match="do not fit a resnet18/rgbd"):
+        load_model(wrong)
+    bare = tmp_path / "bare.safetensors"
+    save_file({"w": torch.zeros(2)}, str(bare))
+    with pytest.raises(InputError, match="not a frontiernet model"):
+        load_model(bare)
+
+
+class _Exploit:
+    def __reduce__(self):
+        return (os.system, (f"touch {os.environ['EXPLOIT_MARKER']}",))
+
+
+def test_a_malicious_checkpoint_is_refused_and_runs_nothing(tmp_path, monkeypatch):
+    marker = tmp_path / "pwned"
+    monkeypatch.setenv("EXPLOIT_MARKER", str(marker))
+    evil = tmp_path / "evil.ckpt"
+    torch.save({"state_dict": {}, "hyper_parameters": {"model": {"network": {}}}, "payload": _Exploit()}, evil)
+    with pytest.raises(InputError, match="evil.ckpt: refused"):
+        load_model(evil)
+    assert not marker.exists()
+    plain = tmp_path / "plain.ckpt"
+    with open(plain, "wb") as handle:
+        pickle.dump(_Exploit(), handle)
+    with pytest.raises(InputError, match="plain.ckpt"):
+        load_model(plain)
+    assert not marker.exists()
+
+
+def test_input_checks_name_the_problem():
+    rgb = np.zeros((32, 40, 3), np.uint8)
+    depth = np.ones((32, 40), np.float32)
+    assert check_images(rgb, depth, "rgbd") == (32, 40)
+    with pytest.raises(InputError, match="must be \\(H, W, 3\\)"):
+        check_images(np.zeros((32, 40), np.uint8), depth, "rgbd")
+    with pytest.raises(InputError, match="depth map is 20 x 32 but the RGB image is 40 x 32"):
+        check_images(rgb, np.ones((32, 20), np.float32), "rgbd")
+    nan = depth.copy()
+    nan[3, 4] = np.nan
+    with pytest.raises(InputError, match="1 NaN pixels"):
+        check_images(rgb, nan, "rgbd")
+    with pytest.raises(InputError, match="no depth map"):
+        check_images(rgb, None, "rgbd")
+    assert check_images(None, depth, "depth") == (32, 40)
+
+
+def test_resize_and_crop_keeps_projections():
+    """A 3D point's marker in the image is where the adjusted intrinsics project the point."""
+    K = np.array([[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]])
+    point = np.array([0.4, -0.2, 2.0])
+    u, v = (K @ point)[:2] / point[2]
+    rgb = np.zeros((480, 640, 3), np.uint8)
+    rgb[int(round(v)) - 6:int(round(v)) + 7, int(round(u)) - 6:int(round(u)) + 7] = 255
+    small, _, K2 = resize_and_crop(rgb, None, K, 320)
+    assert small.shape == (320, 320, 3)
+    rows, cols = np.nonzero(small[..., 0] > 127)
+    u2, v2 = (K2 @ point)[:2] / point[2]
+    assert abs(cols.mean() - u2) < 0.5 and abs(rows.mean() - v2) < 0.5
+
+
+def test_predictor_runs_each_input_kind(tmp_path):
+    rgb = np.random.default_rng(0).integers(0, 255, (48, 64, 3), dtype=np.uint8)
+    depth = np.full((48, 64), 2.0, np.float32)
+    for inputs in ("rgbd", "rgb", "depth"):
+        path = save_model(tmp_path / f"{inputs}.safetensors", small_net(inputs), MODEL_CONF)
+        distance, logits = Predictor(path, threads=1).predict(rgb, depth)
+        assert distance.shape == (48, 64) and distance.dtype == np.float32
+        assert logits.shape == (11, 48, 64)
+        assert (distance > 0).all() and (distance <= MODEL_CONF["labels"]["truncation_px"] + 1e-5).all()

@@ -1,0 +1,72 @@
+"""``frontiernet train`` and ``frontiernet evaluate`` (registered through the
+``frontiernet.commands`` entry point; ``frontiernet`` itself never imports ``train``).
+
+  frontiernet train --config configs/train.yaml [key=value ...] [--resume [CKPT]]
+  frontiernet evaluate MODEL --data DIR [--scenes SPEC ...] [--all] [--max-samples N] [--json FILE]
+"""
+
+from __future__ import annotations
+
+import json
+
+
+def add_parser(subparsers) -> None:
+    train = subparsers.add_parser(
+        "train", help="train FrontierNet on a datagen dataset (Lightning)",
+        description="Train FrontierNet (configs/model.yaml + configs/train.yaml). Outputs in <out>/<name>/: "
+                    "checkpoints/last.ckpt and best.ckpt, metrics.csv, model.safetensors, summary.json.")
+    train.add_argument("--config", metavar="FILE", help="YAML overriding configs/train.yaml (and model.*)")
+    train.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
+                       help="config overrides, e.g. data.path=DIR trainer.max_epochs=2 model.network.inputs=rgb")
+    train.add_argument("--resume", nargs="?", const="last", metavar="CKPT",
+                       help="continue the run's last checkpoint (or the given one)")
+    train.add_argument("--no-progress", action="store_true", help="no progress bar")
+    train.set_defaults(func=run_train)
+
+    evaluate = subparsers.add_parser(
+        "evaluate", help="Table II metrics of a model on a dataset (held-out scenes)",
+        description="Distance-field error (px), gain Dice and frontier precision/recall next to the "
+                    "depth-discontinuity baseline, on the model's held-out scenes by default.")
+    evaluate.add_argument("model", metavar="MODEL", help="model file (.safetensors) or checkpoint (.ckpt)")
+    evaluate.add_argument("--data", required=True, metavar="DIR", help="a frontiernet datagen dataset")
+    evaluate.add_argument("--scenes", nargs="+", metavar="SPEC", help="evaluate on these scenes")
+    evaluate.add_argument("--all", action="store_true", help="evaluate on every scene of the dataset")
+    evaluate.add_argument("--max-samples", type=int, metavar="N", help="at most N views (evenly spread)")
+    evaluate.add_argument("--size", type=int, metavar="PX", help="resolution (default: the model's, 320)")
+    evaluate.add_argument("--json", metavar="FILE", help="also write the metrics as JSON")
+    evaluate.set_defaults(func=run_evaluate)
+
+
+def run_train(args) -> int:
+    from .config import load_train_config
+    from .main import main
+
+    conf = load_train_config(args.config, args.overrides)
+    out = main(conf, resume=args.resume, progress=not args.no_progress)
+    summary = json.loads((out / "summary.json").read_text())
+    print(f"trained {summary['steps']} steps ({summary['epochs']} epochs) in {summary['seconds_this_session']:.0f} s "
+          f"on {summary['hardware']}")
+    print(f"model: {out / 'model.safetensors'}  (frontiernet evaluate {out / 'model.safetensors'} "
+          f"--data {conf.data.path})")
+    return 0
+
+
+def run_evaluate(args) -> int:
+    from frontiernet.errors import InputError
+    from frontiernet.io import write_json
+
+    from .evaluate import evaluate, format_report
+
+    if args.max_samples is not None and args.max_samples < 1:
+        raise InputError(f"--max-samples must be >= 1, got {args.max_samples}")
+    from rich.progress import Progress
+
+    with Progress(transient=True) as bar:
+        task = bar.add_task("evaluating", total=None)
+        result = evaluate(args.model, args.data, scenes=args.scenes, all_scenes=args.all,
+                          max_samples=args.max_samples, size=args.size,
+                          progress=lambda done, total: bar.update(task, completed=done, total=total))
+    print(format_report(result))
+    if args.json:
+        write_json(args.json, result)
+    return 0

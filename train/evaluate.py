@@ -1,0 +1,109 @@
+"""``evaluate(model, data)``: the paper's Table II metrics of a model on a dataset, with baselines.
+
+Metrics (see :mod:`train.metrics`): distance-field error in pixels, gain Dice, and the frontier
+mask's precision/recall next to the raw depth-discontinuity mask F_d. Baselines for the gain
+head: predicting the most frequent class everywhere (class 0), and an oracle-band baseline
+that is given the labelled frontier band and fills it with the most frequent non-zero class.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import DataLoader
+
+from frontiernet.errors import InputError
+from frontiernet.model import decode_distance, load_model
+
+from .data import TrainingSamples, open_training_data
+from .metrics import DistanceError, FrontierCurves, GainDice
+
+
+def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_scenes: bool = False,
+             max_samples: int | None = None, batch_size: int = 8, size: int | None = None,
+             progress=None) -> dict:
+    """Table II metrics of the model on the dataset's held-out scenes.
+
+    Args:
+        model_path: model file or training checkpoint (None: the shipped model).
+        scenes: scenes to evaluate on; default: the validation scenes recorded in the model
+            file (its training run's held-out split), else every scene (``all_scenes``).
+        size: evaluation resolution (default: the model's inference size, 320).
+        progress: optional callable ``progress(done, total)``.
+    Returns:
+        dict of metrics (``df_error_px``, ``gain_dice``, ``frontier_precision`` ...), the
+        baselines under ``baselines`` and what was evaluated under ``evaluated``.
+    """
+    model, conf = load_model(model_path)
+    dataset = open_training_data(data)
+    recorded = list(conf.get("info", {}).get("val_scenes") or [])
+    if scenes:
+        chosen = list(scenes)
+    elif not all_scenes and recorded:
+        chosen = [scene for scene in recorded if scene in set(dataset.scenes)]
+        if not chosen:
+            raise InputError(f"{data}: holds none of the model's held-out scenes ({', '.join(recorded[:3])} ...); "
+                             f"pass --all or --scenes")
+    else:
+        chosen = list(dataset.scenes)
+    try:
+        subset = dataset.subset(dataset.indices_for_scenes(chosen))
+    except (KeyError, ValueError) as error:
+        raise InputError(f"{data}: {error}") from None
+    if max_samples and len(subset) > max_samples:
+        picked = np.linspace(0, len(subset) - 1, int(max_samples)).round().astype(int)
+        subset = subset.subset(sorted(set(picked.tolist())))
+    size = int(size or conf["inference"]["size"])
+    samples = TrainingSamples(subset, conf, size)
+    labels = conf["labels"]
+    K = int(labels["num_classes"])
+    distance_error, gain_dice, curves = DistanceError(labels["truncation_px"]), GainDice(K), FrontierCurves()
+    zero_dice, band_dice = GainDice(K), GainDice(K)
+    band_counts = torch.zeros(K, dtype=torch.float64)
+    loader = DataLoader(samples, batch_size=batch_size, shuffle=False, num_workers=0)
+    done = 0
+    with torch.inference_mode():
+        batches = []
+        for batch in loader:
+            distance, logits = model(batch["image"])
+            predicted_px = decode_distance(distance[:, 0], labels)
+            distance_error.update(predicted_px, batch["distance"])
+            gain_dice.update(logits.argmax(1), batch["gain_class"])
+            curves.update(predicted_px, batch["frontier"], batch["depth"])
+            zero_dice.update(torch.zeros_like(batch["gain_class"]), batch["gain_class"])
+            band_counts += torch.bincount(batch["gain_class"].reshape(-1), minlength=K).double()
+            batches.append(batch["gain_class"])
+            done += len(batch["image"])
+            if progress:
+                progress(done, len(samples))
+        most_frequent = int(band_counts[1:].argmax()) + 1
+        for target in batches:
+            band_dice.update(torch.where(target > 0, most_frequent, 0), target)
+    result = {**distance_error.compute(), **gain_dice.compute(), **curves.compute()}
+    result["baselines"] = {"gain_dice_all_class_0": zero_dice.compute()["gain_dice"],
+                           "gain_dice_oracle_band_most_frequent": band_dice.compute()["gain_dice"],
+                           "most_frequent_foreground_class": most_frequent}
+    result["evaluated"] = {"model": str(model_path or "shipped"), "inputs": model.config.inputs,
+                           "encoder": model.config.encoder, "data": str(data), "scenes": len(chosen),
+                           "samples": len(samples), "size": size,
+                           "split": "given" if scenes else ("held-out" if recorded and not all_scenes else "all")}
+    return result
+
+
+def format_report(result: dict) -> str:
+    """The metrics as a short text table."""
+    evaluated, baselines = result["evaluated"], result["baselines"]
+    rows = [
+        f"model {evaluated['model']} ({evaluated['encoder']}, {evaluated['inputs']}) on {evaluated['samples']} "
+        f"views of {evaluated['scenes']} {evaluated['split']} scene(s) at {evaluated['size']} px",
+        f"  DF error (px)          {result['df_error_px']:.3f}   (band D < r: {result['df_error_band_px']:.3f})",
+        f"  gain Dice              {result['gain_dice']:.3f}   (all class 0: {baselines['gain_dice_all_class_0']:.3f}; "
+        f"labelled band filled with the most frequent class: {baselines['gain_dice_oracle_band_most_frequent']:.3f})",
+        f"  frontier mask D < l    precision {result['frontier_precision']:.3f}  recall {result['frontier_recall']:.3f}",
+        f"  depth jumps F_d        precision {result['fd_precision']:.3f}  recall {result['fd_recall']:.3f}",
+        f"  at equal recall        model precision at F_d's recall {result['model_precision_at_fd_recall']:.3f}; "
+        f"F_d precision at the model's recall {result['fd_precision_at_model_recall']:.3f}",
+    ]
+    return "\n".join(rows)

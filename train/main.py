@@ -1,0 +1,134 @@
+"""``main(conf)``: train FrontierNet with Lightning, write checkpoints, a CSV log and the model file.
+
+Outputs in ``<out>/<name>/``:
+
+- ``config.yaml``: the resolved config of the run;
+- ``checkpoints/last.ckpt`` (every ``trainer.checkpoint_every_minutes``, at the end of each
+  epoch, and on Ctrl-C) and ``checkpoints/best.ckpt`` (lowest validation loss): resume with
+  ``--resume``;
+- ``metrics.csv``: losses per logging step, validation metrics per validation;
+- ``model.safetensors``: the best weights as a model file (``frontiernet predict --model``);
+- ``summary.json``: data, scenes, steps, time, hardware and the last validation metrics.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import platform
+import time
+from datetime import timedelta
+from pathlib import Path
+
+import lightning as L
+import torch
+from lightning.pytorch.callbacks import Callback, LearningRateMonitor, ModelCheckpoint
+from lightning.pytorch.loggers import CSVLogger
+from omegaconf import OmegaConf
+
+from frontiernet.errors import InputError
+from frontiernet.io import write_json
+from frontiernet.model import load_model, save_model
+
+from .config import plain
+from .data import FrontierDataModule
+from .module import FrontierNetModule
+
+log = logging.getLogger(__name__)
+
+
+class CheckpointOnInterrupt(Callback):
+    """Saves ``last.ckpt`` when training stops on an exception (Ctrl-C included)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+
+    def on_exception(self, trainer, module, exception) -> None:
+        if trainer.global_step > 0:
+            trainer.save_checkpoint(self.path)
+            log.warning("saved %s (resume with --resume)", self.path)
+
+
+def _trainer_args(trainer_conf) -> dict:
+    keys = ("max_epochs", "max_steps", "max_time", "accelerator", "devices", "num_nodes", "strategy",
+            "precision", "gradient_clip_val", "val_check_interval", "check_val_every_n_epoch",
+            "limit_val_batches", "log_every_n_steps")
+    return {key: trainer_conf[key] for key in keys}
+
+
+def run_dir(conf) -> Path:
+    return Path(conf.out) / str(conf.name)
+
+
+def main(conf, resume: str | None = None, progress: bool = True) -> Path:
+    """Train with the resolved config `conf` (``train.config.load_train_config``).
+
+    Args:
+        resume: ``"last"`` to continue ``<run>/checkpoints/last.ckpt``, or a checkpoint path.
+    Returns:
+        The run folder.
+    """
+    out = run_dir(conf)
+    last = out / "checkpoints" / "last.ckpt"
+    if resume == "last":
+        if not last.is_file():
+            raise InputError(f"{last}: nothing to resume (no last checkpoint in the run folder)")
+        resume = str(last)
+    elif resume is not None and not Path(resume).is_file():
+        raise InputError(f"{resume}: checkpoint to resume from not found")
+    elif resume is None and last.exists():
+        raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
+    datamodule = FrontierDataModule(conf)
+    datamodule.setup()
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
+
+    L.seed_everything(int(conf.seed), workers=True, verbose=False)
+    if conf.trainer.threads:
+        torch.set_num_threads(int(conf.trainer.threads))
+    train_part = {key: plain(conf[key]) for key in ("loss", "optim")}
+    train_part["val_scenes"] = list(datamodule.val_scenes)  # evaluate reads them from the checkpoint
+    module = FrontierNetModule(model=plain(conf.model), train=train_part)
+    checkpoints = out / "checkpoints"
+    best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
+                           enable_version_counter=False)
+    periodic = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
+                               train_time_interval=timedelta(minutes=float(conf.trainer.checkpoint_every_minutes)))
+    epoch_end = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
+                                save_on_train_epoch_end=True)
+    callbacks = [best, periodic, epoch_end, CheckpointOnInterrupt(last), LearningRateMonitor("step")]
+    trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
+                        logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
+                        enable_model_summary=False, deterministic=False)
+    started = time.time()
+    try:
+        trainer.fit(module, datamodule=datamodule, ckpt_path=resume)
+    except SystemExit:
+        if trainer.interrupted:  # Lightning turns Ctrl-C into sys.exit(1) after its on_exception hooks
+            raise KeyboardInterrupt from None
+        raise
+    if trainer.interrupted:
+        raise KeyboardInterrupt
+    elapsed = time.time() - started
+    if trainer.is_global_zero:
+        _write_results(out, conf, trainer, datamodule, best.best_model_path or str(last), elapsed, resume)
+    return out
+
+
+def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapsed: float, resume) -> None:
+    """model.safetensors from the best checkpoint and summary.json."""
+    metrics = {key: float(value) for key, value in trainer.callback_metrics.items() if value.numel() == 1}
+    hardware = (torch.cuda.get_device_name(0) if torch.cuda.is_available() and conf.trainer.accelerator != "cpu"
+                else f"CPU ({platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+                     f"{torch.get_num_threads()} torch threads)")
+    summary = {"dataset": str(Path(conf.data.path).resolve()), "train_scenes": len(datamodule.train_scenes),
+               "val_scenes": datamodule.val_scenes, "train_samples": len(datamodule.train_set),
+               "val_samples": len(datamodule.val_set), "epochs": trainer.current_epoch,
+               "steps": trainer.global_step, "seconds_this_session": round(elapsed, 1), "resumed_from": resume,
+               "hardware": hardware, "checkpoint": Path(checkpoint).name, "last_metrics": metrics,
+               "encoder": conf.model.network.encoder, "inputs": conf.model.network.inputs}
+    model, model_conf = load_model(checkpoint)
+    save_model(out / "model.safetensors", model, model_conf, info=summary)
+    write_json(out / "summary.json", summary)
+    log.info("wrote %s", json.dumps(summary)[:200])

@@ -1,0 +1,152 @@
+"""Validation metrics: the paper's Table II and the frontier-mask baseline comparison.
+
+All are ``torchmetrics.Metric`` sums, so they add up correctly over batches and over
+processes (DDP). Images are (B, H, W); distances in pixels.
+
+- :class:`DistanceError`: mean |D_pred - D| in pixels over all pixels (Table II's DF error)
+  and over the band D < r.
+- :class:`GainDice`: hard Dice per gain class over the whole set (argmax vs label), and its
+  mean over the foreground classes 1..K-1 that occur in labels or predictions (Table II's
+  gain Dice; class 0, 90 % of the pixels, would swamp it).
+- :class:`FrontierCurves`: precision/recall of frontier masks with a 1-pixel tolerance (a
+  predicted pixel is right when a label pixel is in its 3 x 3 neighbourhood; a label pixel is
+  found when a predicted one is in its 3 x 3 neighbourhood), for the model's ``D_pred < l``
+  over a sweep of l, and for the raw depth-discontinuity mask F_d over a sweep of its jump
+  threshold (the baseline the model must beat: precision at equal recall).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torchmetrics import Metric
+
+MODEL_THRESHOLDS_PX = (0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
+# relative depth jump thresholds; 0.1 with a 0.1 m floor is datagen's F_d
+JUMP_THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 5.0)
+
+
+class DistanceError(Metric):
+    full_state_update = False
+
+    def __init__(self, truncation_px: float):
+        super().__init__()
+        self.truncation_px = float(truncation_px)
+        for name in ("error_sum", "count", "band_error_sum", "band_count"):
+            self.add_state(name, default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
+
+    def update(self, predicted_px: torch.Tensor, target_px: torch.Tensor) -> None:
+        error = (predicted_px.float() - target_px.float()).abs().double()
+        band = target_px < self.truncation_px
+        self.error_sum += error.sum()
+        self.count += error.numel()
+        self.band_error_sum += (error * band).sum()
+        self.band_count += band.sum()
+
+    def compute(self) -> dict:
+        return {"df_error_px": float(self.error_sum / self.count.clamp(min=1)),
+                "df_error_band_px": float(self.band_error_sum / self.band_count.clamp(min=1))}
+
+
+class GainDice(Metric):
+    full_state_update = False
+
+    def __init__(self, num_classes: int):
+        super().__init__()
+        self.num_classes = int(num_classes)
+        for name in ("intersection", "predicted", "target"):
+            self.add_state(name, default=torch.zeros(self.num_classes, dtype=torch.float64), dist_reduce_fx="sum")
+
+    def update(self, predicted_class: torch.Tensor, target_class: torch.Tensor) -> None:
+        K = self.num_classes
+        self.predicted += torch.bincount(predicted_class.reshape(-1), minlength=K).double()
+        self.target += torch.bincount(target_class.reshape(-1), minlength=K).double()
+        same = predicted_class == target_class
+        self.intersection += torch.bincount(target_class[same], minlength=K).double()
+
+    def compute(self) -> dict:
+        total = self.predicted + self.target
+        dice = torch.where(total > 0, 2.0 * self.intersection / total.clamp(min=1), torch.nan)
+        foreground = dice[1:][total[1:] > 0]
+        return {"gain_dice": float(foreground.mean()) if foreground.numel() else float("nan"),
+                "gain_dice_per_class": [float(v) for v in dice]}
+
+
+def depth_jump_score(depth: torch.Tensor, min_jump_m: float = 0.1, relative_jump: float = 0.1) -> torch.Tensor:
+    """Per-pixel score s such that ``s > t`` is F_d of datagen at relative jump t.
+
+    ``s = (max - min) / max(min, min_jump_m / relative_jump)`` over the 3 x 3 window, invalid
+    (0) pixels counting as farther than any valid one (datagen's ``invalid_is_far``).
+    Args: depth (B, H, W) metres, 0 = invalid. Returns (B, H, W) float32.
+    """
+    valid = depth > 0
+    far = torch.full_like(depth, 1e4)
+    high = F.max_pool2d(torch.where(valid, depth, far)[:, None], 3, 1, 1)[:, 0]
+    low = -F.max_pool2d(-torch.where(valid, depth, far)[:, None], 3, 1, 1)[:, 0]
+    score = (high - low) / low.clamp(min=min_jump_m / relative_jump)
+    return torch.where(low < 1e4, score, torch.zeros_like(score))
+
+
+def _near(mask: torch.Tensor) -> torch.Tensor:
+    """(B, H, W) bool: pixels with a set pixel in their 3 x 3 neighbourhood."""
+    return F.max_pool2d(mask[:, None].float(), 3, 1, 1)[:, 0] > 0
+
+
+class FrontierCurves(Metric):
+    full_state_update = False
+
+    def __init__(self):
+        super().__init__()
+        for prefix, thresholds in (("model", MODEL_THRESHOLDS_PX), ("jump", JUMP_THRESHOLDS)):
+            for name in ("correct", "predicted", "found"):
+                self.add_state(f"{prefix}_{name}", default=torch.zeros(len(thresholds), dtype=torch.float64),
+                               dist_reduce_fx="sum")
+        self.add_state("labelled", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
+
+    def _count(self, prefix: str, index: int, mask: torch.Tensor, near_label: torch.Tensor,
+               label: torch.Tensor) -> None:
+        getattr(self, f"{prefix}_correct")[index] += (mask & near_label).sum()
+        getattr(self, f"{prefix}_predicted")[index] += mask.sum()
+        getattr(self, f"{prefix}_found")[index] += (label & _near(mask)).sum()
+
+    def update(self, predicted_px: torch.Tensor, frontier: torch.Tensor, depth: torch.Tensor) -> None:
+        near_label = _near(frontier)
+        self.labelled += frontier.sum()
+        for index, threshold in enumerate(MODEL_THRESHOLDS_PX):
+            self._count("model", index, predicted_px < threshold, near_label, frontier)
+        score = depth_jump_score(depth)
+        for index, threshold in enumerate(JUMP_THRESHOLDS):
+            self._count("jump", index, score > threshold, near_label, frontier)
+
+    def curve(self, prefix: str) -> tuple[np.ndarray, np.ndarray]:
+        """(precision, recall) arrays over the prefix's thresholds."""
+        precision = (getattr(self, f"{prefix}_correct") / getattr(self, f"{prefix}_predicted").clamp(min=1))
+        recall = getattr(self, f"{prefix}_found") / self.labelled.clamp(min=1)
+        return precision.cpu().numpy(), recall.cpu().numpy()
+
+    def compute(self) -> dict:
+        model_p, model_r = self.curve("model")
+        jump_p, jump_r = self.curve("jump")
+        index_l = MODEL_THRESHOLDS_PX.index(0.3)
+        index_fd = JUMP_THRESHOLDS.index(0.1)
+        result = {"frontier_precision": float(model_p[index_l]), "frontier_recall": float(model_r[index_l]),
+                  "fd_precision": float(jump_p[index_fd]), "fd_recall": float(jump_r[index_fd]),
+                  "model_curve": {"threshold_px": list(MODEL_THRESHOLDS_PX), "precision": model_p.tolist(),
+                                  "recall": model_r.tolist()},
+                  "fd_curve": {"jump_threshold": list(JUMP_THRESHOLDS), "precision": jump_p.tolist(),
+                               "recall": jump_r.tolist()}}
+        # the model's precision at F_d's recall and F_d's precision at the model's recall (operating
+        # points l = 0.3 px and jump 0.1), interpolated along the other's curve
+        result["model_precision_at_fd_recall"] = precision_at_recall(model_p, model_r, result["fd_recall"])
+        result["fd_precision_at_model_recall"] = precision_at_recall(jump_p, jump_r, result["frontier_recall"])
+        return result
+
+
+def precision_at_recall(precision: np.ndarray, recall: np.ndarray, wanted: float) -> float:
+    """Precision interpolated at recall `wanted` along a curve (NaN outside its recall range)."""
+    order = np.argsort(recall)
+    recall, precision = np.asarray(recall)[order], np.asarray(precision)[order]
+    if not len(recall) or wanted < recall[0] - 1e-9 or wanted > recall[-1] + 1e-9:
+        return float("nan")
+    return float(np.interp(wanted, recall, precision))

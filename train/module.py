@@ -1,0 +1,94 @@
+"""The LightningModule: FrontierNet with its loss, metrics and optimiser (glue-factory style:
+the model class owns what it is trained and judged with)."""
+
+from __future__ import annotations
+
+import math
+
+import lightning as L
+import torch
+
+from frontiernet.model import FrontierNet, NetworkConfig, decode_distance, load_imagenet_encoder
+
+from .losses import frontier_loss
+from .metrics import DistanceError, FrontierCurves, GainDice
+
+
+class FrontierNetModule(L.LightningModule):
+    """Trains :class:`FrontierNet` with ``alpha * L1 + CE + Dice`` and tracks Table II metrics.
+
+    Args:
+        model: plain dict, the ``model`` section of the training config (``configs/model.yaml``
+            layout: network, input, labels, inference).
+        train: plain dict, the ``loss`` and ``optim`` sections and ``max_steps``.
+    Both are saved as hyperparameters, so a checkpoint is self-describing and loads with
+    ``torch.load(weights_only=True)`` (plain data only).
+    """
+
+    def __init__(self, model: dict, train: dict):
+        super().__init__()
+        self.save_hyperparameters()
+        self.net = FrontierNet(NetworkConfig.from_dict(model["network"]))
+        pretrained = model["network"].get("pretrained")
+        if pretrained:
+            load_imagenet_encoder(self.net, pretrained)
+        labels = model["labels"]
+        self.distance_error = DistanceError(labels["truncation_px"])
+        self.gain_dice = GainDice(labels["num_classes"])
+        self.frontier_curves = FrontierCurves()
+
+    def forward(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.net(image)
+
+    def _loss(self, batch: dict) -> tuple[dict, torch.Tensor, torch.Tensor]:
+        distance, logits = self.net(batch["image"])
+        terms = frontier_loss(distance, logits, batch, self.hparams.train["loss"], self.hparams.model["labels"])
+        return terms, distance, logits
+
+    def training_step(self, batch: dict, batch_index: int) -> torch.Tensor:
+        terms, _, _ = self._loss(batch)
+        size = batch["image"].shape[0]
+        self.log_dict({f"train/{name}": value for name, value in terms.items()}, batch_size=size,
+                      prog_bar=False, on_step=True, on_epoch=False)
+        self.log("loss", terms["loss"], prog_bar=True, logger=False, batch_size=size)
+        return terms["loss"]
+
+    def validation_step(self, batch: dict, batch_index: int) -> None:
+        terms, distance, logits = self._loss(batch)
+        size = batch["image"].shape[0]
+        self.log_dict({f"val/{name}": value for name, value in terms.items()}, batch_size=size, sync_dist=True)
+        predicted_px = decode_distance(distance[:, 0].float(), self.hparams.model["labels"])
+        self.distance_error.update(predicted_px, batch["distance"])
+        self.gain_dice.update(logits.argmax(1), batch["gain_class"])
+        self.frontier_curves.update(predicted_px, batch["frontier"], batch["depth"])
+
+    def on_validation_epoch_end(self) -> None:
+        metrics = {**self.distance_error.compute(), **self.gain_dice.compute(), **self.frontier_curves.compute()}
+        scalars = {f"val/{k}": float(v) for k, v in metrics.items() if isinstance(v, float) and not math.isnan(v)}
+        self.log_dict(scalars, sync_dist=False)
+        self.log("val_df_error_px", metrics["df_error_px"], prog_bar=True, logger=False)
+        self.log("val_gain_dice", metrics["gain_dice"], prog_bar=True, logger=False)
+        for metric in (self.distance_error, self.gain_dice, self.frontier_curves):
+            metric.reset()
+
+    def configure_optimizers(self):
+        optim = self.hparams.train["optim"]
+        optimizer = torch.optim.AdamW(self.parameters(), lr=float(optim["lr"]),
+                                      weight_decay=float(optim["weight_decay"]))
+        total = max(int(self.trainer.estimated_stepping_batches), 1)
+        warmup = min(int(optim["warmup_steps"]), total // 2)
+        schedule = optim["schedule"]
+        final = float(optim["final_lr_fraction"])
+
+        def factor(step: int) -> float:
+            if step < warmup:
+                return (step + 1) / warmup
+            if schedule == "constant":
+                return 1.0
+            progress = min((step - warmup) / max(total - warmup, 1), 1.0)
+            return final + (1.0 - final) * 0.5 * (1.0 + math.cos(math.pi * progress))
+
+        if schedule not in ("cosine", "constant"):
+            raise ValueError(f"optim.schedule must be 'cosine' or 'constant', got {schedule!r}")
+        scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
