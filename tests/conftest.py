@@ -82,3 +82,16 @@ def two_room_voxels(two_room_scene):
     from frontiernet.simulator.voxels import voxelize_scene
 
     return voxelize_scene(two_room_scene)
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory) -> Path:
+    """A tiny datagen dataset: 3 procedural scenes x 8 views of 96 x 96 px (for training tests)."""
+    from datagen.config import load_datagen_config
+    from datagen.generate import generate
+
+    out = tmp_path_factory.mktemp("data") / "tiny"
+    conf = load_datagen_config(overrides=["camera.width=96", "camera.height=96", "camera.focal_px=60",
+                                          "writer.shard_size=4"])
+    generate(["procedural:11", "procedural:12", "procedural:13"], 8, out, conf, seed=0, workers=1, progress=False)
+    return out

@@ -3,8 +3,8 @@
 Outputs in ``<out>/<name>/``:
 
 - ``config.yaml``: the resolved config of the run;
-- ``checkpoints/last.ckpt`` (every ``trainer.checkpoint_every_minutes``, at the end of each
-  epoch, and on Ctrl-C) and ``checkpoints/best.ckpt`` (lowest validation loss): resume with
+- ``checkpoints/last.ckpt`` (every ``trainer.checkpoint_every_minutes``, every
+  ``checkpoint_every_n_epochs`` epochs, when training ends and on Ctrl-C) and ``checkpoints/best.ckpt`` (lowest validation loss): resume with
   ``--resume``;
 - ``metrics.csv``: losses per logging step, validation metrics per validation;
 - ``model.safetensors``: the best weights as a model file (``frontiernet predict --model``);
@@ -38,11 +38,16 @@ from .module import FrontierNetModule
 log = logging.getLogger(__name__)
 
 
-class CheckpointOnInterrupt(Callback):
-    """Saves ``last.ckpt`` when training stops on an exception (Ctrl-C included)."""
+class LastCheckpoint(Callback):
+    """Saves ``last.ckpt`` when training ends (``max_time`` included) or stops on an exception
+    (Ctrl-C included), so the newest state is always there to resume from."""
 
     def __init__(self, path: Path):
         self.path = path
+
+    def on_train_end(self, trainer, module) -> None:
+        if trainer.global_step > 0:
+            trainer.save_checkpoint(self.path)
 
     def on_exception(self, trainer, module, exception) -> None:
         if trainer.global_step > 0:
@@ -96,8 +101,9 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     periodic = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
                                train_time_interval=timedelta(minutes=float(conf.trainer.checkpoint_every_minutes)))
     epoch_end = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
+                                every_n_epochs=int(conf.trainer.checkpoint_every_n_epochs),
                                 save_on_train_epoch_end=True)
-    callbacks = [best, periodic, epoch_end, CheckpointOnInterrupt(last), LearningRateMonitor("step")]
+    callbacks = [best, periodic, epoch_end, LastCheckpoint(last), LearningRateMonitor("step")]
     trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
                         logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
                         enable_model_summary=False, deterministic=False)

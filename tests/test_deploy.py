@@ -1,0 +1,144 @@
+"""Export and runtimes: ONNX (onnxruntime), TorchScript and torch agree on real images; `frontiernet
+predict` writes an overlay; bad images, depth maps and model files exit 2 with one line."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+
+from deploy.export import export
+from deploy.predict import predict_files, read_depth
+from deploy.runtime import load_runtime
+from frontiernet.cli.main import main
+from frontiernet.config import load_config
+from frontiernet.model import FrontierNet, NetworkConfig, default_model_path, resize_and_crop, save_model
+
+MODEL_CONF = OmegaConf.to_container(load_config("model"), resolve=True)
+
+
+@pytest.fixture(scope="module")
+def model_file(tmp_path_factory):
+    """The shipped model when the checkout has it, else a small random one."""
+    if default_model_path().is_file():
+        return default_model_path()
+    torch.manual_seed(0)
+    net = FrontierNet(NetworkConfig(decoder_channels=(32, 16, 16, 8, 8), head_channels=8)).eval()
+    return save_model(tmp_path_factory.mktemp("model") / "small.safetensors", net, MODEL_CONF)
+
+
+@pytest.fixture(scope="module")
+def exported(model_file, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("exported")
+    return {"torch": model_file, "onnx": export(model_file, "onnx", folder / "m.onnx"),
+            "torchscript": export(model_file, "torchscript", folder / "m.pt")}
+
+
+def real_frames(shared_data):
+    """(rgb, depth metres) pairs: the TUM frame and a livingroom1 frame, at the model's 320 px."""
+    frames = []
+    tum_rgb = cv2.imread(str(shared_data / "images/rgbd_frames/TUM_color.png"))[..., ::-1]
+    tum_depth = read_depth(shared_data / "images/rgbd_frames/TUM_depth.png", 5000.0)
+    frames.append((tum_rgb, tum_depth))
+    room = shared_data / "images/livingroom1"
+    frames.append((cv2.imread(str(room / "color/00000.jpg"))[..., ::-1], read_depth(room / "depth/00000.png")))
+    return [resize_and_crop(np.ascontiguousarray(rgb), depth, None, 320)[:2] for rgb, depth in frames]
+
+
+def test_torch_onnx_and_torchscript_agree_on_real_images(exported, shared_data):
+    runtimes = {name: load_runtime(path, threads=1) for name, path in exported.items()}
+    for rgb, depth in real_frames(shared_data):
+        reference = runtimes["torch"].predict(rgb, depth)
+        for name in ("onnx", "torchscript"):
+            distance, logits = runtimes[name].predict(rgb, depth)
+            assert np.abs(distance - reference[0]).max() < 1e-4, name
+            assert np.abs(logits - reference[1]).max() < 1e-4, name
+
+
+def test_exported_models_take_any_size(exported):
+    rgb = np.random.default_rng(1).integers(0, 255, (75, 101, 3), dtype=np.uint8)
+    depth = np.full((75, 101), 1.5, np.float32)
+    reference = load_runtime(exported["torch"], threads=1).predict(rgb, depth)
+    for name in ("onnx", "torchscript"):
+        distance, logits = load_runtime(exported[name], threads=1).predict(rgb, depth)
+        assert distance.shape == (75, 101) and logits.shape == (11, 75, 101)
+        assert np.abs(logits - reference[1]).max() < 1e-4
+
+
+def test_predict_command_writes_overlay_and_arrays(model_file, tmp_path, capsys):
+    rgb = np.zeros((120, 160, 3), np.uint8)
+    rgb[:, 80:] = (200, 180, 160)
+    cv2.imwrite(str(tmp_path / "rgb.png"), rgb[..., ::-1])
+    depth = np.full((120, 160), 1000, np.uint16)
+    depth[:, 80:] = 3000
+    cv2.imwrite(str(tmp_path / "depth.png"), depth)
+    out = tmp_path / "out"
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.png"),
+                 "--model", str(model_file), "--out", str(out)]) == 0
+    assert "frontier pixels" in capsys.readouterr().out
+    overlay = cv2.imread(str(out / "overlay.png"))
+    assert overlay.shape == (320, 320, 3)  # short side resized to the model's 320, centre-cropped
+    arrays = np.load(out / "outputs.npz")
+    assert arrays["distance_field"].shape == (320, 320) and arrays["gain_logits"].shape == (11, 320, 320)
+    assert np.array_equal(arrays["frontier_mask"], arrays["distance_field"] < MODEL_CONF["labels"]["frontier_threshold_px"])
+    assert abs(float(arrays["depth"].max()) - 3.0) < 1e-6  # millimetres read as metres
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.png"),
+                 "--model", str(model_file), "--out", str(tmp_path / "native"), "--size", "0"]) == 0
+    assert cv2.imread(str(tmp_path / "native" / "overlay.png")).shape == (120, 160, 3)
+
+
+def one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert err and "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, capsys):
+    grey = tmp_path / "grey.png"
+    cv2.imwrite(str(grey), np.zeros((40, 50), np.uint8))
+    rgb = tmp_path / "rgb.png"
+    cv2.imwrite(str(rgb), np.zeros((40, 50, 3), np.uint8))
+    depth_small = tmp_path / "small.npy"
+    np.save(depth_small, np.ones((20, 25), np.float32))
+    depth_nan = tmp_path / "nan.npy"
+    nan = np.ones((40, 50), np.float32)
+    nan[0, 0] = np.nan
+    np.save(depth_nan, nan)
+    good_depth = tmp_path / "good.npy"
+    np.save(good_depth, np.ones((40, 50), np.float32))
+    corrupt = tmp_path / "corrupt.onnx"
+    corrupt.write_bytes(b"not a model")
+    out = str(tmp_path / "out")
+    cases = [
+        (["predict", "--image", str(grey), "--depth", str(good_depth), "--model", str(model_file), "--out", out],
+         "grey.png: image has 1 channel(s)"),
+        (["predict", "--image", str(rgb), "--depth", str(depth_small), "--model", str(model_file), "--out", out],
+         "depth map is 25 x 20 but the image is 50 x 40"),
+        (["predict", "--image", str(rgb), "--depth", str(depth_nan), "--model", str(model_file), "--out", out],
+         "nan.npy: depth has 1 NaN pixels"),
+        (["predict", "--image", str(rgb), "--model", str(model_file), "--out", out], "give --depth"),
+        (["predict", "--image", str(rgb), "--depth", str(good_depth), "--model", str(corrupt), "--out", out],
+         "corrupt.onnx: not a loadable ONNX model"),
+        (["predict", "--image", str(rgb), "--depth", str(good_depth), "--model", str(tmp_path / "x.bin"),
+          "--out", out], "x.bin: model file not found"),
+        (["export", str(model_file), "--format", "onnx", "--out", str(tmp_path / "no" / "m.onnx")],
+         "output folder does not exist"),
+    ]
+    for argv, expected in cases:
+        assert main(argv) == 2, argv
+        assert expected in one_line_error(capsys)
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def test_exported_files_carry_the_model_config(exported):
+    import onnx
+
+    proto = onnx.load(str(exported["onnx"]), load_external_data=False)
+    meta = {entry.key: entry.value for entry in proto.metadata_props}
+    conf = json.loads(meta["frontiernet_model"])
+    assert conf["labels"]["num_classes"] == 11 and conf["network"]["inputs"] == "rgbd"
+    assert load_runtime(exported["torchscript"]).conf["input"] == MODEL_CONF["input"]

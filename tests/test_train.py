@@ -1,0 +1,222 @@
+"""Training: labels at the training resolution, augmentations that keep labels consistent, the
+loss and Table II metrics, a scene-held-out split, and `frontiernet train` / `evaluate` end to end
+(the loss falls, Ctrl-C leaves a resumable checkpoint, bad input exits 2 with one line)."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+
+from datagen import open_dataset
+from datagen.labels import distance_field
+from frontiernet.cli.main import main
+from frontiernet.config import load_config
+from frontiernet.errors import InputError
+from frontiernet.model import encode_distance, load_model
+from train.data import split_scenes
+from train.losses import dice_loss, frontier_loss
+from train.metrics import DistanceError, FrontierCurves, GainDice, depth_jump_score
+from train.transforms import horizontal_flip, random_crop, resample_mask, training_sample
+
+REPO = Path(__file__).resolve().parents[1]
+LABELS = OmegaConf.to_container(load_config("model").labels)
+TRAIN_LOSS = OmegaConf.to_container(load_config("train").loss)
+
+
+def frontier_sample(dataset):
+    """The first sample of the dataset with frontier pixels."""
+    for index in range(len(dataset)):
+        sample = dataset[index]
+        if sample["frontier_mask"].sum() > 20:
+            return sample
+    pytest.fail("the tiny dataset has no view with frontier pixels")
+
+
+def test_native_size_labels_are_the_datasets(tiny_dataset):
+    sample = frontier_sample(open_dataset(tiny_dataset))
+    ts = training_sample(sample, None, LABELS)
+    assert np.array_equal(ts["frontier"], sample["frontier_mask"])
+    assert np.array_equal(ts["gain_class"], sample["gain_class"])
+    assert np.allclose(ts["distance"], sample["distance_field"])
+    assert np.isnan(sample["depth"]).any() == (ts["depth"] == 0).any() and np.isfinite(ts["depth"]).all()
+
+
+def test_resampled_labels_are_recomputed_in_pixels_of_the_new_size(tiny_dataset):
+    sample = frontier_sample(open_dataset(tiny_dataset))
+    ts = training_sample(sample, 64, LABELS)
+    assert ts["rgb"].shape == (64, 64, 3) and ts["distance"].shape == (64, 64)
+    assert ts["frontier"].any()
+    # D is the exact distance to the resampled F, truncated at r pixels of the new image
+    assert np.allclose(ts["distance"], distance_field(ts["frontier"], LABELS["truncation_px"]))
+    # the gain band is where D < r, and carries the classes present at full size
+    band = ts["gain_class"] > 0
+    assert (ts["distance"][band] < LABELS["truncation_px"]).all()
+    assert set(np.unique(ts["gain_class"][band])) <= set(np.unique(sample["gain_class"][sample["gain_class"] > 0]))
+    # every full-size frontier pixel has a resampled pixel where its centre falls
+    v, u = np.nonzero(sample["frontier_mask"])
+    assert ts["frontier"][((v + 0.5) * 64 / 96).astype(int), ((u + 0.5) * 64 / 96).astype(int)].all()
+
+
+def test_flip_and_crop_keep_labels_consistent(tiny_dataset):
+    ts = training_sample(frontier_sample(open_dataset(tiny_dataset)), None, LABELS)
+    flipped = horizontal_flip(ts)
+    assert np.allclose(flipped["distance"], distance_field(flipped["frontier"], LABELS["truncation_px"]))
+    assert np.array_equal(flipped["gain_class"][:, ::-1], ts["gain_class"])
+    crop = random_crop(ts, 48, np.random.default_rng(1))
+    rng = np.random.default_rng(1)
+    top, left = int(rng.integers(0, 96 - 48 + 1)), int(rng.integers(0, 96 - 48 + 1))
+    # a crop keeps pixel scale: its distances are the full image's (F outside the crop still counts)
+    assert np.array_equal(crop["distance"], ts["distance"][top:top + 48, left:left + 48])
+    assert np.array_equal(crop["gain_class"], ts["gain_class"][top:top + 48, left:left + 48])
+
+
+def test_resample_mask_sets_the_pixel_each_centre_falls_in():
+    mask = np.zeros((6, 6), bool)
+    mask[0, 0] = mask[5, 5] = mask[2, 3] = True
+    small = resample_mask(mask, (3, 3))
+    assert small.sum() == 3 and small[0, 0] and small[2, 2] and small[1, 1]
+
+
+def test_split_is_by_scene_and_checks_names():
+    scenes = [f"procedural:{i}" for i in range(20)]
+    train, val = split_scenes(scenes, None, 0.1, seed=0)
+    assert len(val) == 2 and not set(train) & set(val) and len(train) + len(val) == 20
+    assert split_scenes(scenes, None, 0.1, seed=0) == (train, val)
+    assert split_scenes(scenes, ["procedural:3"], 0.1, 0)[1] == ["procedural:3"]
+    with pytest.raises(InputError, match="'house' is not a scene of the dataset"):
+        split_scenes(scenes, ["house"], 0.1, 0)
+    with pytest.raises(InputError, match="needs two or more"):
+        split_scenes(scenes[:1], None, 0.1, 0)
+
+
+def test_loss_is_lowest_for_the_right_answer():
+    torch.manual_seed(0)
+    distance_px = torch.full((2, 16, 16), 10.0)
+    distance_px[:, 8, :] = 0.0
+    distance_px[:, 7, :] = distance_px[:, 9, :] = 1.0
+    gain_class = torch.zeros(2, 16, 16, dtype=torch.long)
+    gain_class[:, 6:11] = 4
+    batch = {"distance": distance_px, "gain_class": gain_class}
+    perfect_y = encode_distance(distance_px, LABELS)[:, None]
+    perfect_logits = torch.nn.functional.one_hot(gain_class, 11).permute(0, 3, 1, 2).float() * 20
+    best = frontier_loss(perfect_y, perfect_logits, batch, TRAIN_LOSS, LABELS)
+    noisy = frontier_loss(perfect_y + 0.5 * torch.rand_like(perfect_y), torch.randn(2, 11, 16, 16), batch,
+                          TRAIN_LOSS, LABELS)
+    assert best["distance"] < 1e-6 and best["dice"] < 0.01 and best["loss"] < noisy["loss"]
+    assert dice_loss(perfect_logits, gain_class) < dice_loss(torch.zeros_like(perfect_logits), gain_class)
+
+
+def test_metrics_of_a_perfect_and_a_shifted_prediction():
+    frontier = torch.zeros(1, 32, 32, dtype=torch.bool)
+    frontier[0, 10:20, 16] = True
+    distance = torch.from_numpy(distance_field(frontier[0].numpy(), 10.0))[None]
+    depth = torch.full((1, 32, 32), 2.0)
+    depth[0, :, 17:] = 4.0  # a depth jump along the frontier ...
+    depth[0, 25, :] = 1.0   # ... and a thin object that is no frontier
+    error, curves = DistanceError(10.0), FrontierCurves()
+    error.update(distance, distance)
+    curves.update(distance, frontier, depth)
+    result = {**error.compute(), **curves.compute()}
+    assert result["df_error_px"] == 0
+    assert result["frontier_precision"] == 1 and result["frontier_recall"] == 1
+    assert result["fd_recall"] == 1 and result["fd_precision"] < 1  # F_d also fires on the thin object
+    shifted = DistanceError(10.0)
+    shifted.update(torch.roll(distance, 3, dims=2), distance)
+    assert shifted.compute()["df_error_px"] > 0.5
+    dice = GainDice(11)
+    labels = torch.zeros(1, 8, 8, dtype=torch.long)
+    labels[0, :4] = 3
+    dice.update(labels, labels)
+    assert dice.compute()["gain_dice"] == 1
+    wrong = GainDice(11)
+    wrong.update(torch.where(labels > 0, 5, 0), labels)
+    assert wrong.compute()["gain_dice"] == 0
+    assert depth_jump_score(depth)[0, 10, 16] > 0.1 > depth_jump_score(depth)[0, 5, 5]
+
+
+def one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert err and "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def train_losses(run: Path) -> list[float]:
+    with open(run / "metrics.csv") as handle:
+        return [float(row["train/loss"]) for row in csv.DictReader(handle) if row.get("train/loss")]
+
+
+@pytest.mark.slow
+def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp_path, capsys):
+    args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
+            f"data.path={tiny_dataset}", f"out={tmp_path}", "name=tiny", "trainer.max_epochs=6"]
+    assert main(args) == 0
+    run = tmp_path / "tiny"
+    losses = train_losses(run)
+    assert len(losses) >= 8
+    assert np.mean(losses[-3:]) < 0.8 * np.mean(losses[:3]), losses
+    for name in ("checkpoints/last.ckpt", "checkpoints/best.ckpt", "model.safetensors", "summary.json",
+                 "config.yaml"):
+        assert (run / name).is_file(), name
+    model, conf = load_model(run / "model.safetensors")
+    assert conf["info"]["val_scenes"] and conf["info"]["train_scenes"] == 2
+    capsys.readouterr()
+    # evaluate picks the held-out scene recorded in the model file
+    assert main(["evaluate", str(run / "model.safetensors"), "--data", str(tiny_dataset),
+                 "--json", str(tmp_path / "eval.json")]) == 0
+    report = capsys.readouterr().out
+    assert "held-out scene" in report and "DF error (px)" in report and "gain Dice" in report
+    # the same run is refused without --resume, and continued with it
+    assert main(args) == 2
+    assert "--resume" in one_line_error(capsys)
+    steps = load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"]
+    assert main(args[:-1] + ["trainer.max_epochs=7", "--resume"]) == 0
+    assert load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"] > steps
+
+
+@pytest.mark.slow
+def test_ctrl_c_leaves_a_resumable_checkpoint(tiny_dataset, tmp_path):
+    command = [sys.executable, "-m", "frontiernet.cli.main", "train", "--config",
+               str(REPO / "configs" / "train_tiny.yaml"), "--no-progress", f"data.path={tiny_dataset}",
+               f"out={tmp_path}", "name=stop", "trainer.max_epochs=1000"]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    metrics = tmp_path / "stop" / "metrics.csv"
+    deadline = time.time() + 120
+    while time.time() < deadline and not (metrics.is_file() and len(train_losses(tmp_path / "stop")) >= 3):
+        time.sleep(0.5)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err[-2000:]
+    assert "interrupted" in err
+    last = tmp_path / "stop" / "checkpoints" / "last.ckpt"
+    assert last.is_file()
+    steps = load_model(last)[1]["info"]["steps"]
+    assert steps > 0
+    resumed = subprocess.run(command[:-1] + [f"trainer.max_steps={steps + 4}", "--resume"], capture_output=True,
+                             text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert load_model(last)[1]["info"]["steps"] == steps + 4
+
+
+def test_bad_training_input_is_one_line_exit_2(tmp_path, capsys):
+    assert main(["train", f"out={tmp_path}"]) == 2
+    assert "data.path is not set" in one_line_error(capsys)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["train", f"data.path={empty}", f"out={tmp_path}"]) == 2
+    assert str(empty) in one_line_error(capsys)
+    assert main(["train", f"data.path={tmp_path / 'missing'}", f"out={tmp_path}"]) == 2
+    assert "dataset folder not found" in one_line_error(capsys)
+    assert main(["evaluate", str(tmp_path / "none.ckpt"), "--data", str(empty)]) == 2
+    assert "none.ckpt: model file not found" in one_line_error(capsys)
+    assert main(["train", "--config", str(tmp_path / "nope.yaml"), f"data.path={empty}"]) == 2
+    assert "nope.yaml: config file not found" in one_line_error(capsys)
