@@ -33,6 +33,9 @@ def add_parser(subparsers) -> None:
     evaluate.add_argument("--all", action="store_true", help="evaluate on every scene of the dataset")
     evaluate.add_argument("--max-samples", type=int, metavar="N", help="at most N views (evenly spread)")
     evaluate.add_argument("--size", type=int, metavar="PX", help="resolution (default: the model's, 320)")
+    evaluate.add_argument("--depth", default="ground_truth", metavar="SOURCE",
+                          help="depth prior for the model and the F_d baseline: ground_truth (default), "
+                               "emulated (monocular-like) or another source of configs/depth.yaml")
     evaluate.add_argument("--json", metavar="FILE", help="also write the metrics as JSON")
     evaluate.set_defaults(func=run_evaluate)
 
@@ -64,7 +67,7 @@ def run_evaluate(args) -> int:
     with Progress(transient=True) as bar:
         task = bar.add_task("evaluating", total=None)
         result = evaluate(args.model, args.data, scenes=args.scenes, all_scenes=args.all,
-                          max_samples=args.max_samples, size=args.size,
+                          max_samples=args.max_samples, size=args.size, depth=args.depth,
                           progress=lambda done, total: bar.update(task, completed=done, total=total))
     print(format_report(result))
     if args.json:

@@ -52,22 +52,43 @@ class TrainingSamples(Dataset):
     ``samples[i]`` is a dict of tensors: ``image`` (C, H, W) float32 normalised network input,
     ``distance`` (H, W) float32 px, ``gain_class`` (H, W) int64, ``frontier`` (H, W) bool,
     ``depth`` (H, W) float32 metres (0 invalid, before jitter) and ``discontinuity`` (H, W) bool.
+    A `depth_source` (``frontiernet.depth``) replaces the rendered depth before anything else, so
+    the network and the F_d baseline both see that prior (labels stay those of the scene).
     Augmentation draws from torch's generator (seeded per worker and epoch by the DataLoader,
     and by ``seed_everything`` in the main process), so a seeded run is reproducible.
     """
 
-    def __init__(self, dataset: FrontierDataset, model_conf, size: int | None, augment_conf=None, seed: int = 0):
+    def __init__(self, dataset: FrontierDataset, model_conf, size: int | None, augment_conf=None, seed: int = 0,
+                 depth_source=None):
         self.dataset, self.model_conf, self.size = dataset, model_conf, size
-        self.augment_conf, self.seed = augment_conf, int(seed)
+        self.augment_conf, self.seed, self.depth_source = augment_conf, int(seed), depth_source
 
     def __len__(self) -> int:
         return len(self.dataset)
 
+    def _emulated(self):
+        """The emulated monocular depth source of ``configs/depth.yaml`` (made once per process)."""
+        if getattr(self, "_emulated_source", None) is None:
+            from frontiernet.config import load_config
+            from frontiernet.depth import make_depth_source
+
+            self._emulated_source = make_depth_source("emulated", load_config("depth"))
+        return self._emulated_source
+
     def __getitem__(self, index: int) -> dict:
-        sample = training_sample(self.dataset[index], self.size, self.model_conf["labels"])
-        clean_depth = sample["depth"]
+        sample = self.dataset[index]
+        rng = None
         if self.augment_conf is not None:
             rng = np.random.default_rng([self.seed, int(index), int(torch.randint(2**31 - 1, ()))])
+        source = self.depth_source
+        if source is None and rng is not None and rng.random() < float(self.augment_conf["emulated_depth_fraction"]):
+            source = self._emulated()
+        if source is not None:  # e.g. emulated monocular depth in place of the rendered one
+            source.reset(self.seed * 1_000_003 + int(index) if rng is None else int(rng.integers(2**31)))
+            sample["depth"] = source.estimate(sample["rgb"], sample["K"], sample["depth"])
+        sample = training_sample(sample, self.size, self.model_conf["labels"])
+        clean_depth = sample["depth"]
+        if rng is not None:
             sample = augment(sample, self.augment_conf, rng)
             clean_depth = sample.pop("clean_depth", sample["depth"])
         inputs = self.model_conf["network"]["inputs"]

@@ -14,6 +14,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader
 
+from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.model import decode_distance, load_model
 
@@ -23,7 +24,7 @@ from .metrics import DistanceError, FrontierCurves, GainDice
 
 def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_scenes: bool = False,
              max_samples: int | None = None, batch_size: int = 8, size: int | None = None,
-             progress=None) -> dict:
+             depth: str = "ground_truth", progress=None) -> dict:
     """Table II metrics of the model on the dataset's held-out scenes.
 
     Args:
@@ -31,6 +32,8 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         scenes: scenes to evaluate on; default: the validation scenes recorded in the model
             file (its training run's held-out split), else every scene (``all_scenes``).
         size: evaluation resolution (default: the model's inference size, 320).
+        depth: the depth prior given to the model and to the F_d baseline: a source of
+            ``configs/depth.yaml`` (``ground_truth``, ``emulated`` monocular, ...).
         progress: optional callable ``progress(done, total)``.
     Returns:
         dict of metrics (``df_error_px``, ``gain_dice``, ``frontier_precision`` ...), the
@@ -56,7 +59,10 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         picked = np.linspace(0, len(subset) - 1, int(max_samples)).round().astype(int)
         subset = subset.subset(sorted(set(picked.tolist())))
     size = int(size or conf["inference"]["size"])
-    samples = TrainingSamples(subset, conf, size)
+    from frontiernet.depth import make_depth_source
+
+    source = None if depth == "ground_truth" else make_depth_source(depth, load_config("depth"))
+    samples = TrainingSamples(subset, conf, size, depth_source=source)
     labels = conf["labels"]
     K = int(labels["num_classes"])
     distance_error, gain_dice, curves = DistanceError(labels["truncation_px"]), GainDice(K), FrontierCurves()
@@ -82,12 +88,15 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         for target in batches:
             band_dice.update(torch.where(target > 0, most_frequent, 0), target)
     result = {**distance_error.compute(), **gain_dice.compute(), **curves.compute()}
-    result["baselines"] = {"gain_dice_all_class_0": zero_dice.compute()["gain_dice"],
-                           "gain_dice_oracle_band_most_frequent": band_dice.compute()["gain_dice"],
+    zero, band = zero_dice.compute(), band_dice.compute()
+    result["baselines"] = {"gain_dice_all_class_0": zero["gain_dice"],
+                           "gain_dice_with_class_0_all_class_0": zero["gain_dice_with_class_0"],
+                           "gain_dice_oracle_band_most_frequent": band["gain_dice"],
+                           "gain_dice_with_class_0_oracle_band_most_frequent": band["gain_dice_with_class_0"],
                            "most_frequent_foreground_class": most_frequent}
     result["evaluated"] = {"model": str(model_path or "shipped"), "inputs": model.config.inputs,
                            "encoder": model.config.encoder, "data": str(data), "scenes": len(chosen),
-                           "samples": len(samples), "size": size,
+                           "samples": len(samples), "size": size, "depth": depth,
                            "split": "given" if scenes else ("held-out" if recorded and not all_scenes else "all")}
     return result
 
@@ -97,11 +106,18 @@ def format_report(result: dict) -> str:
     evaluated, baselines = result["evaluated"], result["baselines"]
     rows = [
         f"model {evaluated['model']} ({evaluated['encoder']}, {evaluated['inputs']}) on {evaluated['samples']} "
-        f"views of {evaluated['scenes']} {evaluated['split']} scene(s) at {evaluated['size']} px",
+        f"views of {evaluated['scenes']} {evaluated['split']} scene(s) at {evaluated['size']} px, "
+        f"{evaluated['depth']} depth",
         f"  DF error (px)          {result['df_error_px']:.3f}   (band D < r: {result['df_error_band_px']:.3f})",
         f"  gain Dice              {result['gain_dice']:.3f}   (all class 0: {baselines['gain_dice_all_class_0']:.3f}; "
         f"labelled band filled with the most frequent class: {baselines['gain_dice_oracle_band_most_frequent']:.3f})",
+        f"  gain Dice, class 0 in  {result['gain_dice_with_class_0']:.3f}   (all class 0: "
+        f"{baselines['gain_dice_with_class_0_all_class_0']:.3f}; labelled band, most frequent class: "
+        f"{baselines['gain_dice_with_class_0_oracle_band_most_frequent']:.3f})",
         f"  frontier mask D < l    precision {result['frontier_precision']:.3f}  recall {result['frontier_recall']:.3f}",
+        f"  best F1 (l = {result['best_f1_threshold_px']} px)   precision {result['best_f1_precision']:.3f}  "
+        f"recall {result['best_f1_recall']:.3f}  (F_d at this recall: precision "
+        f"{result['fd_precision_at_best_f1_recall']:.3f})",
         f"  depth jumps F_d        precision {result['fd_precision']:.3f}  recall {result['fd_recall']:.3f}",
         f"  at equal recall        model precision at F_d's recall {result['model_precision_at_fd_recall']:.3f}; "
         f"F_d precision at the model's recall {result['fd_precision_at_model_recall']:.3f}",

@@ -130,7 +130,8 @@ def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapse
                      f"{torch.get_num_threads()} torch threads)")
     summary = {"dataset": str(Path(conf.data.path).resolve()), "train_scenes": len(datamodule.train_scenes),
                "val_scenes": datamodule.val_scenes, "train_samples": len(datamodule.train_set),
-               "val_samples": len(datamodule.val_set), "epochs": trainer.current_epoch,
+               "val_samples": len(datamodule.val_set),
+               "epochs": round(trainer.global_step * int(conf.data.batch_size) / max(len(datamodule.train_set), 1), 3),
                "steps": trainer.global_step, "seconds_this_session": round(elapsed, 1), "resumed_from": resume,
                "hardware": hardware, "checkpoint": Path(checkpoint).name, "last_metrics": metrics,
                "encoder": conf.model.network.encoder, "inputs": conf.model.network.inputs}

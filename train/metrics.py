@@ -6,8 +6,9 @@ processes (DDP). Images are (B, H, W); distances in pixels.
 - :class:`DistanceError`: mean |D_pred - D| in pixels over all pixels (Table II's DF error)
   and over the band D < r.
 - :class:`GainDice`: hard Dice per gain class over the whole set (argmax vs label), and its
-  mean over the foreground classes 1..K-1 that occur in labels or predictions (Table II's
-  gain Dice; class 0, 90 % of the pixels, would swamp it).
+  mean over the foreground classes 1..K-1 that occur in labels or predictions (our Table II
+  gain Dice; class 0, 90 % of the pixels, would swamp it), and the mean with class 0 included
+  (the paper does not say which it reports).
 - :class:`FrontierCurves`: precision/recall of frontier masks with a 1-pixel tolerance (a
   predicted pixel is right when a label pixel is in its 3 x 3 neighbourhood; a label pixel is
   found when a predicted one is in its 3 x 3 neighbourhood), for the model's ``D_pred < l``
@@ -69,7 +70,9 @@ class GainDice(Metric):
         total = self.predicted + self.target
         dice = torch.where(total > 0, 2.0 * self.intersection / total.clamp(min=1), torch.nan)
         foreground = dice[1:][total[1:] > 0]
+        present = dice[total > 0]
         return {"gain_dice": float(foreground.mean()) if foreground.numel() else float("nan"),
+                "gain_dice_with_class_0": float(present.mean()) if present.numel() else float("nan"),
                 "gain_dice_per_class": [float(v) for v in dice]}
 
 
@@ -120,8 +123,9 @@ class FrontierCurves(Metric):
             self._count("jump", index, score > threshold, near_label, frontier)
 
     def curve(self, prefix: str) -> tuple[np.ndarray, np.ndarray]:
-        """(precision, recall) arrays over the prefix's thresholds."""
-        precision = (getattr(self, f"{prefix}_correct") / getattr(self, f"{prefix}_predicted").clamp(min=1))
+        """(precision, recall) arrays over the prefix's thresholds (precision NaN where nothing is predicted)."""
+        predicted = getattr(self, f"{prefix}_predicted")
+        precision = torch.where(predicted > 0, getattr(self, f"{prefix}_correct") / predicted.clamp(min=1), torch.nan)
         recall = getattr(self, f"{prefix}_found") / self.labelled.clamp(min=1)
         return precision.cpu().numpy(), recall.cpu().numpy()
 
@@ -136,17 +140,26 @@ class FrontierCurves(Metric):
                                   "recall": model_r.tolist()},
                   "fd_curve": {"jump_threshold": list(JUMP_THRESHOLDS), "precision": jump_p.tolist(),
                                "recall": jump_r.tolist()}}
+        # the threshold l with the best F1 (the paper's l = 0.3 px is its public model's choice)
+        f1 = np.nan_to_num(2 * model_p * model_r / np.maximum(model_p + model_r, 1e-12))
+        best = int(np.argmax(f1))
+        result.update(best_f1_threshold_px=MODEL_THRESHOLDS_PX[best], best_f1=float(f1[best]),
+                      best_f1_precision=float(model_p[best]), best_f1_recall=float(model_r[best]))
         # the model's precision at F_d's recall and F_d's precision at the model's recall (operating
         # points l = 0.3 px and jump 0.1), interpolated along the other's curve
         result["model_precision_at_fd_recall"] = precision_at_recall(model_p, model_r, result["fd_recall"])
         result["fd_precision_at_model_recall"] = precision_at_recall(jump_p, jump_r, result["frontier_recall"])
+        result["fd_precision_at_best_f1_recall"] = precision_at_recall(jump_p, jump_r, result["best_f1_recall"])
         return result
 
 
 def precision_at_recall(precision: np.ndarray, recall: np.ndarray, wanted: float) -> float:
-    """Precision interpolated at recall `wanted` along a curve (NaN outside its recall range)."""
+    """Precision interpolated at recall `wanted` along a curve (NaN outside its recall range;
+    thresholds where nothing is predicted are left out)."""
+    keep = np.isfinite(precision)
+    precision, recall = np.asarray(precision)[keep], np.asarray(recall)[keep]
     order = np.argsort(recall)
-    recall, precision = np.asarray(recall)[order], np.asarray(precision)[order]
+    recall, precision = recall[order], precision[order]
     if not len(recall) or wanted < recall[0] - 1e-9 or wanted > recall[-1] + 1e-9:
         return float("nan")
     return float(np.interp(wanted, recall, precision))

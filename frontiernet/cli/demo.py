@@ -1,7 +1,10 @@
-"""``frontiernet demo``: a fly-through of the default scene (``make demo``).
+"""``frontiernet demo``: a fly-through of the default scene with FrontierNet's proposals (``make demo``).
 
-Writes ``flythrough.mp4``, ``contact_sheet.png`` (a grid of frames), ``topdown.png``
-(the path drawn on a cut-away top view) and ``trajectory.json`` to ``--out``.
+Each frame is rendered, given a depth prior (``configs/demo.yaml: depth``, emulated monocular
+by default) and passed through the model (the shipped one unless ``--model``). Writes
+``flythrough.mp4`` (camera image beside its frontier overlay: frontier pixels coloured by
+gain class), ``contact_sheet.png`` (a grid of overlay frames), ``topdown.png`` (the path on a
+cut-away top view) and ``trajectory.json`` to ``--out``.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--out", default="outputs/demo", help="output folder (default outputs/demo)")
     parser.add_argument("--frames", type=int, help="at most this many frames")
     parser.add_argument("--config", help="YAML overriding configs/demo.yaml")
+    parser.add_argument("--model", help="model file (default: the shipped model)")
+    parser.add_argument("--no-model", action="store_true", help="render only, no network")
     parser.set_defaults(func=run)
 
 
@@ -53,6 +58,33 @@ def draw_path(topdown: np.ndarray, xy: np.ndarray, bounds: np.ndarray, pixel_siz
     return image
 
 
+class FrameProposals:
+    """Rendered frame -> [camera image | frontier overlay] with the model at its input size."""
+
+    def __init__(self, model, conf):
+        from ..depth import make_depth_source
+        from ..model import Predictor
+
+        self.predictor = Predictor(model)
+        self.depth_source = make_depth_source(conf.depth, load_config("depth"))
+        self.depth_source.reset(0)
+        self.frontier_px = 0
+
+    def __call__(self, frame) -> np.ndarray:
+        from ..model import invalid_to_zero, resize_and_crop
+        from ..model.overlay import frontier_overlay
+
+        depth = self.depth_source.estimate(frame.rgb, frame.K, frame.depth)
+        size = int(self.predictor.conf["inference"]["size"])
+        rgb, depth, _ = resize_and_crop(frame.rgb, invalid_to_zero(depth), None, size)
+        distance, logits = self.predictor.predict(rgb, depth)
+        labels = self.predictor.labels
+        overlay = frontier_overlay(rgb, distance, logits.argmax(0), float(labels["frontier_threshold_px"]),
+                                   int(labels["num_classes"]))
+        self.frontier_px += int((distance < float(labels["frontier_threshold_px"])).sum())
+        return np.concatenate([rgb, overlay], axis=1)
+
+
 def run(args) -> int:
     from rich.progress import Progress
 
@@ -76,6 +108,7 @@ def run(args) -> int:
     poses = plan_flythrough(scene, voxels, conf.flythrough)
     renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), sim.camera.background)
     agent = Agent(scene, poses[0], sim.agent, voxels)
+    proposals = None if args.no_model else FrameProposals(args.model, conf)
     frames, trajectory, collisions = [], [], 0
     with Progress(transient=True) as progress:
         task = progress.add_task(f"fly-through of {scene.name}", total=len(poses))
@@ -83,7 +116,8 @@ def run(args) -> int:
             result = agent.move_to(target)
             collisions += int(result.collided)
             trajectory.append(agent.pose.copy())
-            frames.append(renderer.render(agent.pose).rgb)
+            frame = renderer.render(agent.pose)
+            frames.append(frame.rgb if proposals is None else proposals(frame))
             progress.advance(task)
     write_video(out / "flythrough.mp4", frames, float(conf.fps))
     picks = np.linspace(0, len(frames) - 1, min(int(conf.contact_sheet_frames), len(frames))).astype(int)
