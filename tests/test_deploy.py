@@ -53,10 +53,13 @@ def test_torch_onnx_and_torchscript_agree_on_real_images(exported, shared_data):
     runtimes = {name: load_runtime(path, threads=1) for name, path in exported.items()}
     for rgb, depth in real_frames(shared_data):
         reference = runtimes["torch"].predict(rgb, depth)
+        probabilities = torch.softmax(torch.from_numpy(reference[1]), 0)
         for name in ("onnx", "torchscript"):
             distance, logits = runtimes[name].predict(rgb, depth)
-            assert np.abs(distance - reference[0]).max() < 1e-4, name
-            assert np.abs(logits - reference[1]).max() < 1e-4, name
+            assert np.abs(distance - reference[0]).max() < 1e-4, name  # pixels
+            assert (torch.softmax(torch.from_numpy(logits), 0) - probabilities).abs().max() < 1e-4, name
+            # logits reach +-25: float32 rounding of a different kernel order is ~1e-6 of that
+            assert np.allclose(logits, reference[1], rtol=1e-5, atol=1e-4), name
 
 
 def test_exported_models_take_any_size(exported):

@@ -181,6 +181,8 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
     steps = load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"]
     assert main(args[:-1] + ["trainer.max_epochs=7", "--resume"]) == 0
     assert load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"] > steps
+    with open(run / "metrics-part1.csv") as handle:  # the first session's rows survive the resume
+        assert len([row for row in csv.DictReader(handle) if row.get("train/loss")]) == len(losses)
 
 
 @pytest.mark.slow

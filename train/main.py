@@ -6,7 +6,8 @@ Outputs in ``<out>/<name>/``:
 - ``checkpoints/last.ckpt`` (every ``trainer.checkpoint_every_minutes``, every
   ``checkpoint_every_n_epochs`` epochs, when training ends and on Ctrl-C) and ``checkpoints/best.ckpt`` (lowest validation loss): resume with
   ``--resume``;
-- ``metrics.csv``: losses per logging step, validation metrics per validation;
+- ``metrics.csv``: losses per logging step, validation metrics per validation (a resumed run
+  moves the earlier rows to ``metrics-part1.csv``, ``metrics-part2.csv`` ...);
 - ``model.safetensors``: the best weights as a model file (``frontiernet predict --model``);
 - ``summary.json``: data, scenes, steps, time, hardware and the last validation metrics.
 """
@@ -84,6 +85,10 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         raise InputError(f"{resume}: checkpoint to resume from not found")
     elif resume is None and last.exists():
         raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
+    if resume is not None and (out / "metrics.csv").is_file():
+        # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
+        part = 1 + len(list(out.glob("metrics-part*.csv")))
+        (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
     datamodule = FrontierDataModule(conf)
     datamodule.setup()
     out.mkdir(parents=True, exist_ok=True)
@@ -109,7 +114,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
                         enable_model_summary=False, deterministic=False)
     started = time.time()
     try:
-        trainer.fit(module, datamodule=datamodule, ckpt_path=resume)
+        trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code
     except SystemExit:
         if trainer.interrupted:  # Lightning turns Ctrl-C into sys.exit(1) after its on_exception hooks
             raise KeyboardInterrupt from None
