@@ -87,7 +87,8 @@ def test_predict_command_writes_overlay_and_arrays(model_file, tmp_path, capsys)
     assert overlay.shape == (320, 320, 3)  # short side resized to the model's 320, centre-cropped
     arrays = np.load(out / "outputs.npz")
     assert arrays["distance_field"].shape == (320, 320) and arrays["gain_logits"].shape == (11, 320, 320)
-    assert np.array_equal(arrays["frontier_mask"], arrays["distance_field"] < MODEL_CONF["labels"]["frontier_threshold_px"])
+    threshold = load_runtime(model_file).labels["frontier_threshold_px"]  # the model file's own l
+    assert np.array_equal(arrays["frontier_mask"], arrays["distance_field"] < threshold)
     assert abs(float(arrays["depth"].max()) - 3.0) < 1e-6  # millimetres read as metres
     assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.png"),
                  "--model", str(model_file), "--out", str(tmp_path / "native"), "--size", "0"]) == 0
