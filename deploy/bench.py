@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from frontiernet.cli.bench import median_seconds
+from frontiernet.model.predictor import torch_threads
 
 
 def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_crop: int = 192,
@@ -41,15 +42,13 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
 
             def eager(threads: int):
                 def run():
-                    torch.set_num_threads(threads)
-                    with torch.inference_mode():
+                    with torch_threads(threads), torch.inference_mode():
                         model(tensor)
                 return run
 
             seconds = {"torch_eager": median_seconds(eager(default_threads), repeats),
                        "torch_2_threads": median_seconds(eager(min(2, default_threads)), repeats),
                        "torch_1_thread": median_seconds(eager(1), repeats)}
-            torch.set_num_threads(default_threads)
             seconds["torchscript"] = median_seconds(lambda: script.run(image), repeats)
             for name, runtime in runtimes.items():
                 seconds[name] = median_seconds(lambda runtime=runtime: runtime.run(image), repeats)
@@ -57,7 +56,6 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
             results["sizes"][str(size)] = {name: {"ms": round(1000 * value, 1), "fps": round(1.0 / value, 1),
                                                   "ratio_to_torch_eager": round(value / baseline, 3)}
                                            for name, value in seconds.items()}
-    torch.set_num_threads(default_threads)
     results["training"] = _training_throughput(model, channels, train_crop, train_batch, conf,
                                                results["sizes"][str(sizes[0])]["torch_eager"]["fps"])
     return results

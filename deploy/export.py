@@ -18,9 +18,9 @@ import torch
 from frontiernet.errors import InputError
 from frontiernet.io import atomic_write
 from frontiernet.model import load_model, save_model
+from frontiernet.model.checkpoint import CONFIG_KEY
 
 FORMATS = ("onnx", "torchscript", "safetensors")
-CONFIG_KEY = "frontiernet_model"
 TORCHSCRIPT_EXTRA = "frontiernet_model.json"
 OPSET = 18
 

@@ -16,7 +16,6 @@ import numpy as np
 
 from frontiernet.errors import InputError
 from frontiernet.io import atomic_write, ensure_dir, write_image
-from frontiernet.model import Runtime, resize_and_crop
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 
 from .runtime import load_runtime
@@ -67,23 +66,6 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0) -> np.ndarray:
     return depth
 
 
-def predict_arrays(runtime: Runtime, rgb: np.ndarray | None, depth: np.ndarray | None, size: int | None) -> dict:
-    """Resize (short side to `size`, centre crop; None or 0: as is), predict, decode.
-
-    Returns a dict of the arrays of ``outputs.npz`` plus ``rgb`` (the resized input image).
-    """
-    if rgb is not None and depth is not None and rgb.shape[:2] != depth.shape:
-        raise InputError(f"depth map is {depth.shape[1]} x {depth.shape[0]} but the image is "
-                         f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
-    if size:
-        rgb, depth, _ = resize_and_crop(rgb, depth, None, int(size))
-    distance_px, logits = runtime.predict(rgb, depth)
-    labels = runtime.labels
-    gain_class = logits.argmax(0).astype(np.uint8)
-    return {"rgb": rgb, "depth": depth, "distance_field": distance_px, "gain_logits": logits.astype(np.float16),
-            "gain_class": gain_class, "frontier_mask": distance_px < float(labels["frontier_threshold_px"])}
-
-
 def predict_files(image: str | Path | None, depth: str | Path | None, model: str | Path | None, out: str | Path,
                   size: int | None = None, depth_scale: float = 1000.0, threads: int | None = None) -> dict:
     """Run the model on image/depth files and write the pictures and arrays to `out`.
@@ -91,7 +73,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     Args:
         size: network input size (None: the model's inference size, 320; 0: the image's own size).
     Returns:
-        The arrays (see :func:`predict_arrays`).
+        The arrays (see :meth:`frontiernet.model.Runtime.predict_at_size`).
     """
     runtime = load_runtime(model, threads=threads)
     needs_rgb, needs_depth = runtime.inputs in ("rgbd", "rgb"), runtime.inputs in ("rgbd", "depth")
@@ -103,7 +85,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     rgb = read_rgb(image) if image is not None else None
     depth_m = read_depth(depth, depth_scale) if depth is not None else None
     size = runtime.conf["inference"]["size"] if size is None else size
-    result = predict_arrays(runtime, rgb, depth_m, size)  # the model ignores an input it does not take
+    result = runtime.predict_at_size(rgb, depth_m, size)  # the model ignores an input it does not take
     out = ensure_dir(out)
     labels = runtime.labels
     shown = result["rgb"]
@@ -114,6 +96,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     if shown is not None:
         write_image(out / "input.png", shown)
     arrays = {key: value for key, value in result.items() if key != "rgb" and value is not None}
+    arrays["gain_logits"] = arrays["gain_logits"].astype(np.float16)
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
     atomic_write(out / "outputs.npz", lambda temporary: temporary.write_bytes(buffer.getvalue()))

@@ -20,9 +20,10 @@ import torch
 
 from frontiernet.errors import InputError
 from frontiernet.model import Predictor, Runtime
+from frontiernet.model.checkpoint import CONFIG_KEY
 from frontiernet.model.predictor import torch_threads
 
-from .export import CONFIG_KEY, TORCHSCRIPT_EXTRA
+from .export import TORCHSCRIPT_EXTRA
 
 
 class OnnxRuntime(Runtime):

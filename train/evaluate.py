@@ -16,10 +16,10 @@ from torch.utils.data import DataLoader
 
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
-from frontiernet.model import decode_distance, load_model
+from frontiernet.model import load_model
 
 from .data import TrainingSamples, open_training_data
-from .metrics import DistanceError, FrontierCurves, GainDice
+from .metrics import FrontierMetrics, GainDice
 
 
 def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_scenes: bool = False,
@@ -65,7 +65,7 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
     samples = TrainingSamples(subset, conf, size, depth_source=source)
     labels = conf["labels"]
     K = int(labels["num_classes"])
-    distance_error, gain_dice, curves = DistanceError(labels["truncation_px"]), GainDice(K), FrontierCurves()
+    metrics = FrontierMetrics(labels)
     zero_dice, band_dice = GainDice(K), GainDice(K)
     band_counts = torch.zeros(K, dtype=torch.float64)
     loader = DataLoader(samples, batch_size=batch_size, shuffle=False, num_workers=0)
@@ -74,10 +74,7 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         batches = []
         for batch in loader:
             distance, logits = model(batch["image"])
-            predicted_px = decode_distance(distance[:, 0], labels)
-            distance_error.update(predicted_px, batch["distance"])
-            gain_dice.update(logits.argmax(1), batch["gain_class"])
-            curves.update(predicted_px, batch["frontier"], batch["depth"])
+            metrics.update(distance, logits, batch)
             zero_dice.update(torch.zeros_like(batch["gain_class"]), batch["gain_class"])
             band_counts += torch.bincount(batch["gain_class"].reshape(-1), minlength=K).double()
             batches.append(batch["gain_class"])
@@ -87,7 +84,7 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         most_frequent = int(band_counts[1:].argmax()) + 1
         for target in batches:
             band_dice.update(torch.where(target > 0, most_frequent, 0), target)
-    result = {**distance_error.compute(), **gain_dice.compute(), **curves.compute()}
+    result = metrics.compute()
     zero, band = zero_dice.compute(), band_dice.compute()
     result["baselines"] = {"gain_dice_all_class_0": zero["gain_dice"],
                            "gain_dice_with_class_0_all_class_0": zero["gain_dice_with_class_0"],

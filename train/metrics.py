@@ -21,7 +21,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 import torch.nn.functional as F
+from torch import nn
 from torchmetrics import Metric
+
+from frontiernet.model import decode_distance
 
 MODEL_THRESHOLDS_PX = (0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
 # relative depth jump thresholds; 0.1 with a 0.1 m floor is datagen's F_d
@@ -163,3 +166,32 @@ def precision_at_recall(precision: np.ndarray, recall: np.ndarray, wanted: float
     if not len(recall) or wanted < recall[0] - 1e-9 or wanted > recall[-1] + 1e-9:
         return float("nan")
     return float(np.interp(wanted, recall, precision))
+
+
+class FrontierMetrics(nn.Module):
+    """The three metrics above, fed from one batch of network outputs (a module, so Lightning
+    moves and syncs them with the model).
+
+    ``update(distance, logits, batch)``: distance (B, 1, H, W) normalised y, logits (B, K, H, W),
+    batch with ``distance`` px, ``gain_class``, ``frontier`` and ``depth`` (B, H, W).
+    """
+
+    def __init__(self, labels_conf):
+        super().__init__()
+        self.labels = dict(labels_conf)
+        self.distance_error = DistanceError(self.labels["truncation_px"])
+        self.gain_dice = GainDice(self.labels["num_classes"])
+        self.frontier_curves = FrontierCurves()
+
+    def update(self, distance: torch.Tensor, logits: torch.Tensor, batch: dict) -> None:
+        predicted_px = decode_distance(distance[:, 0].float(), self.labels)
+        self.distance_error.update(predicted_px, batch["distance"])
+        self.gain_dice.update(logits.argmax(1), batch["gain_class"])
+        self.frontier_curves.update(predicted_px, batch["frontier"], batch["depth"])
+
+    def compute(self) -> dict:
+        return {**self.distance_error.compute(), **self.gain_dice.compute(), **self.frontier_curves.compute()}
+
+    def reset(self) -> None:
+        for metric in (self.distance_error, self.gain_dice, self.frontier_curves):
+            metric.reset()

@@ -8,10 +8,10 @@ import math
 import lightning as L
 import torch
 
-from frontiernet.model import FrontierNet, NetworkConfig, decode_distance, load_imagenet_encoder
+from frontiernet.model import FrontierNet, NetworkConfig, load_imagenet_encoder
 
 from .losses import frontier_loss
-from .metrics import DistanceError, FrontierCurves, GainDice
+from .metrics import FrontierMetrics
 
 
 class FrontierNetModule(L.LightningModule):
@@ -32,10 +32,7 @@ class FrontierNetModule(L.LightningModule):
         pretrained = model["network"].get("pretrained")
         if pretrained:
             load_imagenet_encoder(self.net, pretrained)
-        labels = model["labels"]
-        self.distance_error = DistanceError(labels["truncation_px"])
-        self.gain_dice = GainDice(labels["num_classes"])
-        self.frontier_curves = FrontierCurves()
+        self.metrics = FrontierMetrics(model["labels"])
 
     def forward(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return self.net(image)
@@ -57,19 +54,15 @@ class FrontierNetModule(L.LightningModule):
         terms, distance, logits = self._loss(batch)
         size = batch["image"].shape[0]
         self.log_dict({f"val/{name}": value for name, value in terms.items()}, batch_size=size, sync_dist=True)
-        predicted_px = decode_distance(distance[:, 0].float(), self.hparams.model["labels"])
-        self.distance_error.update(predicted_px, batch["distance"])
-        self.gain_dice.update(logits.argmax(1), batch["gain_class"])
-        self.frontier_curves.update(predicted_px, batch["frontier"], batch["depth"])
+        self.metrics.update(distance, logits, batch)
 
     def on_validation_epoch_end(self) -> None:
-        metrics = {**self.distance_error.compute(), **self.gain_dice.compute(), **self.frontier_curves.compute()}
+        metrics = self.metrics.compute()
         scalars = {f"val/{k}": float(v) for k, v in metrics.items() if isinstance(v, float) and not math.isnan(v)}
         self.log_dict(scalars, sync_dist=False)
         self.log("val_df_error_px", metrics["df_error_px"], prog_bar=True, logger=False)
         self.log("val_gain_dice", metrics["gain_dice"], prog_bar=True, logger=False)
-        for metric in (self.distance_error, self.gain_dice, self.frontier_curves):
-            metric.reset()
+        self.metrics.reset()
 
     def configure_optimizers(self):
         optim = self.hparams.train["optim"]

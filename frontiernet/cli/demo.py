@@ -68,21 +68,18 @@ class FrameProposals:
         self.predictor = Predictor(model)
         self.depth_source = make_depth_source(conf.depth, load_config("depth"))
         self.depth_source.reset(0)
-        self.frontier_px = 0
 
     def __call__(self, frame) -> np.ndarray:
-        from ..model import invalid_to_zero, resize_and_crop
+        from ..model import invalid_to_zero
         from ..model.overlay import frontier_overlay
 
         depth = self.depth_source.estimate(frame.rgb, frame.K, frame.depth)
-        size = int(self.predictor.conf["inference"]["size"])
-        rgb, depth, _ = resize_and_crop(frame.rgb, invalid_to_zero(depth), None, size)
-        distance, logits = self.predictor.predict(rgb, depth)
+        result = self.predictor.predict_at_size(frame.rgb, invalid_to_zero(depth),
+                                                int(self.predictor.conf["inference"]["size"]))
         labels = self.predictor.labels
-        overlay = frontier_overlay(rgb, distance, logits.argmax(0), float(labels["frontier_threshold_px"]),
-                                   int(labels["num_classes"]))
-        self.frontier_px += int((distance < float(labels["frontier_threshold_px"])).sum())
-        return np.concatenate([rgb, overlay], axis=1)
+        overlay = frontier_overlay(result["rgb"], result["distance_field"], result["gain_class"],
+                                   float(labels["frontier_threshold_px"]), int(labels["num_classes"]))
+        return np.concatenate([result["rgb"], overlay], axis=1)
 
 
 def run(args) -> int:

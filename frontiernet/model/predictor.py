@@ -14,7 +14,8 @@ import numpy as np
 import torch
 
 from .checkpoint import load_model
-from .inputs import decode_distance, network_input
+from ..errors import InputError
+from .inputs import decode_distance, network_input, resize_and_crop
 
 
 @contextmanager
@@ -67,6 +68,24 @@ class Runtime:
         distance, logits = self.run(image)
         distance_px = decode_distance(np.asarray(distance, np.float32)[0, 0], self.labels)
         return distance_px, np.asarray(logits, np.float32)[0]
+
+    def predict_at_size(self, rgb: np.ndarray | None, depth: np.ndarray | None, size: int | None) -> dict:
+        """Resize (short side to `size`, centre crop; None or 0: as is), predict, decode.
+
+        Returns:
+            ``rgb`` and ``depth`` as the network saw them (None stays None), ``distance_field``
+            (H, W) float32 px, ``gain_logits`` (K, H, W) float32, ``gain_class`` (H, W) uint8 and
+            ``frontier_mask`` (H, W) bool (``D < l``, l from the model's labels).
+        """
+        if rgb is not None and depth is not None and rgb.shape[:2] != depth.shape:
+            raise InputError(f"depth map is {depth.shape[1]} x {depth.shape[0]} but the image is "
+                             f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
+        if size:
+            rgb, depth, _ = resize_and_crop(rgb, depth, None, int(size))
+        distance_px, logits = self.predict(rgb, depth)
+        return {"rgb": rgb, "depth": depth, "distance_field": distance_px, "gain_logits": logits,
+                "gain_class": logits.argmax(0).astype(np.uint8),
+                "frontier_mask": distance_px < float(self.labels["frontier_threshold_px"])}
 
 
 class Predictor(Runtime):
