@@ -37,11 +37,12 @@ from scipy.spatial import cKDTree
 
 from frontiernet.errors import InputError, positive_number
 from frontiernet.geometry import rotation_from_yaw_pitch
+from frontiernet.mapping.traversal import frustum_volume, mark_traversed
 from frontiernet.simulator.camera import Frame, PinholeCamera, Renderer
 from frontiernet.simulator.voxels import VoxelGrid
 
-from . import traversal
 from .labels import discontinuity_mask, distance_field, gain_classes
+from .traversal import max_gain_near_rays
 
 
 @dataclass
@@ -185,8 +186,8 @@ class GroundTruthGenerator:
         rows = np.arange(0, H, self.stride)
         cols = np.arange(0, W, self.stride)
         pick = (rows[:, None] * W + cols[None, :]).reshape(-1)
-        traversal.mark_traversed(origin, np.ascontiguousarray(directions[pick]), np.ascontiguousarray(t_end[pick]),
-                                 box_origin, size, observed)
+        mark_traversed(origin, np.ascontiguousarray(directions[pick]), np.ascontiguousarray(t_end[pick]),
+                       box_origin, size, observed)
         lap("observe")
 
         # 2. V_ft: observed free voxels touching unobserved free space (within V_in's bounding box)
@@ -208,9 +209,8 @@ class GroundTruthGenerator:
         best = np.full((H, W), -1.0, np.float32)
         centres_cam = (frontier_world - origin) @ T[:3, :3]  # (M, 3) camera frame
         cam = self.camera
-        traversal.max_gain_near_rays(centres_cam, voxel_gain.astype(np.float64), t_end.reshape(H, W), cam.fx,
-                                     cam.fy, cam.cx, cam.cy, float(self.conf.near_clip_m),
-                                     float(self.conf.r_ray_m), best)
+        max_gain_near_rays(centres_cam, voxel_gain.astype(np.float64), t_end.reshape(H, W), cam.fx,
+                           cam.fy, cam.cx, cam.cy, float(self.conf.near_clip_m), float(self.conf.r_ray_m), best)
         frontier_projected = best >= 0.0
         ray_gain = np.maximum(best, 0.0)
         lap("project")
@@ -296,9 +296,8 @@ class GroundTruthGenerator:
         rotations = np.ascontiguousarray(rotation_from_yaw_pitch(yaws, pitches))
         origins = np.ascontiguousarray(np.repeat(frontier_world[pick], len(self.yaw_offsets), axis=0))
         volumes = np.empty(len(origins), np.float64)
-        traversal.frustum_unobserved_volume(origins, rotations, self.gain_directions, float(self.camera.max_depth),
-                                            self.gain_focal_px, box_origin, self.voxels.voxel_size,
-                                            free, observed, volumes)
+        frustum_volume(origins, rotations, self.gain_directions, float(self.camera.max_depth), self.gain_focal_px,
+                       box_origin, self.voxels.voxel_size, free, ~observed, volumes)  # V_out seen through free space
         sample_gain = volumes.reshape(len(pick), -1).max(axis=1)
         return self._blend(frontier_world, pick, sample_gain), sampled
 

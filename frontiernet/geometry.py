@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
+
 # Y-up (glTF, HM3D, habitat) to Z-up (ours): a +90 degree rotation about x maps
 # +y to +z and +z to -y.
 T_ZUP_YUP = np.array(
@@ -73,3 +75,27 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     """Geodesic angle (radians) between two rotations (3, 3)."""
     cos = (np.trace(np.asarray(R_a).T @ np.asarray(R_b)) - 1.0) / 2.0
     return float(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def pinhole_intrinsics(K, image_shape: tuple[int, int]) -> np.ndarray:
+    """(3, 3) float64 pinhole K that fits an (H, W) image, or InputError naming `K`."""
+    K = np.asarray(K, np.float64)
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or not (K[0, 0] > 0 and K[1, 1] > 0):
+        raise InputError(f"K must be a finite (3, 3) pinhole matrix with positive focal lengths, got {K.tolist()}")
+    H, W = image_shape
+    if not (0.0 <= K[0, 2] <= W - 1 and 0.0 <= K[1, 2] <= H - 1):
+        raise InputError(f"K's principal point ({K[0, 2]}, {K[1, 2]}) lies outside the {W} x {H} depth image: "
+                         "K and depth do not belong together")
+    return K
+
+
+def rigid_pose(T_world_cam) -> np.ndarray:
+    """(4, 4) float64 rigid transform, or InputError naming `T_world_cam`."""
+    T = np.asarray(T_world_cam, np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InputError(f"T_world_cam must be a finite (4, 4) matrix, got {T.tolist() if T.size <= 16 else T.shape}")
+    R = T[:3, :3]
+    if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R.T @ R, np.eye(3), atol=1e-4) \
+            or np.linalg.det(R) < 0:
+        raise InputError(f"T_world_cam must be a rigid transform (rotation + translation), got {T.tolist()}")
+    return T

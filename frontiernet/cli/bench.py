@@ -3,7 +3,9 @@
 Machines are noisy and absolute times drift, so every figure is also given relative
 to a baseline measured alongside it. ``bench render``: the full render (RGB + depth +
 normals + hit mask) against a bare Open3D ``cast_rays`` of the same rays (goal <= 1.5x),
-plus scene loading and voxelisation, expressed in the same unit.
+plus scene loading and voxelisation, expressed in the same unit. ``bench map``: the
+occupancy map's update per frame (ray strides 1, 2, 4) and one known-volume query for
+many frontier views, against a render of the same frames (goal: update < 1x).
 """
 
 from __future__ import annotations
@@ -41,6 +43,12 @@ def add_parser(subparsers) -> None:
     render.add_argument("--batch", type=int, default=8, help="poses per batched render")
     render.add_argument("--json", action="store_true", help="print JSON only")
     render.set_defaults(func=run_render)
+    occupancy = actions.add_parser("map", help="occupancy map update per frame vs a render")
+    occupancy.add_argument("--scene", default=None, help="scene spec (default as for bench render)")
+    occupancy.add_argument("--frames", type=int, default=20, help="frames rendered and integrated (median is reported)")
+    occupancy.add_argument("--views", type=int, default=50, help="frontier views of one visible_known_volume call")
+    occupancy.add_argument("--json", action="store_true", help="print JSON only")
+    occupancy.set_defaults(func=run_map)
     from .main import plugin_commands
 
     for module in plugin_commands(BENCH_GROUP):  # e.g. deploy's `bench inference`
@@ -57,6 +65,16 @@ def median_seconds(function, repeats: int, warmup: int = 2) -> float:
         function()
         times.append(time.perf_counter() - start)
     return float(np.median(times))
+
+
+def median_each(function, items: list) -> tuple[float, list]:
+    """Median wall time of `function(item)` over `items`, and the results."""
+    times, results = [], []
+    for item in items:
+        start = time.perf_counter()
+        results.append(function(item))
+        times.append(time.perf_counter() - start)
+    return float(np.median(times)), results
 
 
 def run_render(args) -> int:
@@ -115,4 +133,54 @@ def run_render(args) -> int:
     print(f"  scene load            {load_s * 1e3:8.0f} ms   {result['load_in_casts']:.1f} casts")
     print(f"  voxelisation          {voxel_s * 1e3:8.0f} ms   {result['voxelize_in_casts']:.1f} casts "
           f"({result['explorable_m3']} m^3 explorable)")
+    return 0
+
+
+def run_map(args) -> int:
+    from omegaconf import OmegaConf
+
+    from ..mapping import OccupancyMap
+    from ..scenes import load_scene
+    from ..simulator.camera import PinholeCamera, Renderer
+    from ..simulator.poses import sample_poses
+    from ..simulator.voxels import voxelize_scene
+
+    spec = default_bench_scene(args.scene)
+    sim, explore = load_config("sim"), load_config("explore")
+    scene = load_scene(spec)
+    voxels = voxelize_scene(scene, sim.voxels)
+    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
+    poses = sample_poses(scene, voxels, max(args.frames, 1), 0, sim.poses)
+    renderer.render(poses[0])  # warm-up
+    render, frames = median_each(renderer.render, list(poses))
+    result = {"scene": spec, "resolution": [renderer.camera.width, renderer.camera.height], "frames": len(poses),
+              "render_ms": round(render * 1e3, 2)}
+    for stride in (1, 2, 4):
+        conf = OmegaConf.merge(explore.map, {"ray_stride_px": stride})
+        OccupancyMap.like(voxels, conf).integrate(frames[0].depth, frames[0].K, poses[0])  # warm-up (compile)
+        occupancy = OccupancyMap.like(voxels, conf)
+        update, _ = median_each(lambda frame, occupancy=occupancy: occupancy.integrate(frame.depth, frame.K,
+                                                                                       frame.T_world_cam), frames)
+        result[f"integrate_stride{stride}_ms"] = round(update * 1e3, 2)
+        result[f"integrate_stride{stride}_over_render"] = round(update / render, 3)
+    view = explore.tracking.gain_view
+    views = sample_poses(scene, voxels, max(args.views, 1), 1, sim.poses)
+    query = median_seconds(lambda: occupancy.visible_known_volume(views, int(view.width_px), float(view.focal_px),
+                                                                  float(view.max_depth_m)), 5)
+    result.update({"views": len(views), "visible_known_volume_ms": round(query * 1e3, 2),
+                   "visible_known_volume_over_render": round(query / render, 3),
+                   "known_m3": round(occupancy.known_volume_m3, 2)})
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"bench map: {spec}, {renderer.camera.width}x{renderer.camera.height}, median of {len(poses)} frames")
+    rows = [("render (rgb+depth+n)", render, "(baseline)")]
+    for stride in (1, 2, 4):
+        default = " (config)" if stride == int(explore.map.ray_stride_px) else ""
+        seconds = result[f"integrate_stride{stride}_ms"] / 1e3
+        rows.append((f"map update, stride {stride}{default}", seconds, "goal < 1x"))
+    rows.append((f"visible_known_volume x{len(views)}", query,
+                 f"({view.width_px} px views, {result['known_m3']} m^3 known)"))
+    for label, seconds, note in rows:
+        print(f"  {label:<30s}{seconds * 1e3:8.2f} ms   {seconds / render:5.2f}x   {note}")
     return 0

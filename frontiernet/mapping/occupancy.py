@@ -1,0 +1,350 @@
+"""A dense 3D log-odds occupancy map (OctoMap-style), integrated from depth images.
+
+Frames and units: world frame Z-up, metres. The map is a grid of shape (X, Y, Z) that
+covers ``origin + [0, shape) * voxel_size``; voxel ``(i, j, k)`` spans
+``origin + [i, i+1) * voxel_size`` on x (likewise y, z), as in
+:class:`~frontiernet.simulator.voxels.VoxelGrid`, whose index helpers it shares.
+
+Each voxel holds a float32 log-odds value (0 = unknown prior) and an explicit
+"observed" flag (updated at least once). A depth frame is integrated as in OctoMap's
+discretised update: every ``ray_stride_px``-th pixel's ray is traversed from the camera
+centre to its end point (:func:`~frontiernet.mapping.traversal.mark_depth_rays`); per
+frame each voxel is updated at most once, by ``log_odds_hit`` if some ray ends in it,
+else by ``log_odds_miss`` if some ray passes it, and clamped to
+``[log_odds_min, log_odds_max]``. Observed voxels above ``occupied_threshold`` are
+occupied, the other observed ones free, the rest unknown. Only the bounding box of the
+frame's frustum is touched, so an update costs the same in a room as in a campus.
+
+Every number comes from the ``map`` section of ``configs/explore.yaml``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from ..errors import InputError, positive_number
+from ..io import atomic_write
+from ..simulator.voxels import VoxelGrid
+from ..geometry import pinhole_intrinsics, rigid_pose
+from .checks import MapSettings, depth_image, finite_number, scalar
+from .traversal import frustum_volume, mark_depth_rays
+
+UNKNOWN, FREE, OCCUPIED = 0, 1, 2
+"""Voxel states returned by :meth:`OccupancyMap.state_at` (int8)."""
+
+_FORMAT = "frontiernet-occupancy-1"
+
+
+class OccupancyMap:
+    """Dense 3D log-odds voxel grid (world frame, Z-up, metres); see the module docstring.
+
+    Args:
+        origin: (3,) float64 world position (metres) of the corner of voxel (0, 0, 0).
+        shape: (X, Y, Z) number of voxels per axis.
+        conf: the ``map`` section of ``configs/explore.yaml`` (DictConfig, dict or
+            :class:`MapSettings`); the shipped defaults when None.
+    Raises:
+        InputError: a bad origin, shape or config value.
+    """
+
+    # index helpers shared with VoxelGrid (they only use origin, voxel_size and shape)
+    world_to_index = VoxelGrid.world_to_index
+    index_to_world = VoxelGrid.index_to_world
+    in_grid = VoxelGrid.in_grid
+    bounds = VoxelGrid.bounds
+
+    def __init__(self, origin: np.ndarray, shape: tuple[int, int, int], conf=None) -> None:
+        self.settings = MapSettings.from_config(conf)
+        self.origin = np.asarray(origin, np.float64)
+        if self.origin.shape != (3,) or not np.all(np.isfinite(self.origin)):
+            raise InputError(f"map origin must be a finite (3,) world point in metres, got {origin!r}")
+        dims = tuple(int(n) for n in np.asarray(shape).reshape(-1)) if np.size(shape) == 3 else ()
+        if len(dims) != 3 or min(dims) < 1:
+            raise InputError(f"map shape must be 3 positive voxel counts (X, Y, Z), got {shape!r}")
+        self._log_odds = np.zeros(dims, np.float32)
+        self._observed = np.zeros(dims, bool)
+        self._known_voxels = 0
+        self._view_directions: dict[tuple[int, float], np.ndarray] = {}
+
+    @classmethod
+    def like(cls, voxels: VoxelGrid, conf=None) -> OccupancyMap:
+        """An empty map over the same grid (origin, voxel size, shape) as a scene's `voxels`.
+
+        Raises:
+            InputError: ``map.voxel_size`` differs from the grid's voxel size.
+        """
+        settings = MapSettings.from_config(conf)
+        if not np.isclose(settings.voxel_size, voxels.voxel_size, rtol=1e-9, atol=0.0):
+            raise InputError(f"map.voxel_size {settings.voxel_size} m differs from the scene grid's "
+                             f"{voxels.voxel_size} m (voxels.voxel_size of configs/sim.yaml)")
+        return cls(voxels.origin, voxels.shape, settings)
+
+    @classmethod
+    def from_bounds(cls, bounds: np.ndarray, conf=None) -> OccupancyMap:
+        """An empty map covering `bounds`, (2, 3) float64 world [min, max] corners in metres
+        (the upper side is rounded up to whole voxels)."""
+        settings = MapSettings.from_config(conf)
+        bounds = np.asarray(bounds, np.float64)
+        if bounds.shape != (2, 3) or not np.all(np.isfinite(bounds)) or not np.all(bounds[1] > bounds[0]):
+            raise InputError(f"map bounds must be finite (2, 3) [min, max] corners with max > min, got {bounds!r}")
+        shape = np.maximum(np.ceil((bounds[1] - bounds[0]) / settings.voxel_size - 1e-9), 1).astype(np.int64)
+        return cls(bounds[0], tuple(shape.tolist()), settings)
+
+    # -- geometry and state ----------------------------------------------------------------------
+
+    @property
+    def voxel_size(self) -> float:
+        """Voxel edge length, metres."""
+        return self.settings.voxel_size
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self._log_odds.shape  # type: ignore[return-value]
+
+    @property
+    def log_odds(self) -> np.ndarray:
+        """(X, Y, Z) float32 log-odds of occupancy (read-only view; 0 where unknown)."""
+        return _read_only(self._log_odds)
+
+    @property
+    def observed(self) -> np.ndarray:
+        """(X, Y, Z) bool, voxels updated at least once (read-only view)."""
+        return _read_only(self._observed)
+
+    def occupied_mask(self) -> np.ndarray:
+        """(X, Y, Z) bool, observed voxels with log-odds above ``occupied_threshold``."""
+        return self._observed & (self._log_odds > self.settings.occupied_threshold)
+
+    def free_mask(self) -> np.ndarray:
+        """(X, Y, Z) bool, observed voxels with log-odds at or below ``occupied_threshold``."""
+        return self._observed & (self._log_odds <= self.settings.occupied_threshold)
+
+    def unknown_mask(self) -> np.ndarray:
+        """(X, Y, Z) bool, voxels never updated."""
+        return ~self._observed
+
+    @property
+    def known_volume_m3(self) -> float:
+        """Volume of the observed (free or occupied) voxels, cubic metres."""
+        return self._known_voxels * self.voxel_size ** 3
+
+    def state_at(self, points: np.ndarray) -> np.ndarray:
+        """(N, 3) world points (metres) -> (N,) int8 :data:`UNKNOWN` / :data:`FREE` / :data:`OCCUPIED`
+        of the voxels holding them (UNKNOWN off the grid or for non-finite points)."""
+        points = np.asarray(points, np.float64)
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise InputError(f"points must be an (N, 3) array of world points, got shape {points.shape}")
+        index = self.world_to_index(points)
+        inside = self.in_grid(index)
+        i, j, k = index[inside].T
+        states = np.full(len(points), UNKNOWN, np.int8)
+        occupied = self._log_odds[i, j, k] > self.settings.occupied_threshold
+        states[inside] = np.where(self._observed[i, j, k], np.where(occupied, OCCUPIED, FREE), UNKNOWN)
+        return states
+
+    # -- updates ---------------------------------------------------------------------------------
+
+    def integrate(self, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> None:
+        """Integrate one depth frame (see the module docstring for the update rule).
+
+        Args:
+            depth: (H, W) float z-depth in metres, NaN (or <= 0) where invalid. Depth beyond
+                ``max_range_m`` is no hit: the ray is free up to ``max_range_m``. Invalid
+                pixels are free up to ``max_range_m`` or skipped, per ``invalid_depth``.
+            K: (3, 3) float64 pinhole intrinsics of the depth image, pixels (centres at
+                integer coordinates).
+            T_world_cam: (4, 4) float64 camera pose (OpenCV camera frame to world).
+        Raises:
+            InputError: a depth image that is not 2D, bad intrinsics (or a principal point
+                outside the image), a non-finite or non-rigid pose.
+        """
+        depth = depth_image(depth)
+        K = pinhole_intrinsics(K, depth.shape)
+        T = rigid_pose(T_world_cam)
+        s = self.settings
+        corners = _image_corner_rays(K, depth.shape) * s.max_range_m @ T[:3, :3].T + T[:3, 3]
+        lo, hi = self._index_box(np.vstack([corners, T[:3, 3]]))
+        if np.any(hi <= lo):
+            return  # the frustum misses the grid
+        passed = np.zeros(tuple(hi - lo), bool)
+        hit = np.zeros_like(passed)
+        mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
+                        np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
+                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit)
+        self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
+                                           np.float32(s.log_odds_hit), np.float32(s.log_odds_miss),
+                                           np.float32(s.log_odds_min), np.float32(s.log_odds_max))
+
+    def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
+        """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
+        as free (observed, log-odds at most ``log_odds_miss``): where the robot stands is free."""
+        centre = np.asarray(centre, np.float64)
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
+            raise InputError(f"clear_sphere centre must be a finite (3,) world point, got {centre!r}")
+        radius = positive_number(scalar(radius_m), "clear_sphere radius_m", "metres", allow_zero=True)
+        lo, hi = self._index_box(np.stack([centre - radius, centre + radius]), margin=0)
+        box = tuple(slice(a, b) for a, b in zip(lo, hi))
+        axes = [self.origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * self.voxel_size - centre[a] for a in range(3)]
+        squared = axes[0][:, None, None] ** 2 + axes[1][None, :, None] ** 2 + axes[2][None, None, :] ** 2
+        inside = squared <= radius ** 2
+        self._known_voxels += int(np.count_nonzero(inside & ~self._observed[box]))
+        self._observed[box] |= inside
+        miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
+        self._log_odds[box] = np.where(inside, np.minimum(self._log_odds[box], miss), self._log_odds[box])
+
+    # -- queries ---------------------------------------------------------------------------------
+
+    def visible_known_volume(self, T_world_cams: np.ndarray, width_px: int, focal_px: float,
+                             max_depth_m: float) -> np.ndarray:
+        """Known free volume each virtual camera sees, up to occlusion by occupied voxels.
+
+        Each camera is a square pinhole of `width_px` pixels, focal length `focal_px`
+        and principal point at the image centre; its rays pass free and unknown voxels,
+        stop at occupied ones, at the grid border or at `max_depth_m` (z-depth), and sum
+        the free volume they cross (:func:`~frontiernet.mapping.traversal.frustum_volume`).
+        A camera outside the grid sees 0.
+
+        Args:
+            T_world_cams: (V, 4, 4) float64 camera poses (or one (4, 4) pose).
+            width_px: image width = height, pixels; focal_px: pixels; max_depth_m: metres.
+        Returns:
+            (V,) float64 cubic metres.
+        """
+        T = np.asarray(T_world_cams, np.float64)
+        T = T[None] if T.shape == (4, 4) else T
+        if T.ndim != 3 or T.shape[1:] != (4, 4) or not np.all(np.isfinite(T)):
+            raise InputError(f"T_world_cams must be finite (V, 4, 4) poses, got shape {T.shape}")
+        if not isinstance(scalar(width_px), int) or isinstance(width_px, bool) or width_px < 1:
+            raise InputError(f"width_px must be a positive integer, got {width_px!r}")
+        focal = positive_number(scalar(focal_px), "focal_px", "pixels")
+        max_depth = positive_number(scalar(max_depth_m), "max_depth_m", "metres")
+        volumes = np.zeros(len(T), np.float64)
+        if len(T) == 0:
+            return volumes
+        directions = self._pixel_directions(int(width_px), focal)
+        corners = np.einsum("vij,cj->vci", T[:, :3, :3], directions[[0, -1, int(width_px) - 1, -int(width_px)]])
+        lo, hi = self._index_box(np.vstack([(corners * max_depth + T[:, None, :3, 3]).reshape(-1, 3), T[:, :3, 3]]))
+        if np.any(hi <= lo):
+            return volumes
+        box = tuple(slice(a, b) for a, b in zip(lo, hi))
+        observed, occupied = self._observed[box], self._log_odds[box] > self.settings.occupied_threshold
+        frustum_volume(np.ascontiguousarray(T[:, :3, 3]), np.ascontiguousarray(T[:, :3, :3]), directions, max_depth,
+                       focal, self.origin + lo * self.voxel_size, self.voxel_size, ~(observed & occupied),
+                       observed & ~occupied, volumes)
+        return volumes
+
+    def slice_2d(self, z_min: float, z_max: float) -> tuple[np.ndarray, np.ndarray]:
+        """A 2D planning view of the height band [z_min, z_max] (world metres).
+
+        The band holds the voxel layers overlapping it (at least the one holding z_min).
+        Returns (free, occupied), both (X, Y) bool: a column is occupied when any of its
+        band voxels is occupied, free when all of them are free; a band off the grid
+        gives all False (unknown).
+        """
+        z_min, z_max = finite_number(z_min, "z_min"), finite_number(z_max, "z_max")
+        if z_max < z_min:
+            raise InputError(f"slice_2d needs z_min <= z_max, got {z_min}, {z_max}")
+        k0 = int(np.floor((z_min - self.origin[2]) / self.voxel_size))
+        k1 = max(int(np.ceil((z_max - self.origin[2]) / self.voxel_size)), k0 + 1)
+        k0, k1 = max(k0, 0), min(k1, self.shape[2])
+        if k1 <= k0:
+            empty = np.zeros(self.shape[:2], bool)
+            return empty, empty.copy()
+        band = slice(k0, k1)
+        observed, occupied = self._observed[:, :, band], self._log_odds[:, :, band] > self.settings.occupied_threshold
+        return np.all(observed & ~occupied, axis=2), np.any(observed & occupied, axis=2)
+
+    # -- files -----------------------------------------------------------------------------------
+
+    def save(self, path: str | Path) -> Path:
+        """Write the map (grid, state and settings) to an ``.npz`` file, atomically."""
+        def write(tmp: Path) -> None:
+            with open(tmp, "wb") as handle:
+                np.savez_compressed(handle, format=_FORMAT, origin=self.origin, log_odds=self._log_odds,
+                                    observed=self._observed, settings=np.array(repr(asdict(self.settings))))
+
+        return atomic_write(path, write)
+
+    @classmethod
+    def load(cls, path: str | Path) -> OccupancyMap:
+        """Read a map written by :meth:`save` (InputError for a missing or foreign file)."""
+        import ast
+
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if str(data["format"]) != _FORMAT:
+                    raise InputError(f"{path}: not an occupancy map file (format {str(data['format'])!r})")
+                settings = ast.literal_eval(str(data["settings"]))
+                occupancy = cls(data["origin"], data["log_odds"].shape, settings)
+                occupancy._log_odds[...] = data["log_odds"]
+                occupancy._observed[...] = data["observed"]
+        except (OSError, KeyError, ValueError, SyntaxError) as error:
+            if isinstance(error, InputError):
+                raise
+            raise InputError(f"{path}: cannot read an occupancy map ({error.__class__.__name__}: {error})") from None
+        occupancy._known_voxels = int(np.count_nonzero(occupancy._observed))
+        return occupancy
+
+    # -- pieces ----------------------------------------------------------------------------------
+
+    def _index_box(self, points: np.ndarray, margin: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Voxel index range [lo, hi) (two (3,) int64) of the bounding box of (N, 3) world
+        points grown by `margin` voxels, clipped to the grid (empty where hi <= lo)."""
+        lo = np.floor((points.min(axis=0) - self.origin) / self.voxel_size).astype(np.int64) - margin
+        hi = np.floor((points.max(axis=0) - self.origin) / self.voxel_size).astype(np.int64) + 1 + margin
+        shape = np.asarray(self.shape)
+        return np.clip(lo, 0, shape), np.clip(hi, 0, shape)
+
+    def _pixel_directions(self, width: int, focal: float) -> np.ndarray:
+        """(width * width, 3) float64 camera-frame directions (unit z) of a square virtual camera."""
+        key = (width, focal)
+        if key not in self._view_directions:
+            from ..simulator.camera import PinholeCamera
+
+            centre = (width - 1) / 2.0
+            camera = PinholeCamera(width, width, focal, focal, centre, centre)
+            self._view_directions[key] = camera.ray_directions().reshape(-1, 3).astype(np.float64)
+        return self._view_directions[key]
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
+def _image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarray:
+    """(4, 3) camera-frame directions (unit z) through the corner pixel centres of an (H, W) image."""
+    H, W = image_shape
+    u = np.array([0.0, W - 1, 0.0, W - 1])
+    v = np.array([0.0, 0.0, H - 1, H - 1])
+    return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1)
+
+
+@numba.njit(cache=True, parallel=True)
+def _apply_marks(log_odds, observed, lo, passed, hit, l_hit, l_miss, l_min, l_max):  # pragma: no cover
+    """One frame's update over a box at offset `lo` (3,) int64 of the (X, Y, Z) map arrays:
+    `hit` voxels get `l_hit`, other `passed` ones `l_miss`, clamped to [l_min, l_max]
+    (float32 log-odds). Returns the number of voxels observed for the first time."""
+    newly = 0
+    for i in numba.prange(passed.shape[0]):
+        gi = lo[0] + i
+        for j in range(passed.shape[1]):
+            gj = lo[1] + j
+            for k in range(passed.shape[2]):
+                if hit[i, j, k]:
+                    delta = l_hit
+                elif passed[i, j, k]:
+                    delta = l_miss
+                else:
+                    continue
+                gk = lo[2] + k
+                log_odds[gi, gj, gk] = min(max(log_odds[gi, gj, gk] + delta, l_min), l_max)
+                if not observed[gi, gj, gk]:
+                    observed[gi, gj, gk] = True
+                    newly += 1
+    return newly

@@ -1,0 +1,277 @@
+"""The 3D log-odds occupancy map, checked on real depth frames of a closed room."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import box_scene, room_boxes
+from frontiernet.config import load_config
+from frontiernet.errors import InputError
+from frontiernet.geometry import pose_from_heading
+from frontiernet.mapping import FREE, OCCUPIED, UNKNOWN, OccupancyMap, frustum_volume
+from frontiernet.simulator.camera import PinholeCamera, Renderer
+from frontiernet.simulator.voxels import voxelize_scene
+
+ROOM = (4.0, 3.0, 2.5)  # interior [0, 4] x [0, 3] x [0, 2.5] m
+WALL = 0.25  # thick walls: the scene grid's corner (bounds - 0.2 m margin) is half a voxel off the faces
+CAMERA = (1.0, 1.5, 1.2)  # looks along +x at the wall x = 4, 3 m away (within the 3.5 m range)
+# voxel boundaries half a voxel off the walls' faces: each face lies inside one voxel layer
+BOUNDS = np.array([[-0.45, -0.45, -0.45], [4.45, 3.45, 2.95]])
+SMALL = PinholeCamera(120, 120, 75.0, 75.0, 59.5, 59.5, 3.5)  # the paper's field of view, 120 px
+
+
+@pytest.fixture(scope="module")
+def room():
+    lower, upper = room_boxes(*ROOM, wall=WALL)
+    return box_scene(lower, upper, "mapping-room")
+
+
+@pytest.fixture(scope="module")
+def renderer(room):
+    return Renderer(room, SMALL)
+
+
+def map_conf(**changes) -> dict:
+    conf = dict(load_config("explore").map)
+    conf.update(changes)
+    return conf
+
+
+def integrated(renderer, poses, **changes) -> OccupancyMap:
+    occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf(**changes))
+    for T in poses:
+        frame = renderer.render(T)
+        occupancy.integrate(frame.depth, frame.K, T)
+    return occupancy
+
+
+def surround_poses(position=CAMERA) -> list[np.ndarray]:
+    """Level, up and down views in four headings: together they see the whole room."""
+    return [pose_from_heading(*position, yaw=yaw, pitch=pitch)
+            for yaw in np.deg2rad([0, 90, 180, 270]) for pitch in (-0.7, 0.0, 0.7)]
+
+
+def test_one_frame_free_to_the_wall_occupied_wall_unknown_behind(renderer):
+    T = pose_from_heading(*CAMERA, yaw=0.0)
+    occupancy = integrated(renderer, [T])
+    axis = [(x, 1.5, 1.2) for x in (1.0, 2.0, 3.0, 3.9, 4.0, 4.1, 4.3, 0.5)]
+    assert occupancy.state_at(np.array(axis)).tolist() == [FREE, FREE, FREE, FREE, OCCUPIED, UNKNOWN, UNKNOWN,
+                                                           UNKNOWN]
+    # the whole visible face of the wall is occupied, the layer in front of it free (voxel centres)
+    y, z = np.meshgrid(np.arange(1, 30) * 0.1, np.arange(1, 25) * 0.1, indexing="ij")
+    face = np.stack([np.full(y.size, 4.0), y.ravel(), z.ravel()], 1)
+    assert np.mean(occupancy.state_at(face) == OCCUPIED) > 0.98
+    assert np.mean(occupancy.state_at(face - [0.1, 0, 0]) == FREE) > 0.98
+    assert np.all(occupancy.state_at(face + [0.3, 0, 0]) == UNKNOWN)
+    # one frame: hit and miss once
+    i, j, k = occupancy.world_to_index(np.array([[4.0, 1.5, 1.2], [2.0, 1.5, 1.2]])).T
+    np.testing.assert_allclose(occupancy.log_odds[i, j, k], [0.85, -0.4], rtol=1e-6)
+
+
+def test_map_agrees_with_the_scene_voxels(room, renderer):
+    voxels = voxelize_scene(room)
+    occupancy = OccupancyMap.like(voxels, map_conf())
+    for T in surround_poses()[::2]:
+        frame = renderer.render(T)
+        occupancy.integrate(frame.depth, frame.K, T)
+    occupied, free = occupancy.occupied_mask(), occupancy.free_mask()
+    assert occupied.sum() > 500 and free.sum() > 10000
+    assert np.mean(voxels.occupied[occupied]) > 0.97, "occupied map voxels lie on the surface"
+    # free map voxels lie in the interior (rays grazing the floor cross a few of its voxels before their hit)
+    assert np.mean(voxels.explorable[free]) > 0.95
+
+
+def test_known_volume_grows_and_stays_within_the_grid(renderer):
+    occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf())
+    grid_m3 = np.prod(occupancy.shape) * occupancy.voxel_size ** 3
+    volumes = [occupancy.known_volume_m3]
+    for T in surround_poses():
+        frame = renderer.render(T)
+        occupancy.integrate(frame.depth, frame.K, T)
+        volumes.append(occupancy.known_volume_m3)
+        assert occupancy.known_volume_m3 == pytest.approx(occupancy.observed.sum() * occupancy.voxel_size ** 3)
+    assert volumes[0] == 0 and np.all(np.diff(volumes) >= 0) and volumes[-1] <= grid_m3
+    assert volumes[-1] > 0.8 * np.prod(ROOM), "the surround views see most of the room"
+    assert np.all(occupancy.unknown_mask() == ~occupancy.observed)
+    assert not np.any(occupancy.free_mask() & occupancy.occupied_mask())
+
+
+def test_repeated_frames_saturate_at_the_clamp(renderer):
+    conf = map_conf()
+    T = pose_from_heading(*CAMERA, yaw=0.0)
+    occupancy = integrated(renderer, [T] * 12)
+    i, j, k = occupancy.world_to_index(np.array([[4.0, 1.5, 1.2], [2.0, 1.5, 1.2]])).T
+    assert occupancy.log_odds[i, j, k].tolist() == pytest.approx([conf["log_odds_max"], conf["log_odds_min"]])
+    assert occupancy.log_odds.max() <= conf["log_odds_max"] and occupancy.log_odds.min() >= conf["log_odds_min"]
+
+
+def test_each_voxel_is_updated_once_per_frame_and_a_hit_wins():
+    """Two nearly parallel rays: one ends in a voxel the other passes through."""
+    occupancy = OccupancyMap.from_bounds(np.array([[-0.05, -1.05, -1.05], [4.05, 1.05, 1.05]]),
+                                         map_conf(ray_stride_px=1))
+    T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)  # camera z = world +x
+    K = np.array([[300.0, 0.0, 0.5], [0.0, 300.0, 0.0], [0.0, 0.0, 1.0]])
+    occupancy.integrate(np.array([[2.0, 3.0]], np.float32), K, T)
+    i, j, k = occupancy.world_to_index(np.array([[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [3.0, 0.0, 0.0]])).T
+    np.testing.assert_allclose(occupancy.log_odds[i, j, k], [-0.4, 0.85, 0.85], rtol=1e-6)
+
+
+@pytest.mark.parametrize("invalid_depth", ["free", "skip"])
+def test_invalid_and_out_of_range_depth(invalid_depth):
+    occupancy = OccupancyMap.from_bounds(np.array([[-0.05, -3.05, -3.05], [6.05, 3.05, 3.05]]),
+                                         map_conf(invalid_depth=invalid_depth))
+    T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)
+    depth = np.full((60, 60), np.nan, np.float32)
+    occupancy.integrate(depth, SMALL.K / 2 + np.diag([0, 0, 0.5]), T)
+    states = occupancy.state_at(np.array([[1.0, 0, 0], [3.0, 0, 0], [3.7, 0, 0]]))
+    if invalid_depth == "free":
+        assert states.tolist() == [FREE, FREE, UNKNOWN], "invalid depth is free up to max_range_m"
+    else:
+        assert occupancy.known_volume_m3 == 0.0 and states.tolist() == [UNKNOWN] * 3
+    beyond = OccupancyMap.from_bounds(occupancy.bounds, map_conf(invalid_depth=invalid_depth))
+    beyond.integrate(np.full((60, 60), 10.0, np.float32), SMALL.K / 2 + np.diag([0, 0, 0.5]), T)
+    assert beyond.state_at(np.array([[3.0, 0, 0], [3.7, 0, 0], [5.0, 0, 0]])).tolist() == [FREE, UNKNOWN, UNKNOWN]
+    assert not beyond.occupied_mask().any(), "depth beyond the range is no hit"
+
+
+def test_stride_two_sees_nearly_what_stride_one_sees(renderer):
+    poses = surround_poses()[:3]
+    fine = integrated(renderer, poses, ray_stride_px=1)
+    coarse = integrated(renderer, poses, ray_stride_px=2)
+    assert coarse.free_mask().sum() == pytest.approx(fine.free_mask().sum(), rel=0.03)
+    assert coarse.occupied_mask().sum() == pytest.approx(fine.occupied_mask().sum(), rel=0.1)
+
+
+def test_camera_outside_the_grid_integrates_where_rays_enter(renderer):
+    T = pose_from_heading(*CAMERA, yaw=0.0)
+    part = OccupancyMap.from_bounds(np.array([[2.05, -0.45, -0.45], [4.45, 3.45, 2.95]]), map_conf())
+    frame = renderer.render(T)
+    part.integrate(frame.depth, frame.K, T)
+    assert part.state_at(np.array([[2.1, 1.5, 1.2], [3.0, 1.5, 1.2], [4.0, 1.5, 1.2], [4.3, 1.5, 1.2]])).tolist() \
+        == [FREE, FREE, OCCUPIED, UNKNOWN]
+    whole = integrated(renderer, [T])
+    assert np.mean(part.observed != whole.observed[25:]) < 1e-3  # the same voxels (up to rounding at corners)
+
+
+def test_visible_known_volume(room, renderer):
+    view = load_config("explore").tracking.gain_view
+    args = (int(view.width_px), float(view.focal_px), float(view.max_depth_m))
+    T = np.stack([pose_from_heading(*CAMERA, yaw=0.0), pose_from_heading(2.0, 1.0, 1.0, yaw=2.0)])
+    empty = OccupancyMap.from_bounds(BOUNDS, map_conf())
+    np.testing.assert_array_equal(empty.visible_known_volume(T, *args), [0.0, 0.0])
+    voxels = voxelize_scene(room)
+    occupancy = OccupancyMap.like(voxels, map_conf())
+    for pose in surround_poses():
+        frame = renderer.render(pose)
+        occupancy.integrate(frame.depth, frame.K, pose)
+    known = occupancy.visible_known_volume(T, *args)
+    # the same frusta in the true scene: everything explorable, up to the walls
+    truth = np.empty(2)
+    centre = (args[0] - 1) / 2.0
+    directions = PinholeCamera(args[0], args[0], args[1], args[1], centre, centre).ray_directions().reshape(-1, 3)
+    frustum_volume(T[:, :3, 3].copy(), T[:, :3, :3].copy(), directions.astype(np.float64), args[2], args[1],
+                   voxels.origin, voxels.voxel_size, ~voxels.occupied, voxels.explorable, truth)
+    assert truth.min() > 5.0
+    np.testing.assert_allclose(known, truth, rtol=0.07)  # the map misses a few voxels (blind spots, edges)
+    assert occupancy.visible_known_volume(T[0], *args).shape == (1,)
+
+
+def test_slice_2d_marks_walls_occupied_and_the_room_free(renderer):
+    occupancy = integrated(renderer, surround_poses()[1::3])  # the level views
+    free, occupied = occupancy.slice_2d(1.0, 1.4)
+    assert free.shape == occupied.shape == occupancy.shape[:2]
+    (i_wall, _, _), (i_in, _, _), (i_out, _, _) = occupancy.world_to_index(
+        np.array([[4.0, 1.5, 1.2], [2.5, 1.5, 1.2], [4.3, 1.5, 1.2]]))
+    inner = slice(5, -5)  # y in [0.05, 2.95]: inside the room
+    assert occupied[i_wall, inner].all() and not free[i_wall, inner].any()
+    seen = slice(10, -10)  # y in [0.55, 2.45]: what the level view along +x sees 1.5 m ahead
+    assert free[i_in, seen].all() and not occupied[i_in, inner].any()
+    assert not free[i_out].any() and not occupied[i_out].any()
+    assert occupied[occupancy.world_to_index(np.array([0.0, 1.5, 1.2]))[0]].any()  # the wall behind
+    empty_free, empty_occupied = occupancy.slice_2d(10.0, 11.0)  # above the grid: unknown
+    assert not empty_free.any() and not empty_occupied.any()
+
+
+def test_state_at_off_the_grid_and_save_load(renderer, tmp_path):
+    occupancy = integrated(renderer, [pose_from_heading(*CAMERA, yaw=0.0)])
+    far = occupancy.state_at(np.array([[100.0, 0, 0], [np.nan, 1.0, 1.0], [-5.0, 1.5, 1.2]]))
+    assert far.dtype == np.int8 and far.tolist() == [UNKNOWN] * 3
+    path = occupancy.save(tmp_path / "map.npz")
+    loaded = OccupancyMap.load(path)
+    np.testing.assert_array_equal(loaded.log_odds, occupancy.log_odds)
+    np.testing.assert_array_equal(loaded.observed, occupancy.observed)
+    assert loaded.settings == occupancy.settings and loaded.known_volume_m3 == occupancy.known_volume_m3
+    np.testing.assert_array_equal(loaded.origin, occupancy.origin)
+    (tmp_path / "bad.npz").write_bytes(b"not a map")
+    with pytest.raises(InputError, match="bad.npz"):
+        OccupancyMap.load(tmp_path / "bad.npz")
+
+
+def test_clear_sphere_frees_the_robot_footprint():
+    occupancy = OccupancyMap.from_bounds(np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]), map_conf())
+    occupancy.clear_sphere(np.array([1.0, 1.0, 1.0]), 0.2)
+    assert occupancy.state_at(np.array([[1.0, 1.0, 1.0], [1.15, 1.0, 1.0], [1.35, 1.0, 1.0]])).tolist() \
+        == [FREE, FREE, UNKNOWN]
+    assert occupancy.known_volume_m3 == pytest.approx(occupancy.observed.sum() * 1e-3)
+
+
+def test_bad_inputs_raise_input_errors(two_room_voxels):
+    occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf())
+    depth, K, T = np.ones((60, 80), np.float32), SMALL.K.copy(), np.eye(4)
+    K[0, 2], K[1, 2] = 39.5, 29.5
+    bad_pose = T.copy()
+    bad_pose[0, 3] = np.nan
+    cases = [
+        ((np.ones((4, 4, 1), np.float32), K, T), "depth"),
+        ((np.ones((60, 80), np.uint16), K, T), "depth"),
+        ((depth, K[:2], T), "K"),
+        ((depth, SMALL.K, T), "K"),  # principal point of a 120 x 120 image
+        ((depth, K, bad_pose), "T_world_cam"),
+        ((depth, K, np.diag([2.0, 1.0, 1.0, 1.0])), "T_world_cam"),
+        ((depth, K, np.eye(3)), "T_world_cam"),
+    ]
+    for args, name in cases:
+        with pytest.raises(InputError, match=name):
+            occupancy.integrate(*args)
+    for key, value in [("invalid_depth", "maybe"), ("ray_stride_px", 0), ("voxel_size", -0.1),
+                       ("log_odds_min", 1.0), ("log_odds_hit", float("nan"))]:
+        with pytest.raises(InputError, match=key):
+            OccupancyMap.from_bounds(BOUNDS, map_conf(**{key: value}))
+    with pytest.raises(InputError, match="voxel_size"):
+        OccupancyMap.like(two_room_voxels, map_conf(voxel_size=0.05))
+    with pytest.raises(InputError, match="bounds"):
+        OccupancyMap.from_bounds(BOUNDS[::-1], map_conf())
+    with pytest.raises(InputError, match="points"):
+        occupancy.state_at(np.zeros((3, 2)))
+    with pytest.raises(InputError, match="z_min"):
+        occupancy.slice_2d(2.0, 1.0)
+    with pytest.raises(InputError, match="T_world_cams"):
+        occupancy.visible_known_volume(np.eye(3), 32, 15.0, 3.5)
+
+
+def test_the_library_never_imports_datagen():
+    code = "import sys, frontiernet.mapping; sys.exit('datagen' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_bench_map_reports_update_and_query_times_as_ratios_to_a_render(tmp_path, capsys):
+    from argparse import Namespace
+
+    from PIL import Image
+
+    from frontiernet.cli.bench import run_map
+
+    plan = np.full((80, 100), 254, np.uint8)  # one 4 x 3 m room, 0.05 m per pixel
+    plan[10:70, 10:16] = plan[10:70, 84:90] = plan[10:16, 10:90] = plan[64:70, 10:90] = 0
+    Image.fromarray(plan).save(tmp_path / "room.png")
+    spec = f"floorplan:{tmp_path / 'room.png'}?resolution=0.05"
+    assert run_map(Namespace(scene=spec, frames=2, views=3, json=True)) == 0
+    result = json.loads(capsys.readouterr().out)
+    for stride in (1, 2, 4):
+        assert result[f"integrate_stride{stride}_over_render"] > 0
+    assert result["views"] == 3 and result["known_m3"] > 1.0
