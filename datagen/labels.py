@@ -1,5 +1,8 @@
 """Image-space labels: depth discontinuities F_d, the distance field D and gain classes.
 
+The gain classes (:func:`gain_classes`, :func:`class_lower_bounds`) are defined in
+:mod:`frontiernet.frontiers.gain` and re-exported here.
+
 DESIGN.md section 3, paper section III-D. All images are (H, W) in pixel coordinates
 (row v, column u); depth is metric z-depth in metres with NaN where invalid, as the
 simulator renders it.
@@ -9,6 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import ndimage
+
+# The gain-bin helpers live in the library (anchoring decodes what datagen encodes); re-exported.
+from frontiernet.frontiers.gain import class_lower_bounds, gain_classes  # noqa: F401
 
 
 def discontinuity_mask(depth: np.ndarray, window_px: int = 3, relative_jump: float = 0.1,
@@ -69,25 +75,3 @@ def distance_field(frontier_mask: np.ndarray, truncation_px: float = 10.0,
         distance = ndimage.distance_transform_edt(~frontier_mask)
     field = np.minimum(distance, truncation_px).astype(np.float32)
     return (field, nearest) if return_nearest else field
-
-
-def gain_classes(gain_m3: np.ndarray, bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
-    """Bin gains (cubic metres) into K = len(bin_edges) classes.
-
-    The edges are the classes' upper bounds: class 0 holds ``g <= edge[0]`` (no gain),
-    class i holds ``edge[i-1] < g <= edge[i]``, and gains above the last edge fall in the
-    last class (K - 1). Edges are in units of `bin_unit_m3` (public code: 0.01 m^3, edges
-    1 ... 3500, so K = 11 and the largest class is 25 to 35 m^3, about one full frustum).
-
-    Returns:
-        int64 array of the input's shape, values in [0, K - 1].
-    """
-    edges = np.asarray(bin_edges, np.float64) * float(bin_unit_m3)
-    classes = np.searchsorted(edges, np.asarray(gain_m3, np.float64), side="left")
-    return np.minimum(classes, len(edges) - 1).astype(np.int64)
-
-
-def class_lower_bounds(bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
-    """(K,) float64 lower bound (m^3) of each class of :func:`gain_classes`: 0, then edges[:-1]."""
-    edges = np.asarray(bin_edges, np.float64) * float(bin_unit_m3)
-    return np.concatenate([[0.0], edges[:-1]])

@@ -1,0 +1,97 @@
+"""Information-gain classes: binning gains (m^3) into K classes and decoding them back.
+
+DESIGN.md sections 1 and 4, paper sections III-C and III-E. The network's gain head
+predicts one of K = ``len(bin_edges)`` classes per pixel; the edges are the classes'
+upper bounds in units of ``bin_unit_m3`` (public code: 0.01 m^3, edges 1 ... 3500, so
+K = 11). Both the label side (``datagen``) and the decoding side (anchoring) use these
+functions, so a model file's ``labels`` dict (``bin_edges``, ``bin_unit_m3``) is all
+that is needed to go back and forth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+
+GAIN_DECODINGS = ("lower_bound", "midpoint")
+
+
+def _edges_m3(bin_edges, bin_unit_m3: float) -> np.ndarray:
+    """(K,) float64 class upper bounds in m^3; InputError unless K >= 2, finite, increasing."""
+    try:
+        edges = np.asarray(bin_edges, np.float64).reshape(-1) * float(bin_unit_m3)
+    except (TypeError, ValueError):
+        raise InputError(f"gain bin_edges must be a list of numbers, got {bin_edges!r}") from None
+    if len(edges) < 2 or not np.all(np.isfinite(edges)) or np.any(np.diff(edges) <= 0) \
+            or not float(bin_unit_m3) > 0:
+        raise InputError(f"gain bin_edges must be >= 2 increasing finite numbers with a positive "
+                         f"bin_unit_m3, got {list(np.asarray(bin_edges).reshape(-1))} x {bin_unit_m3!r}")
+    return edges
+
+
+def gain_classes(gain_m3: np.ndarray, bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
+    """Bin gains (cubic metres) into K = len(bin_edges) classes.
+
+    The edges are the classes' upper bounds: class 0 holds ``g <= edge[0]`` (no gain),
+    class i holds ``edge[i-1] < g <= edge[i]``, and gains above the last edge fall in the
+    last class (K - 1). Edges are in units of `bin_unit_m3` (public code: 0.01 m^3, edges
+    1 ... 3500, so K = 11 and the largest class is 25 to 35 m^3, about one full frustum).
+
+    Returns:
+        int64 array of the input's shape, values in [0, K - 1].
+    """
+    edges = _edges_m3(bin_edges, bin_unit_m3)
+    classes = np.searchsorted(edges, np.asarray(gain_m3, np.float64), side="left")
+    return np.minimum(classes, len(edges) - 1).astype(np.int64)
+
+
+def class_lower_bounds(bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
+    """(K,) float64 lower bound (m^3) of each class of :func:`gain_classes`: 0, then edges[:-1]."""
+    edges = _edges_m3(bin_edges, bin_unit_m3)
+    return np.concatenate([[0.0], edges[:-1]])
+
+
+def class_midpoints(bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
+    """(K,) float64 midpoint (m^3) of each class of :func:`gain_classes`.
+
+    Class 0 (no gain) decodes to 0; class i >= 1 to the mean of its lower edge
+    ``edge[i-1]`` and upper edge ``edge[i]`` (the last class, which also holds gains above
+    the last edge, uses the last edge as its upper bound).
+    """
+    edges = _edges_m3(bin_edges, bin_unit_m3)
+    return np.concatenate([[0.0], 0.5 * (edges[:-1] + edges[1:])])
+
+
+def class_values(bin_edges, bin_unit_m3: float = 0.01, mode: str = "lower_bound") -> np.ndarray:
+    """(K,) float64 gain (m^3) each class decodes to: ``lower_bound`` or ``midpoint``."""
+    if mode == "lower_bound":
+        return class_lower_bounds(bin_edges, bin_unit_m3)
+    if mode == "midpoint":
+        return class_midpoints(bin_edges, bin_unit_m3)
+    raise InputError(f"gain decoding must be one of {', '.join(GAIN_DECODINGS)}, got {mode!r}")
+
+
+def decode_gain(gain_class: np.ndarray, bin_edges, bin_unit_m3: float = 0.01,
+                mode: str = "lower_bound") -> np.ndarray:
+    """Per-pixel gain classes -> gain in cubic metres (paper III-E: G = decoded gain).
+
+    The paper decodes a class to its bin's lower bound (``lower_bound``, the default of
+    ``configs/explore.yaml``); ``midpoint`` uses the middle of the bin. Class 0 is 0 m^3
+    either way.
+
+    Args:
+        gain_class: (H, W) (or any shape) integer classes in [0, K - 1], K = len(bin_edges).
+        bin_edges, bin_unit_m3: the model's ``labels`` (class upper bounds, their unit in m^3).
+        mode: "lower_bound" | "midpoint".
+    Returns:
+        float32 array of `gain_class`'s shape, cubic metres.
+    """
+    values = class_values(bin_edges, bin_unit_m3, mode).astype(np.float32)
+    classes = np.asarray(gain_class)
+    if classes.dtype.kind not in "iu":
+        raise InputError(f"gain classes must be integers, got dtype {classes.dtype}")
+    if classes.size and (classes.min() < 0 or classes.max() >= len(values)):
+        raise InputError(f"gain classes must lie in [0, {len(values) - 1}], got values in "
+                         f"[{classes.min()}, {classes.max()}]")
+    return values[classes]
