@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from frontiernet.errors import InputError
-from frontiernet.model import Predictor, Runtime
+from frontiernet.model import Runtime, open_runtime
 from frontiernet.model.checkpoint import CONFIG_KEY
 from frontiernet.model.predictor import torch_threads
 
@@ -78,18 +78,5 @@ class TorchScriptRuntime(Runtime):
         return distance.numpy(), logits.numpy()
 
 
-def load_runtime(path: str | Path | None = None, threads: int | None = None) -> Runtime:
-    """The runtime for a model file, chosen by its suffix (None: the shipped model, torch)."""
-    if path is None:
-        return Predictor(None, threads=threads)
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: model file not found")
-    suffix = path.suffix.lower()
-    if suffix == ".onnx":
-        return OnnxRuntime(path, threads)
-    if suffix in (".pt", ".ts", ".torchscript"):
-        return TorchScriptRuntime(path, threads)
-    if suffix in (".safetensors", ".ckpt"):
-        return Predictor(path, threads=threads)
-    raise InputError(f"{path}: unknown model format '{suffix}' (expected .safetensors, .ckpt, .onnx or .pt)")
+load_runtime = open_runtime  # one dispatcher, in the library; the formats above register under
+# the ``frontiernet.runtimes`` entry point group (pyproject.toml)

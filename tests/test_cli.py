@@ -75,16 +75,6 @@ def test_the_installed_command_exits_2_without_traceback(tmp_path):
     assert "none.obj" in result.stderr
 
 
-def test_demo_writes_a_flythrough(plan_spec, tmp_path):
-    out = tmp_path / "demo"
-    assert main(["demo", "--scene", plan_spec, "--frames", "12", "--out", str(out)]) == 0
-    trajectory = json.loads((out / "trajectory.json").read_text())
-    assert trajectory["frames"] == 12 and trajectory["collisions"] == 0
-    assert trajectory["path_length_m"] > 0.5
-    assert (out / "flythrough.mp4").stat().st_size > 1000
-    assert np.asarray(Image.open(out / "contact_sheet.png")).ndim == 3
-
-
 def test_outputs_are_written_atomically_with_normal_permissions(tmp_path):
     import os
 

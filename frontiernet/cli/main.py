@@ -16,9 +16,9 @@ import sys
 
 from .. import __version__
 from ..errors import InputError
-from . import bench, demo, render, scene
+from . import bench, demo, explore, render, scene
 
-COMMANDS = (scene, render, demo, bench)
+COMMANDS = (scene, render, explore, demo, bench)
 PLUGIN_GROUP = "frontiernet.commands"
 
 

@@ -27,6 +27,22 @@ def geodesic_distance(cost: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     return cumulative
 
 
+def geodesic_paths(cost: np.ndarray, start: tuple[int, int]):
+    """One search from `start` for many goals: ``(cumulative, path_to)`` where `cumulative` is
+    :func:`geodesic_distance`'s array and ``path_to(goal)`` the (N, 2) int64 cells from `start`
+    to `goal` (None when unreachable)."""
+    graph = MCP_Geometric(np.where(np.isfinite(cost), cost, -1.0))
+    cumulative, _ = graph.find_costs([tuple(int(i) for i in start)])
+    cumulative[~np.isfinite(cost)] = np.inf
+
+    def path_to(goal: tuple[int, int]) -> np.ndarray | None:
+        if not np.isfinite(cumulative[tuple(goal)]):
+            return None
+        return np.asarray(graph.traceback(tuple(int(i) for i in goal)), np.int64)
+
+    return cumulative, path_to
+
+
 def shortest_path(cost: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -> np.ndarray | None:
     """(N, 2) int64 cells (row, col) of the cheapest path from `start` to `goal`, or None."""
     graph = MCP_Geometric(np.where(np.isfinite(cost), cost, -1.0))

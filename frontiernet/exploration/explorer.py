@@ -1,0 +1,301 @@
+"""The closed exploration loop (paper III-E, III-F; DESIGN.md items 4 to 7).
+
+Each iteration: **sense** (render the camera frame, get the depth prior from the depth
+source, run the perception, anchor its frontier pixels to 3D frontiers, integrate the depth
+into the occupancy map, fold the frontiers into the tracker, reduce their gains by the
+known volume, drop visited ones) -> **plan** (when the route is done, failed, or every
+``replan_every_steps``: the best frontier by utility, its route over the map and the
+frontier tree) -> **move** one increment (one paper step) with the simulator's collision
+check. It stops when the step budget is spent or no frontier is left after looking around.
+
+Coverage, the metric, is measured against the scene's ground truth: the fraction of the
+explorable voxels that the camera has observed (rays of the rendered ground-truth depth),
+whatever depth the robot itself uses.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..frontiers import FrontierTracker, anchor_prediction
+from ..mapping import OccupancyMap
+from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
+from ..planning.tree import PoseGraph
+from ..simulator.agent import Agent
+from .motion import Motion, wrap_angle, yaw_of
+
+STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion")
+"""Timed stages of a step; all but ``motion`` (the simulator's collision check) are the robot's cost."""
+
+
+@dataclass
+class StepRecord:
+    """What happened at one loop iteration (after its move and sensing)."""
+
+    iteration: int
+    step: int
+    position: list
+    yaw: float
+    coverage: float
+    known_m3: float
+    frontiers: int
+    goal: int | None
+    collided: bool
+    timings: dict
+
+
+@dataclass
+class ExplorationResult:
+    """Everything a run produced (see :mod:`frontiernet.exploration.outputs` for the files)."""
+
+    records: list = field(default_factory=list)
+    poses: list = field(default_factory=list)
+    goals: list = field(default_factory=list)
+    stop_reason: str = ""
+    collisions: int = 0
+    path_length_m: float = 0.0
+    explorable_m3: float = 0.0
+
+
+class Explorer:
+    """One exploration run in the simulator.
+
+    Args:
+        scene: the scene; voxels: its :class:`~frontiernet.simulator.voxels.VoxelGrid`
+            (the ground-truth explorable volume for coverage; the robot never reads it).
+        renderer: a :class:`~frontiernet.simulator.camera.Renderer` of the scene.
+        perception: a :class:`~frontiernet.exploration.perception.Perception`.
+        depth_source: a :class:`~frontiernet.depth.DepthSource` (reset by the caller).
+        conf: the whole ``configs/explore.yaml`` config; sim_conf: ``configs/sim.yaml``.
+        T_start: (4, 4) start pose (level camera at the configured height).
+        on_step: optional callback ``(explorer, record, frame, perception_result)`` per iteration
+            (video frames, progress).
+    """
+
+    def __init__(self, scene, voxels, renderer, perception, depth_source, conf, sim_conf, T_start: np.ndarray,
+                 on_step=None) -> None:
+        self.scene, self.voxels, self.renderer = scene, voxels, renderer
+        self.perception, self.depth_source, self.conf = perception, depth_source, conf
+        self.map_free = str(conf.planner.mode) == "map_free"
+        if str(conf.planner.mode) not in ("map", "map_free"):
+            raise InputError(f"planner.mode must be 'map' or 'map_free', got {conf.planner.mode!r}")
+        self.agent = Agent(scene, T_start, sim_conf.agent, voxels)
+        self.motion = Motion(conf.motion, float(T_start[2, 3]))
+        self.map = OccupancyMap.like(voxels, conf.map)
+        self.coverage_map = self.map if depth_source.name == "ground_truth" else OccupancyMap.like(voxels, conf.map)
+        self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
+        self.safety_offsets = _ball_offsets(float(conf.planner.clearance_m), float(conf.map.voxel_size) / 2)
+        self.planner = FrontierPlanner(conf.planner)
+        self.graph = PoseGraph(float(conf.planner.pose_link_m))
+        self.poses: list[np.ndarray] = []
+        self.rng = np.random.default_rng(int(conf.run.seed))
+        self.on_step = on_step
+        self.route = None
+        self.waypoint = 0
+        self.steps_since_plan = 0
+        self.look_around_left = np.radians(float(conf.motion.look_around_deg))
+        self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
+        self._timings: dict = {}
+
+    # -- sensing --------------------------------------------------------------------------------
+
+    def _timed(self, stage: str, function, *args):
+        start = time.perf_counter()
+        value = function(*args)
+        self._timings[stage] = self._timings.get(stage, 0.0) + time.perf_counter() - start
+        return value
+
+    def sense(self):
+        """Render at the current pose and update map and frontiers; returns (frame, perception result)."""
+        T = self.agent.pose
+        frame = self._timed("render", self.renderer.render, T)
+        depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, frame.depth)
+        seen = self._timed("perception", self.perception, frame, depth)
+        observations = self._timed("anchoring", anchor_prediction, seen.distance_field, seen.gain_class, seen.depth,
+                                   seen.K, T, self.conf.anchoring, seen.labels, self.rng)
+        self._timed("map", self._integrate, depth, frame, T)
+        self._timed("tracking", self._track, observations, T)
+        return frame, seen
+
+    def _integrate(self, depth, frame, T) -> None:
+        self.map.integrate(depth, frame.K, T)
+        self.map.clear_sphere(T[:3, 3], self.agent.radius)  # the robot stands in free space
+        if self.coverage_map is not self.map:
+            self.coverage_map.integrate(frame.depth, frame.K, T)
+
+    def _track(self, observations, T) -> None:
+        self.poses.append(T)
+        index = self.graph.add(T[:2, 3])
+        self.tracker.add(observations, index, self.agent.steps)
+        if not self.map_free:
+            self.tracker.update_gains(self.map)
+        self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
+
+    # -- planning and motion --------------------------------------------------------------------
+
+    def _parent_xy(self, index: int) -> np.ndarray:
+        return self.poses[index][:2, 3]
+
+    def plan(self) -> None:
+        """Choose the goal and its route (keeping the current goal unless another is clearly better)."""
+        xy = self.agent.position[:2]
+        keep = self.route.frontier_id if self.route is not None and self.tracker.get(self.route.frontier_id) else None
+        if self.map_free:
+            route = self.planner.best_route(self.tracker, xy, self._parent_xy, graph=self.graph,
+                                            robot_index=len(self.graph) - 1, keep=keep,
+                                            keep_margin=float(self.conf.planner.goal_switch_margin))
+        else:
+            grid = PlanningGrid.from_map(self.map, self.motion.z, self.conf.planner, xy)
+            route = self.planner.best_route(self.tracker, xy, self._parent_xy, grid=grid, keep=keep,
+                                            keep_margin=float(self.conf.planner.goal_switch_margin))
+        for frontier_id in self.planner.blacklist:
+            self.tracker.remove(frontier_id, "blacklisted")
+        if route is not None:
+            route = resample_route(route, xy, self.motion.max_translation)
+        if route is not None and (self.route is None or route.frontier_id != self.route.frontier_id):
+            self.result.goals.append({"step": self.agent.steps, "frontier": route.frontier_id,
+                                      "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
+        self.route, self.waypoint, self.steps_since_plan = route, 0, 0
+
+    def _goal_failed(self) -> None:
+        if self.route is not None:
+            if self.planner.fail(self.route.frontier_id):
+                self.tracker.remove(self.route.frontier_id, "blacklisted")
+        self.route = None
+
+    def next_pose(self) -> np.ndarray | None:
+        """The pose of the next increment along the route (None: nothing to do)."""
+        T = self.agent.pose
+        if self.route is None:
+            if self.look_around_left <= 0:
+                return None
+            self.look_around_left -= self.motion.max_rotation
+            return self.motion.pose(T[:2, 3], yaw_of(T) + self.motion.max_rotation)
+        waypoints = self.route.waypoints
+        while self.waypoint < len(waypoints) and self.motion.reached(T[:2, 3], waypoints[self.waypoint]):
+            self.waypoint += 1
+        if self.waypoint < len(waypoints):
+            if self.waypoint >= self.route.mapped_until and not self.map_free and self._blocked(waypoints[self.waypoint]):
+                self._goal_failed()  # the frontier-tree edge runs into a mapped obstacle
+                return None
+            target = self.motion.towards(T, waypoints[self.waypoint])
+            verdict = self._check_move(T, target)
+            if verdict == "look":  # unknown ahead: face it first, so the camera maps it
+                offset = waypoints[self.waypoint] - T[:2, 3]
+                return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
+            if verdict == "fail":
+                self._goal_failed()
+                return None
+            return target
+        frontier = self.tracker.get(self.route.frontier_id)
+        if frontier is None:  # dropped on the way: visited, mapped or gain used up
+            self.route = None
+            return None
+        pose, aligned = self.motion.turn_to(T, frontier.yaw)
+        if aligned:
+            self.route = None  # arrived; if the frontier survives the next prune it is not explained
+            self.planner.fail(frontier.id)
+        return pose
+
+    def _check_move(self, T: np.ndarray, target: np.ndarray) -> str:
+        """Whether the map allows the increment to `target`: ``ok`` (a turn, or a move into known
+        free space with no occupied voxel within the clearance), ``look`` (the target is unknown
+        and the camera does not face it yet) or ``fail`` (occupied, or still unknown when faced)."""
+        from ..mapping import FREE, OCCUPIED
+
+        if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
+            return "ok"
+        states = self.map.state_at(target[:3, 3] + self.safety_offsets)
+        if (states == OCCUPIED).any():
+            return "fail"
+        if states[0] == FREE:
+            return "ok"
+        return "fail" if self._looked_at(T, target) else "look"
+
+    def _looked_at(self, T: np.ndarray, target: np.ndarray) -> bool:
+        """Whether the camera at `T` faces `target` (within a quarter of the field of view)."""
+        offset = target[:2, 3] - T[:2, 3]
+        return abs(wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw_of(T))) < np.radians(20.0)
+
+    def _blocked(self, xy: np.ndarray) -> bool:
+        from ..mapping import OCCUPIED
+
+        point = np.array([[xy[0], xy[1], self.motion.z]])
+        return bool(self.map.state_at(point)[0] == OCCUPIED)
+
+    def move(self, T_target: np.ndarray) -> bool:
+        """One increment with the collision check; returns whether it collided."""
+        result = self.agent.move_to(T_target)
+        self.result.path_length_m += result.distance_m
+        if result.collided or result.left_free_space:
+            self.result.collisions += int(result.collided)
+            self._goal_failed()
+            return True
+        return False
+
+    # -- the loop -------------------------------------------------------------------------------
+
+    def run(self, max_steps: int) -> ExplorationResult:
+        """Explore until `max_steps` paper steps are spent or nothing is left to explore."""
+        if int(max_steps) < 1:
+            raise InputError(f"the step budget must be at least 1, got {max_steps}")
+        max_iterations = 4 * int(max_steps) + 100  # increments that do not count as steps are rare
+        collided = False
+        frame, seen = self.sense()
+        self._record(0, collided, frame, seen)
+        for iteration in range(1, max_iterations + 1):
+            if self.agent.steps >= max_steps:
+                self.result.stop_reason = "step budget spent"
+                break
+            self._timings = {}
+            start = time.perf_counter()
+            if self.route is None or self.steps_since_plan >= int(self.conf.motion.replan_every_steps):
+                if len(self.tracker) or self.route is not None:
+                    self.plan()
+            self._timings["planning"] = time.perf_counter() - start
+            target = self.next_pose()
+            if target is None:
+                if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
+                    self.result.stop_reason = "no frontiers left"
+                    break
+                continue  # a goal was dropped or failed: plan again (failures blacklist frontiers)
+            if self.route is not None:
+                self.look_around_left = np.radians(float(self.conf.motion.look_around_deg))
+            collided = self._timed("motion", self.move, target)
+            self.steps_since_plan += 1
+            frame, seen = self.sense()
+            self._record(iteration, collided, frame, seen)
+        else:
+            self.result.stop_reason = "iteration limit"
+        self.result.poses = [T.tolist() for T in self.agent.trajectory]
+        return self.result
+
+    def coverage(self) -> float:
+        """Fraction of the scene's explorable volume observed so far (ground-truth rays)."""
+        observed = self.coverage_map.observed & self.voxels.explorable
+        return float(observed.sum()) / max(int(self.voxels.num_explorable), 1)
+
+    def _record(self, iteration: int, collided: bool, frame, seen) -> None:
+        T = self.agent.pose
+        record = StepRecord(iteration, self.agent.steps, np.round(T[:3, 3], 4).tolist(), round(yaw_of(T), 4),
+                            self.coverage(), float(self.map.known_volume_m3), len(self.tracker),
+                            None if self.route is None else self.route.frontier_id, collided,
+                            {k: round(v * 1e3, 2) for k, v in self._timings.items()})
+        self.result.records.append(record)
+        if self.on_step is not None:
+            self.on_step(self, record, frame, seen)
+
+
+def _ball_offsets(radius: float, spacing: float) -> np.ndarray:
+    """(N, 3) offsets on a grid of `spacing` inside a ball of `radius`, the origin first."""
+    axis = np.arange(-radius, radius + 1e-9, spacing)
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    grid = grid[np.linalg.norm(grid, axis=1) <= radius + 1e-9]
+    return np.concatenate([np.zeros((1, 3)), grid[np.linalg.norm(grid, axis=1) > 0]])
+
+
+__all__ = ["Explorer", "ExplorationResult", "StepRecord", "STAGES", "wrap_angle"]

@@ -1,0 +1,107 @@
+"""Frontier perception: one camera frame -> per-pixel frontier mask and gain.
+
+The explorer calls a :class:`Perception` with the rendered :class:`~frontiernet.simulator.camera.Frame`
+and the depth the robot has (from a depth source); it returns a :class:`PerceptionResult`
+at the perception's working size, which anchoring lifts to 3D frontiers.
+
+* :class:`ModelPerception` runs a FrontierNet model (any runtime: torch, ONNX, TorchScript)
+  at its inference size (320 px, the public demo's resize + centre crop, intrinsics adjusted).
+* Other perceptions register under the entry point group ``frontiernet.perception``
+  (``name = "module:Class"``, the class built as ``Class(scene, voxels, sim_conf)``), e.g.
+  ``datagen``'s ``oracle``: ground-truth frontiers in place of the network, the upper bound
+  the issue asks to report. The library never imports those packages.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+PERCEPTION_GROUP = "frontiernet.perception"
+
+
+@dataclass
+class PerceptionResult:
+    """Per-pixel frontier outputs of one frame at the perception's working size (h, w).
+
+    Attributes:
+        rgb: (h, w, 3) uint8, the image as the perception saw it (for overlays).
+        depth: (h, w) float32 metres, NaN invalid: the depth prior at this size (for anchoring).
+        K: (3, 3) float64 intrinsics at this size.
+        distance_field: (h, w) float32 pixels, distance to the nearest frontier pixel (truncated at r).
+        gain_class: (h, w) uint8 gain class per pixel (0 = no gain).
+        labels: the label encoding (``truncation_px``, ``frontier_threshold_px``, ``bin_edges``,
+            ``bin_unit_m3``, ``num_classes``), as in a model file.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    K: np.ndarray
+    distance_field: np.ndarray
+    gain_class: np.ndarray
+    labels: dict
+
+
+class Perception:
+    """Base: ``perception(frame, depth) -> PerceptionResult``."""
+
+    name = "perception"
+
+    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
+        """Args: frame: the rendered Frame (rgb, K, T_world_cam, ground-truth depth);
+        depth: (H, W) float32 metres, NaN invalid, the robot's depth for this frame."""
+        raise NotImplementedError
+
+
+class ModelPerception(Perception):
+    """FrontierNet on each frame through a runtime (:class:`~frontiernet.model.Runtime`).
+
+    Args:
+        runtime: anything with ``conf`` and ``predict_at_size`` (torch Predictor, ONNX, TorchScript).
+        size: working size (None: the model's ``inference.size``).
+    """
+
+    name = "frontiernet"
+
+    def __init__(self, runtime, size: int | None = None) -> None:
+        self.runtime = runtime
+        self.size = int(size or runtime.conf["inference"]["size"])
+
+    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
+        from ..model import invalid_to_zero
+        from ..model.inputs import resize_and_crop
+
+        rgb, depth_small, K = resize_and_crop(frame.rgb, depth, frame.K, self.size)
+        result = self.runtime.predict_at_size(rgb, invalid_to_zero(depth_small), None)
+        return PerceptionResult(rgb, depth_small, K, result["distance_field"], result["gain_class"],
+                                dict(self.runtime.labels))
+
+
+def perception_plugins() -> dict:
+    """Perception classes registered under ``frontiernet.perception``, by name."""
+    from importlib.metadata import entry_points
+
+    return {entry.name: entry for entry in entry_points(group=PERCEPTION_GROUP)}
+
+
+def make_perception(method: str, model=None, scene=None, voxels=None, sim_conf=None) -> Perception:
+    """Build the perception of an exploration method.
+
+    Args:
+        method: ``frontiernet`` (the model in `model`, default the shipped one) or a plugin name.
+        model: model file path or None.
+    Raises:
+        InputError: unknown method (the valid ones are listed) or a model that does not load.
+    """
+    if method == "frontiernet":
+        from ..model import open_runtime
+
+        return ModelPerception(open_runtime(model))
+    plugins = perception_plugins()
+    if method not in plugins:
+        valid = ", ".join(["frontiernet", *sorted(plugins)])
+        raise InputError(f"unknown exploration method '{method}'; valid: {valid}")
+    return plugins[method].load()(scene, voxels, sim_conf)

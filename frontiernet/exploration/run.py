@@ -1,0 +1,118 @@
+"""One exploration run from a config: ``main(conf, scene, ...)`` behind ``frontiernet explore``.
+
+Loads the scene, samples (or checks) the start pose, builds the depth source and the
+perception, runs the :class:`~frontiernet.exploration.explorer.Explorer` and writes the
+outputs of :mod:`frontiernet.exploration.outputs` (and the video) to `out`.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import InputError
+from ..geometry import pose_from_heading
+
+DEPTH_ALIASES = {"gt": "ground_truth"}
+
+
+def parse_start(text: str) -> tuple[float, float, float, float]:
+    """``"x,y,z,yaw"`` (metres, degrees) -> floats; InputError when malformed."""
+    try:
+        values = [float(v) for v in str(text).split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 4 or not np.isfinite(values).all():
+        raise InputError(f"--start must be x,y,z,yaw (metres, metres, metres, degrees), got {text!r}")
+    return values[0], values[1], values[2], values[3]
+
+
+def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
+    """A (4, 4) start pose: camera ``motion.camera_height_m`` above the scene's floor, at a random
+    explorable spot at least ``run.start_clearance_m`` from obstacles, random heading.
+
+    Raises:
+        InputError: the scene has no such spot (no free space at camera height).
+    """
+    z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+    size = voxels.voxel_size
+    k = int(np.clip((z - voxels.origin[2]) / size, 0, voxels.shape[2] - 1))
+    band = max(1, int(np.ceil(float(conf.planner.height_band_m) / size)))
+    free = voxels.explorable[:, :, max(k - band, 0):k + band + 1].all(axis=2)
+    clearance = ndimage.distance_transform_edt(free) * size
+    cells = np.argwhere(clearance >= float(conf.run.start_clearance_m))
+    if not len(cells):
+        raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
+                         f"with {conf.run.start_clearance_m} m clearance to start from")
+    i, j = cells[rng.integers(len(cells))]
+    x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * size
+    return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)), np.radians(float(conf.motion.pitch_deg)))
+
+
+def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
+         max_steps: int | None = None, start: str | None = None, seed: int | None = None, video: bool = True,
+         progress: bool = True) -> dict:
+    """Explore `scene` (a scene spec) and write the run's outputs to `out`; returns the metrics.
+
+    Args:
+        conf: ``configs/explore.yaml`` (merged with the user's file and overrides).
+        method: ``frontiernet`` or a registered perception (``oracle``).
+        model: model file for ``frontiernet`` (None: the shipped model).
+        depth: depth source (``gt`` or a source of ``configs/depth.yaml``; None: ``run.depth``).
+        max_steps, seed: override ``run.max_steps`` and ``run.seed``.
+        start: ``"x,y,z,yaw"`` (metres, degrees; None: sampled with the seed).
+    """
+    from ..config import load_config
+    from ..depth import make_depth_source
+    from ..io import ensure_dir
+    from ..scenes import load_scene
+    from ..simulator.camera import PinholeCamera, Renderer
+    from ..simulator.voxels import voxelize_scene
+    from .explorer import Explorer
+    from .outputs import VideoWriter, write_run
+    from .perception import make_perception
+    from .video import StepPictures
+
+    budget = int(conf.run.max_steps if max_steps is None else max_steps)
+    if budget < 1:
+        raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
+    seed = int(conf.run.seed if seed is None else seed)
+    depth_name = DEPTH_ALIASES.get(depth or str(conf.run.depth), depth or str(conf.run.depth))
+    sim = load_config("sim")
+    clock = time.perf_counter()
+    loaded = load_scene(scene)
+    voxels = voxelize_scene(loaded, sim.voxels)
+    if voxels.num_explorable == 0:
+        raise InputError(f"{scene}: the scene has no free explorable space")
+    rng = np.random.default_rng(seed)
+    if start is None:
+        T_start = sample_start(loaded, voxels, conf, rng)
+    else:
+        x, y, z, yaw = parse_start(start)
+        T_start = pose_from_heading(x, y, z, np.radians(yaw), np.radians(float(conf.motion.pitch_deg)))
+    depth_source = make_depth_source(depth_name, load_config("depth"))
+    depth_source.reset(seed)
+    perception = make_perception(method, model, loaded, voxels, sim)
+    renderer = Renderer(loaded, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
+    out = ensure_dir(out)
+    writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
+    pictures = StepPictures(voxels, conf, writer, budget, progress=progress)
+    explorer = Explorer(loaded, voxels, renderer, perception, depth_source, conf, sim, T_start, on_step=pictures)
+    setup_s = time.perf_counter() - clock
+    try:
+        with pictures:
+            result = explorer.run(budget)
+    finally:
+        if writer is not None:
+            writer.close()
+    info = {"scene": scene, "method": method, "depth": depth_name, "planner_mode": str(conf.planner.mode),
+            "model": None if method != "frontiernet" else str(model or "shipped"), "seed": seed,
+            "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),
+            "wall_s": round(time.perf_counter() - clock, 2)}
+    record = write_run(out, result, budget, info, explorer.tracker)
+    if writer is not None:
+        record["video"] = str(out / "exploration.mp4")
+    return record

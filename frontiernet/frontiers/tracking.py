@@ -1,0 +1,226 @@
+"""Frontier bookkeeping across frames: merge, gain adjustment, invalidation (paper III-F).
+
+DESIGN.md item 5. Each frame's :class:`~frontiernet.frontiers.anchoring.FrontierObservation`
+list is folded into a :class:`FrontierTracker`, whose frontiers keep stable integer ids:
+
+* **Merge.** An observation closer than ``merge_distance_m`` to an existing frontier whose
+  view direction differs by less than ``merge_angle_deg`` updates that frontier (running
+  means of position, direction and predicted gain); otherwise it becomes a new frontier.
+* **Gain.** A frontier's gain is its predicted gain minus the known free volume a virtual
+  camera at the frontier, looking along its direction, sees in the occupancy map (the
+  public code's map-based gain reduction): space mapped since the prediction no longer
+  counts.
+* **Drop.** Frontiers whose gain falls below ``min_gain_m3`` (g_min), that lie in occupied
+  space, or that a visited pose has looked at (closer than ``visited_distance_m`` and
+  heading within ``visited_angle_rad`` of the view direction) are removed.
+
+Each frontier remembers the trajectory pose that last registered it (its parent in the
+frontier tree, :mod:`frontiernet.planning.tree`). Frames: world Z-up, metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import rotation_from_yaw_pitch
+
+
+@dataclass
+class Frontier:
+    """One tracked 3D frontier.
+
+    Attributes:
+        id: stable identifier (never reused within a tracker).
+        position: (3,) float64 world metres.
+        direction: (3,) float64 unit world view direction (where to look from the frontier).
+        predicted_gain_m3: mean of the gains anchored for it (m^3).
+        gain_m3: the predicted gain after the map-based reduction (m^3); used for planning.
+        parent_pose: index (into the explorer's pose list) of the pose that last registered it.
+        first_step, last_step: steps at which it was first and last observed.
+        observations: number of merged observations.
+    """
+
+    id: int
+    position: np.ndarray
+    direction: np.ndarray
+    predicted_gain_m3: float
+    gain_m3: float
+    parent_pose: int
+    first_step: int
+    last_step: int
+    observations: int = 1
+
+    @property
+    def yaw(self) -> float:
+        """Heading of the view direction in the world xy-plane (radians)."""
+        return float(np.arctan2(self.direction[1], self.direction[0]))
+
+    def camera_pose(self, pitch: float = 0.0) -> np.ndarray:
+        """(4, 4) ``T_world_cam`` of a level camera at the frontier looking along its heading."""
+        T = np.eye(4)
+        T[:3, :3] = rotation_from_yaw_pitch(self.yaw, pitch)
+        T[:3, 3] = self.position
+        return T
+
+    def as_dict(self) -> dict:
+        """JSON-friendly record."""
+        return {"id": self.id, "position": np.round(self.position, 4).tolist(),
+                "direction": np.round(self.direction, 4).tolist(),
+                "predicted_gain_m3": round(float(self.predicted_gain_m3), 4),
+                "gain_m3": round(float(self.gain_m3), 4), "parent_pose": self.parent_pose,
+                "first_step": self.first_step, "last_step": self.last_step, "observations": self.observations}
+
+
+def _unit(vectors: np.ndarray) -> np.ndarray:
+    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
+    return vectors / np.maximum(norm, 1e-12)
+
+
+def _heading_vectors(rotations: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) ``R_world_cam`` -> (N, 2) unit horizontal viewing directions (camera z in xy)."""
+    forward = rotations[:, :2, 2]
+    return _unit(forward)
+
+
+@dataclass
+class FrontierTracker:
+    """The set of live frontiers, configured by the ``tracking`` section of ``configs/explore.yaml``.
+
+    `view_z` (world metres): the height at which a frontier's gain view is placed and its
+    position is checked against occupied space; the robot's camera height for a robot that
+    keeps it (frontiers on the floor at the end of the sensor's range lie on a surface
+    otherwise). None: the frontier's own height.
+    """
+
+    conf: dict
+    view_z: float | None = None
+    frontiers: dict = field(default_factory=dict)
+    next_id: int = 0
+    removed: dict = field(default_factory=lambda: {"low_gain": 0, "visited": 0, "occupied": 0, "merged": 0,
+                                                   "blacklisted": 0})
+
+    def __len__(self) -> int:
+        return len(self.frontiers)
+
+    def __iter__(self):
+        return iter(list(self.frontiers.values()))
+
+    def get(self, frontier_id: int) -> Frontier | None:
+        return self.frontiers.get(frontier_id)
+
+    def add(self, observations, parent_pose: int, step: int) -> list[int]:
+        """Fold one frame's observations in; returns the id each observation went to.
+
+        Args:
+            observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``).
+            parent_pose: index of the pose that saw them (their parent in the frontier tree).
+            step: the current step count.
+        """
+        max_distance = float(self.conf["merge_distance_m"])
+        min_cos = float(np.cos(np.radians(float(self.conf["merge_angle_deg"]))))
+        ids = []
+        for observation in observations:
+            position = np.asarray(observation.position, np.float64)
+            direction = _unit(np.asarray(observation.direction, np.float64))
+            match = self._closest_match(position, direction, max_distance, min_cos)
+            if match is None:
+                frontier = Frontier(self.next_id, position.copy(), direction.copy(), float(observation.gain_m3),
+                                    float(observation.gain_m3), parent_pose, step, step)
+                self.frontiers[frontier.id] = frontier
+                self.next_id += 1
+            else:
+                frontier = match
+                n = frontier.observations
+                frontier.position = (frontier.position * n + position) / (n + 1)
+                frontier.direction = _unit(frontier.direction * n + direction)
+                frontier.predicted_gain_m3 = (frontier.predicted_gain_m3 * n + float(observation.gain_m3)) / (n + 1)
+                frontier.gain_m3 = frontier.predicted_gain_m3
+                frontier.observations = n + 1
+                frontier.parent_pose = parent_pose  # the latest viewer: the freshest line of sight
+                frontier.last_step = step
+            ids.append(frontier.id)
+        return ids
+
+    def _closest_match(self, position, direction, max_distance, min_cos) -> Frontier | None:
+        best, best_distance = None, max_distance
+        for frontier in self.frontiers.values():
+            distance = float(np.linalg.norm(frontier.position - position))
+            if distance < best_distance and float(frontier.direction @ direction) > min_cos:
+                best, best_distance = frontier, distance
+        return best
+
+    def update_gains(self, occupancy) -> None:
+        """Gain = predicted gain - known free volume visible from the frontier in `occupancy`
+        (an :class:`~frontiernet.mapping.OccupancyMap`), when ``reduce_gain_by_map``."""
+        if not self.frontiers or not self.conf["reduce_gain_by_map"]:
+            return
+        frontiers = list(self.frontiers.values())
+        view = self.conf["gain_view"]
+        poses = np.stack([f.camera_pose() for f in frontiers])
+        if self.view_z is not None:
+            poses[:, 2, 3] = self.view_z
+        known = occupancy.visible_known_volume(poses, int(view["width_px"]), float(view["focal_px"]),
+                                               float(view["max_depth_m"]))
+        for frontier, volume in zip(frontiers, known):
+            frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - float(volume))
+
+    def prune(self, visited_poses: np.ndarray, occupancy=None) -> list[int]:
+        """Drop low-gain, visited and (with `occupancy`) occupied frontiers; returns the dropped ids.
+
+        Args:
+            visited_poses: (N, 4, 4) float64 ``T_world_cam`` of the poses visited so far.
+        """
+        if not self.frontiers:
+            return []
+        frontiers = list(self.frontiers.values())
+        positions = np.stack([f.position for f in frontiers])
+        reason = np.full(len(frontiers), "", dtype=object)
+        low = np.array([f.gain_m3 < float(self.conf["min_gain_m3"]) for f in frontiers])
+        reason[low] = "low_gain"
+        visited_poses = np.asarray(visited_poses, np.float64).reshape(-1, 4, 4)
+        if len(visited_poses):
+            seen = self._visited(positions, np.stack([f.direction for f in frontiers]), visited_poses)
+            reason[(reason == "") & seen] = "visited"
+        if occupancy is not None:
+            from ..mapping import OCCUPIED
+
+            at = positions.copy()
+            if self.view_z is not None:
+                at[:, 2] = self.view_z
+            occupied = occupancy.state_at(at) == OCCUPIED
+            reason[(reason == "") & occupied] = "occupied"
+        dropped = []
+        for frontier, why in zip(frontiers, reason):
+            if why:
+                self.remove(frontier.id, why)
+                dropped.append(frontier.id)
+        self._keep_best(int(self.conf["max_frontiers"]))
+        return dropped
+
+    def _visited(self, positions: np.ndarray, directions: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """(F,) bool: some pose is within the visited distance and looks within the visited angle."""
+        distance = np.linalg.norm(positions[:, None, :2] - poses[None, :, :2, 3], axis=-1)
+        near = distance < float(self.conf["visited_distance_m"])
+        if not near.any():
+            return np.zeros(len(positions), bool)
+        headings = _heading_vectors(poses[:, :3, :3])
+        cos = _unit(directions[:, :2]) @ headings.T
+        aligned = cos > np.cos(float(self.conf["visited_angle_rad"]))
+        return (near & aligned).any(axis=1)
+
+    def _keep_best(self, limit: int) -> None:
+        if len(self.frontiers) <= limit:
+            return
+        ranked = sorted(self.frontiers.values(), key=lambda f: f.gain_m3, reverse=True)
+        for frontier in ranked[limit:]:
+            self.remove(frontier.id, "low_gain")
+
+    def remove(self, frontier_id: int, reason: str) -> None:
+        """Remove one frontier and count why (``low_gain``, ``visited``, ``occupied``, ``blacklisted``)."""
+        if self.frontiers.pop(frontier_id, None) is not None:
+            self.removed[reason] = self.removed.get(reason, 0) + 1
+
+    def as_list(self) -> list[dict]:
+        return [f.as_dict() for f in self.frontiers.values()]

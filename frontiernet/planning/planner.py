@@ -1,0 +1,225 @@
+"""Goal selection and paths: utility u = gain / distance (paper Eq. 8) over the frontier tree.
+
+DESIGN.md item 6, paper III-F. Each planning round:
+
+1. every live frontier gets a route: on the map (``planner.mode: map``) the frontier-tree
+   edge is walked back to ``c*``, the first point the robot can reach on the map's 2D
+   planning grid (:class:`PlanningGrid`), and the route is the grid path to ``c*`` followed
+   by the rest of the edge; without a map (``map_free``) the route runs back along the
+   trajectory (:class:`~frontiernet.planning.tree.PoseGraph`) to the frontier's parent pose
+   and then along the edge;
+2. its utility is ``gain^e / max(distance, min_distance_m)`` with the route's length;
+3. the best frontier that is not blacklisted is the goal.
+
+A frontier whose route fails (no reachable ``c*``, or the motion along it is blocked) gets a
+failure; after ``max_failures`` it is blacklisted and never chosen again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import ndimage
+
+from ..geometry import arc_lengths, points_at_arc
+from .grid import clearance_cost, geodesic_paths
+from .tree import PoseGraph, edge_points, walk_back
+
+
+@dataclass
+class PlanningGrid:
+    """The occupancy map seen from the robot's height, as a 2D cost grid.
+
+    Attributes:
+        origin_xy: (2,) float64 world corner of cell (0, 0), metres.
+        cell_m: cell size, metres.
+        cost: (X, Y) float64 traversal cost per cell (inf = blocked), indexed [i, j] for
+            ``x = origin_x + (i + 0.5) * cell_m`` and likewise y.
+    """
+
+    origin_xy: np.ndarray
+    cell_m: float
+    cost: np.ndarray
+
+    @classmethod
+    def from_map(cls, occupancy, z: float, conf, start_xy: np.ndarray | None = None) -> "PlanningGrid":
+        """Grid over the band ``z +- planner.height_band_m`` of an OccupancyMap.
+
+        A cell is traversable when it is free over the band and at least ``clearance_m``
+        from occupied cells; its cost is ``1 + centre_weight / clearance``. The cell under
+        `start_xy` (the robot, which stands in free space whatever the map says) is kept open.
+        """
+        band = float(conf["height_band_m"])
+        free, occupied = occupancy.slice_2d(z - band, z + band)
+        cell = float(occupancy.voxel_size)
+        clearance = ndimage.distance_transform_edt(~occupied) * cell
+        cost = clearance_cost(clearance, float(conf["clearance_m"]), float(conf["centre_weight"]))
+        cost[~free] = np.inf
+        grid = cls(np.asarray(occupancy.origin[:2], np.float64), cell, cost)
+        if start_xy is not None:
+            i, j = grid.cell(start_xy)
+            if grid.inside(i, j) and not np.isfinite(grid.cost[i, j]):
+                grid.cost[i, j] = 1.0 + float(conf["centre_weight"]) / max(float(clearance[i, j]), 1e-3)
+        return grid
+
+    def cells(self, xy: np.ndarray) -> np.ndarray:
+        """(N, 2) world points -> (N, 2) int64 cell indices (may lie outside the grid)."""
+        return np.floor((np.asarray(xy, np.float64).reshape(-1, 2) - self.origin_xy) / self.cell_m).astype(np.int64)
+
+    def cell(self, xy: np.ndarray) -> tuple[int, int]:
+        i, j = self.cells(xy)[0]
+        return int(i), int(j)
+
+    def inside(self, i: int, j: int) -> bool:
+        return 0 <= i < self.cost.shape[0] and 0 <= j < self.cost.shape[1]
+
+    def centres(self, cells: np.ndarray) -> np.ndarray:
+        """(N, 2) cells -> (N, 2) world centres, metres."""
+        return self.origin_xy + (np.asarray(cells, np.float64) + 0.5) * self.cell_m
+
+    def lookup(self, field: np.ndarray, xy: np.ndarray, outside=np.inf) -> np.ndarray:
+        """Values of an (X, Y) `field` at (N, 2) world points (`outside` off the grid)."""
+        cells = self.cells(xy)
+        ok = (cells >= 0).all(1) & (cells[:, 0] < field.shape[0]) & (cells[:, 1] < field.shape[1])
+        values = np.full(len(cells), outside, np.float64)
+        values[ok] = field[cells[ok, 0], cells[ok, 1]]
+        return values
+
+
+@dataclass
+class Route:
+    """How to reach one frontier.
+
+    Attributes:
+        frontier_id: the frontier.
+        waypoints: (N, 2) float64 world xy from the robot to the frontier, metres.
+        mapped_until: number of leading waypoints on the mapped, planned part (the rest is
+            the frontier-tree edge beyond ``c*``, followed while mapping).
+        distance_m: route length used in the utility.
+        utility: ``gain^e / max(distance, min)``.
+    """
+
+    frontier_id: int
+    waypoints: np.ndarray
+    mapped_until: int
+    distance_m: float
+    utility: float
+
+
+@dataclass
+class FrontierPlanner:
+    """Chooses goals and routes; configured by the ``planner`` section of ``configs/explore.yaml``."""
+
+    conf: dict
+    failures: dict = field(default_factory=dict)
+    blacklist: set = field(default_factory=set)
+
+    def fail(self, frontier_id: int) -> bool:
+        """Count a failure of `frontier_id`; returns True when it is now blacklisted."""
+        self.failures[frontier_id] = self.failures.get(frontier_id, 0) + 1
+        if self.failures[frontier_id] >= int(self.conf["max_failures"]):
+            self.blacklist.add(frontier_id)
+            return True
+        return False
+
+    def utility(self, gain_m3: float, distance_m: float) -> float:
+        """Paper Eq. 8: ``gain^e / max(distance, min_distance_m)``."""
+        return float(gain_m3) ** float(self.conf["gain_exponent"]) / max(distance_m, float(self.conf["min_distance_m"]))
+
+    def best_route(self, frontiers, robot_xy: np.ndarray, parent_xy, grid: PlanningGrid | None = None,
+                   graph: PoseGraph | None = None, robot_index: int | None = None,
+                   keep: int | None = None, keep_margin: float = 0.0) -> Route | None:
+        """The best :class:`Route` over the live, non-blacklisted frontiers, or None.
+
+        Args:
+            frontiers: tracked :class:`~frontiernet.frontiers.tracking.Frontier` records.
+            robot_xy: (2,) world position of the robot.
+            parent_xy: function ``pose index -> (2,) world xy`` of the frontiers' parent poses.
+            grid: the planning grid (map mode). graph, robot_index: the pose graph and the
+                robot's index in it (map-free mode).
+            keep: id of the current goal; it stays the goal unless another frontier's utility
+                beats it by more than the fraction `keep_margin` (avoids back-and-forth).
+        """
+        candidates = [f for f in frontiers if f.id not in self.blacklist]
+        if not candidates:
+            return None
+        if grid is not None:
+            scored, trace = self._map_candidates(candidates, robot_xy, parent_xy, grid)
+        else:
+            scored, trace = self._tree_candidates(candidates, parent_xy, graph, robot_index)
+        scored.sort(key=lambda c: c[2], reverse=True)
+        current = [c for c in scored if c[0].id == keep]
+        if current and scored[0][2] <= current[0][2] * (1.0 + keep_margin):
+            scored = current + [c for c in scored if c[0].id != keep]
+        for frontier, distance, utility, detail in scored:
+            route = trace(frontier, detail)
+            if route is None:
+                self.fail(frontier.id)
+                continue
+            waypoints, mapped_until = route
+            return Route(frontier.id, waypoints, mapped_until, distance, utility)
+        return None
+
+    def _map_candidates(self, frontiers, robot_xy, parent_xy, grid: PlanningGrid):
+        """(frontier, distance, utility, c* index) for frontiers with a reachable ``c*``, and the tracer."""
+        start = grid.cell(robot_xy)
+        if not grid.inside(*start):
+            return [], None
+        cumulative, path_to = geodesic_paths(grid.cost, start)
+        cumulative = cumulative * grid.cell_m  # metres, weighted by clearance (1 + w / clearance)
+        spacing = float(self.conf["edge_spacing_m"])
+        scored = []
+        for frontier in frontiers:
+            parent = parent_xy(frontier.parent_pose)
+            at = walk_back(frontier.position[:2], parent, lambda p: np.isfinite(grid.lookup(cumulative, p)), spacing)
+            if at is None:
+                self.fail(frontier.id)
+                continue
+            c_star = edge_points(frontier.position[:2], parent, spacing)[at]
+            distance = float(grid.lookup(cumulative, c_star[None])[0]) + spacing * at
+            scored.append((frontier, distance, self.utility(frontier.gain_m3, distance), at))
+
+        def trace(frontier, at):
+            edge = edge_points(frontier.position[:2], parent_xy(frontier.parent_pose), spacing)
+            cells = path_to(grid.cell(edge[at]))
+            if cells is None:
+                return None
+            path = grid.centres(cells[1:]) if len(cells) > 1 else edge[at:at + 1]
+            beyond = edge[:at][::-1]  # from c* towards the frontier, followed while mapping
+            return (np.concatenate([path, beyond]) if len(beyond) else path), len(path)
+
+        return scored, trace
+
+    def _tree_candidates(self, frontiers, parent_xy, graph: PoseGraph, robot_index: int):
+        """(frontier, distance, utility, None) along the pose graph, and the tracer (map-free mode)."""
+        distances, predecessors = graph.distances_from(robot_index)
+        spacing = float(self.conf["edge_spacing_m"])
+        scored = []
+        for frontier in frontiers:
+            parent = frontier.parent_pose
+            if parent >= len(distances) or not np.isfinite(distances[parent]):
+                self.fail(frontier.id)
+                continue
+            distance = float(distances[parent]) + float(np.linalg.norm(parent_xy(parent) - frontier.position[:2]))
+            scored.append((frontier, distance, self.utility(frontier.gain_m3, distance), None))
+
+        def trace(frontier, _):
+            back = graph.path(predecessors, frontier.parent_pose)
+            edge = edge_points(parent_xy(frontier.parent_pose), frontier.position[:2], spacing)
+            return np.concatenate([back[1:], edge[1:]]), len(back) - 1
+
+        return scored, trace
+
+
+def resample_route(route: Route, start_xy: np.ndarray, spacing_m: float) -> Route:
+    """`route` with its waypoints resampled every `spacing_m` metres of arc from `start_xy`
+    (the last waypoint kept), so that each motion increment is a full step."""
+    points = np.concatenate([np.asarray(start_xy, np.float64)[None, :2], route.waypoints])
+    arc = arc_lengths(points)
+    if arc[-1] <= spacing_m:
+        return replace(route, waypoints=route.waypoints[-1:], mapped_until=min(route.mapped_until, 1))
+    s = np.append(np.arange(spacing_m, arc[-1], spacing_m), arc[-1])
+    mapped_arc = arc[min(route.mapped_until, len(route.waypoints))]
+    return replace(route, waypoints=points_at_arc(points, arc, s),
+                   mapped_until=int(np.searchsorted(s, mapped_arc + 1e-9)))
