@@ -6,7 +6,8 @@ import numpy as np
 
 FREE = (236, 236, 230)
 OCCUPIED = (60, 60, 70)
-UNKNOWN = (150, 150, 155)
+UNKNOWN = (120, 120, 128)
+UNKNOWN_INSIDE = (176, 176, 184)  # unknown to the robot, explorable in the scene (for the viewer only)
 PATH = (40, 90, 230)
 ROBOT = (30, 170, 60)
 GOAL = (230, 40, 40)
@@ -31,12 +32,15 @@ class TopDown:
         cells = (np.asarray(xy, np.float64).reshape(-1, 2) - self.origin_xy) / self.cell_m
         return np.stack([cells[:, 0] * self.scale, (self.shape_xy[1] - cells[:, 1]) * self.scale], 1).astype(np.int32)
 
-    def background(self, free: np.ndarray, occupied: np.ndarray) -> np.ndarray:
-        """(H, W, 3) uint8 picture of (X, Y) free / occupied cells (the rest unknown)."""
+    def background(self, free: np.ndarray, occupied: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 picture of (X, Y) free / occupied cells (the rest unknown); `layout`
+        (X, Y) bool shows the scene's explorable cells, unknown to the robot, a shade lighter."""
         import cv2
 
         image = np.empty(free.shape + (3,), np.uint8)
         image[:] = UNKNOWN
+        if layout is not None:
+            image[layout] = UNKNOWN_INSIDE
         image[free] = FREE
         image[occupied] = OCCUPIED
         image = np.ascontiguousarray(np.transpose(image, (1, 0, 2))[::-1])  # rows: +y up

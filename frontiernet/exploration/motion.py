@@ -16,7 +16,7 @@ from ..geometry import pose_from_heading
 
 def wrap_angle(angle: float) -> float:
     """`angle` (radians) wrapped to (-pi, pi]."""
-    return float((angle + np.pi) % (2 * np.pi) - np.pi) if angle != np.pi else float(np.pi)
+    return float(np.pi - (np.pi - angle) % (2 * np.pi))
 
 
 def yaw_of(T_world_cam: np.ndarray) -> float:

@@ -20,6 +20,7 @@ class StepPictures:
         self.band = float(conf.planner.height_band_m)
         self.topdown = TopDown(voxels.origin[:2], voxels.shape[:2], voxels.voxel_size, height_px=480)
         self.progress = progress
+        self._layout = None
         self._bar = self._task = None
         self._colour = None
 
@@ -62,6 +63,10 @@ class StepPictures:
         z = explorer.motion.z
         free, occupied = explorer.map.slice_2d(z - self.band, z + self.band)
         path = np.array([T[:2, 3] for T in explorer.poses])
-        top = self.topdown.draw(self.topdown.background(free, occupied), path, path[-1], record.yaw,
+        if self._layout is None:
+            size = self.voxels.voxel_size
+            k = int(np.clip((z - self.voxels.origin[2]) / size, 0, self.voxels.shape[2] - 1))
+            self._layout = self.voxels.explorable[:, :, k]
+        top = self.topdown.draw(self.topdown.background(free, occupied, self._layout), path, path[-1], record.yaw,
                                 list(explorer.tracker), record.goal, self._colour)
         return np.concatenate([camera, top], axis=1)

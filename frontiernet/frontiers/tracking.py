@@ -98,8 +98,8 @@ class FrontierTracker:
     view_z: float | None = None
     frontiers: dict = field(default_factory=dict)
     next_id: int = 0
-    removed: dict = field(default_factory=lambda: {"low_gain": 0, "visited": 0, "occupied": 0, "merged": 0,
-                                                   "blacklisted": 0})
+    removed: dict = field(default_factory=lambda: {"low_gain": 0, "visited": 0, "occupied": 0, "blacklisted": 0})
+    tombstones: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.frontiers)
@@ -111,7 +111,8 @@ class FrontierTracker:
         return self.frontiers.get(frontier_id)
 
     def add(self, observations, parent_pose: int, step: int) -> list[int]:
-        """Fold one frame's observations in; returns the id each observation went to.
+        """Fold one frame's observations in; returns the id each observation went to (None: it
+        matched a blacklisted frontier and was discarded).
 
         Args:
             observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``).
@@ -124,6 +125,9 @@ class FrontierTracker:
         for observation in observations:
             position = np.asarray(observation.position, np.float64)
             direction = _unit(np.asarray(observation.direction, np.float64))
+            if self._buried(position, direction, max_distance, min_cos):
+                ids.append(None)  # a blacklisted frontier seen again: it stays given up
+                continue
             match = self._closest_match(position, direction, max_distance, min_cos)
             if match is None:
                 frontier = Frontier(self.next_id, position.copy(), direction.copy(), float(observation.gain_m3),
@@ -142,6 +146,10 @@ class FrontierTracker:
                 frontier.last_step = step
             ids.append(frontier.id)
         return ids
+
+    def _buried(self, position, direction, max_distance, min_cos) -> bool:
+        return any(float(np.linalg.norm(p - position)) < max_distance and float(d @ direction) > min_cos
+                   for p, d in self.tombstones)
 
     def _closest_match(self, position, direction, max_distance, min_cos) -> Frontier | None:
         best, best_distance = None, max_distance
@@ -218,9 +226,15 @@ class FrontierTracker:
             self.remove(frontier.id, "low_gain")
 
     def remove(self, frontier_id: int, reason: str) -> None:
-        """Remove one frontier and count why (``low_gain``, ``visited``, ``occupied``, ``blacklisted``)."""
-        if self.frontiers.pop(frontier_id, None) is not None:
+        """Remove one frontier and count why (``low_gain``, ``visited``, ``occupied``, ``blacklisted``).
+
+        A blacklisted frontier leaves a tombstone: observations matching it later are discarded,
+        so a goal given up on (e.g. a window onto the outside) does not come back under a new id."""
+        frontier = self.frontiers.pop(frontier_id, None)
+        if frontier is not None:
             self.removed[reason] = self.removed.get(reason, 0) + 1
+            if reason == "blacklisted":
+                self.tombstones.append((frontier.position.copy(), frontier.direction.copy()))
 
     def as_list(self) -> list[dict]:
         return [f.as_dict() for f in self.frontiers.values()]
