@@ -49,6 +49,12 @@ def add_parser(subparsers) -> None:
     occupancy.add_argument("--views", type=int, default=50, help="frontier views of one visible_known_volume call")
     occupancy.add_argument("--json", action="store_true", help="print JSON only")
     occupancy.set_defaults(func=run_map)
+    explore = actions.add_parser("explore", help="cost of one exploration step by stage vs a render")
+    explore.add_argument("--scene", default=None, help="scene spec (default as for bench render)")
+    explore.add_argument("--method", default="frontiernet", help="frontiernet or oracle")
+    explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
+    explore.add_argument("--json", action="store_true", help="print JSON only")
+    explore.set_defaults(func=run_explore)
     from .main import plugin_commands
 
     for module in plugin_commands(BENCH_GROUP):  # e.g. deploy's `bench inference`
@@ -183,4 +189,33 @@ def run_map(args) -> int:
                  f"({view.width_px} px views, {result['known_m3']} m^3 known)"))
     for label, seconds, note in rows:
         print(f"  {label:<30s}{seconds * 1e3:8.2f} ms   {seconds / render:5.2f}x   {note}")
+    return 0
+
+
+def run_explore(args) -> int:
+    """Explore `--steps` steps (no video) and report each stage's mean time per step as a ratio
+    to the render of the same run; goal: perception + anchoring >= 5 Hz at 320 px on 2 cores,
+    map update below one render."""
+    import tempfile
+
+    from ..exploration.run import main
+
+    spec = default_bench_scene(args.scene)
+    with tempfile.TemporaryDirectory() as out:
+        record = main(load_config("explore"), spec, out, method=args.method, max_steps=args.steps, video=False,
+                      progress=False)
+    timing = record["timing"]
+    mean = timing["mean_ms"]
+    result = {"scene": spec, "method": args.method, "steps": record["steps"], "mean_ms": mean,
+              "over_render": {k: round(v / max(mean["render"], 1e-9), 3) for k, v in mean.items()},
+              "step_ms_without_motion": timing["step_ms_without_motion"],
+              "image_to_frontiers_hz": timing["image_to_frontiers_hz"]}
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"bench explore: {spec}, {args.method}, {record['steps']} steps, mean per step")
+    for stage, ms in mean.items():
+        print(f"  {stage:<12} {ms:8.2f} ms   {result['over_render'][stage]:6.2f}x of a render")
+    print(f"  step without motion {timing['step_ms_without_motion']:.1f} ms; image to 3D frontiers "
+          f"(perception + anchoring) {timing['image_to_frontiers_hz']} Hz   goal >= 5 Hz")
     return 0

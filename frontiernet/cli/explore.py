@@ -22,6 +22,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--seed", type=int, help="seed (default: run.seed)")
     parser.add_argument("--map-free", action="store_true", help="plan on the frontier tree only (paper Table III)")
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")
+    parser.add_argument("--rerun", action="store_true", help="also write recording.rrd for the Rerun viewer "
+                                                             "(needs rerun-sdk)")
     parser.add_argument("--config", help="YAML overriding configs/explore.yaml")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. planner.clearance_m=0.3")
@@ -36,7 +38,7 @@ def summary_line(record: dict, out) -> str:
             f"{record['coverage']:.1%} after {record['steps']} steps (Vox@25/50/100 {vox['25']:.1%} / {vox['50']:.1%} "
             f"/ {vox['100']:.1%}), path {record['path_length_m']:.1f} m, {record['collisions']} collisions, "
             f"{timing['step_ms_without_motion']:.0f} ms per step; stopped: {record['stop_reason']}. "
-            f"Outputs in {out}/ (metrics.json, coverage.png{', exploration.mp4' if 'video' in record else ''})")
+            f"Outputs in {out}/ (metrics.json, coverage.png{', exploration.mp4' if 'video' in record else ''}{', recording.rrd' if 'rerun' in record else ''})")
 
 
 def run(args) -> int:
@@ -47,6 +49,7 @@ def run(args) -> int:
     if args.map_free:
         conf.planner.mode = "map_free"
     record = main(conf, args.scene, args.out, method=args.method, model=args.model, depth=args.depth,
-                  max_steps=args.max_steps, start=args.start, seed=args.seed, video=not args.no_video)
+                  max_steps=args.max_steps, start=args.start, seed=args.seed, video=not args.no_video,
+                  rerun=args.rerun)
     print(summary_line(record, args.out))
     return 0

@@ -54,7 +54,7 @@ def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
 
 def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
          max_steps: int | None = None, start: str | None = None, seed: int | None = None, video: bool = True,
-         progress: bool = True) -> dict:
+         rerun: bool = False, progress: bool = True) -> dict:
     """Explore `scene` (a scene spec) and write the run's outputs to `out`; returns the metrics.
 
     Args:
@@ -64,6 +64,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         depth: depth source (``gt`` or a source of ``configs/depth.yaml``; None: ``run.depth``).
         max_steps, seed: override ``run.max_steps`` and ``run.seed``.
         start: ``"x,y,z,yaw"`` (metres, degrees; None: sampled with the seed).
+        video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
     """
     from ..config import load_config
     from ..depth import make_depth_source
@@ -74,6 +75,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
     from .perception import make_perception
+    from .recording import RerunRecorder
     from .video import StepPictures
 
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
@@ -98,9 +100,16 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     perception = make_perception(method, model, loaded, voxels, sim)
     renderer = Renderer(loaded, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     out = ensure_dir(out)
+    recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
     pictures = StepPictures(voxels, conf, writer, budget, progress=progress)
-    explorer = Explorer(loaded, voxels, renderer, perception, depth_source, conf, sim, T_start, on_step=pictures)
+
+    def on_step(*args) -> None:
+        pictures(*args)
+        if recorder is not None:
+            recorder(*args)
+
+    explorer = Explorer(loaded, voxels, renderer, perception, depth_source, conf, sim, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock
     try:
         with pictures:
@@ -108,6 +117,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     finally:
         if writer is not None:
             writer.close()
+        if recorder is not None:
+            recorder.close()
     info = {"scene": scene, "method": method, "depth": depth_name, "planner_mode": str(conf.planner.mode),
             "model": None if method != "frontiernet" else str(model or "shipped"), "seed": seed,
             "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),
@@ -115,4 +126,6 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     record = write_run(out, result, budget, info, explorer.tracker)
     if writer is not None:
         record["video"] = str(out / "exploration.mp4")
+    if recorder is not None:
+        record["rerun"] = str(out / "recording.rrd")
     return record

@@ -112,7 +112,8 @@ class FrontierTracker:
 
     def add(self, observations, parent_pose: int, step: int) -> list[int]:
         """Fold one frame's observations in; returns the id each observation went to (None: it
-        matched a blacklisted frontier and was discarded).
+        matched a blacklisted frontier, or lay outside ``height_window_m`` around `view_z`, and
+        was discarded).
 
         Args:
             observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``).
@@ -125,6 +126,9 @@ class FrontierTracker:
         for observation in observations:
             position = np.asarray(observation.position, np.float64)
             direction = _unit(np.asarray(observation.direction, np.float64))
+            if not self._in_height_window(position):
+                ids.append(None)
+                continue
             if self._buried(position, direction, max_distance, min_cos):
                 ids.append(None)  # a blacklisted frontier seen again: it stays given up
                 continue
@@ -146,6 +150,12 @@ class FrontierTracker:
                 frontier.last_step = step
             ids.append(frontier.id)
         return ids
+
+    def _in_height_window(self, position: np.ndarray) -> bool:
+        if self.view_z is None or self.conf.get("height_window_m") is None:
+            return True
+        low, high = (float(v) for v in self.conf["height_window_m"])
+        return low <= float(position[2]) - self.view_z <= high
 
     def _buried(self, position, direction, max_distance, min_cos) -> bool:
         return any(float(np.linalg.norm(p - position)) < max_distance and float(d @ direction) > min_cos
