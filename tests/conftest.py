@@ -95,3 +95,31 @@ def tiny_dataset(tmp_path_factory) -> Path:
                                           "writer.shard_size=4"])
     generate(["procedural:11", "procedural:12", "procedural:13"], 8, out, conf, seed=0, workers=1, progress=False)
     return out
+
+
+def explore_section(name: str, **changes) -> dict:
+    """A section of ``configs/explore.yaml`` as a dict, with `changes` applied."""
+    from frontiernet.config import load_config
+
+    conf = dict(load_config("explore")[name])
+    conf.update(changes)
+    return conf
+
+
+def floorplan_spec(folder: Path, name: str, plan: np.ndarray) -> str:
+    """Save an (H, W) uint8 plan image (0 = wall, 254 = free) and return its spec at 0.05 m/px."""
+    from PIL import Image
+
+    Image.fromarray(plan).save(folder / f"{name}.png")
+    return f"floorplan:{folder / f'{name}.png'}?resolution=0.05"
+
+
+@pytest.fixture(scope="session")
+def plan_spec(tmp_path_factory) -> str:
+    """Two 3 x 4 m rooms joined by a 1 m door, as a floor-plan image (0.05 m/px)."""
+    plan = np.full((100, 160), 254, np.uint8)
+    plan[10:90, 10:16] = plan[10:90, 144:150] = 0
+    plan[10:16, 10:150] = plan[84:90, 10:150] = 0
+    plan[10:90, 77:83] = 0
+    plan[40:60, 77:83] = 254  # the door
+    return floorplan_spec(tmp_path_factory.mktemp("plan"), "plan", plan)

@@ -13,19 +13,6 @@ from PIL import Image
 from frontiernet.cli.main import main
 
 
-@pytest.fixture(scope="module")
-def plan_spec(tmp_path_factory) -> str:
-    """Two 3 x 4 m rooms joined by a 1 m door, as a floor-plan image (0.05 m/px)."""
-    folder = tmp_path_factory.mktemp("plan")
-    plan = np.full((100, 160), 254, np.uint8)
-    plan[10:90, 10:16] = plan[10:90, 144:150] = 0
-    plan[10:16, 10:150] = plan[84:90, 10:150] = 0
-    plan[10:90, 77:83] = 0
-    plan[40:60, 77:83] = 254  # the door
-    Image.fromarray(plan).save(folder / "plan.png")
-    return f"floorplan:{folder / 'plan.png'}?resolution=0.05"
-
-
 def test_scene_info_reports_bounds_triangles_and_explorable_volume(plan_spec, capsys):
     assert main(["scene", "info", plan_spec]) == 0
     info = json.loads(capsys.readouterr().out)

@@ -5,7 +5,6 @@ loss and Table II metrics, a scene-held-out split, and `frontiernet train` / `ev
 from __future__ import annotations
 
 import csv
-import os
 import signal
 import subprocess
 import sys

@@ -28,8 +28,10 @@ from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
 from .motion import Motion, wrap_angle, yaw_of
 
-STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion")
-"""Timed stages of a step; all but ``motion`` (the simulator's collision check) are the robot's cost."""
+STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion", "coverage")
+SIMULATOR_STAGES = ("motion", "coverage")
+"""Timed stages of a step. ``motion`` (the simulator's collision check) and ``coverage`` (the
+metric's ground-truth bookkeeping) are the simulator's cost, the others the robot's."""
 
 
 @dataclass
@@ -86,7 +88,7 @@ class Explorer:
         self.agent = Agent(scene, T_start, sim_conf.agent, voxels)
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = OccupancyMap.like(voxels, conf.map)
-        self.coverage_map = self.map if depth_source.name == "ground_truth" else OccupancyMap.like(voxels, conf.map)
+        self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
         self.safety_offsets = _ball_offsets(float(conf.planner.clearance_m), float(conf.map.voxel_size) / 2)
         self.planner = FrontierPlanner(conf.planner)
@@ -95,6 +97,7 @@ class Explorer:
         self.rng = np.random.default_rng(int(conf.run.seed))
         self.on_step = on_step
         self.route = None
+        self.backoff = None  # (2,) xy to step back to after a collision (map-free mode)
         self.waypoint = 0
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
@@ -119,13 +122,12 @@ class Explorer:
                                    seen.K, T, self.conf.anchoring, seen.labels, self.rng)
         self._timed("map", self._integrate, depth, frame, T)
         self._timed("tracking", self._track, observations, T)
+        self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
         return frame, seen
 
     def _integrate(self, depth, frame, T) -> None:
         self.map.integrate(depth, frame.K, T)
         self.map.clear_sphere(T[:3, 3], self.agent.radius)  # the robot stands in free space
-        if self.coverage_map is not self.map:
-            self.coverage_map.integrate(frame.depth, frame.K, T)
 
     def _track(self, observations, T) -> None:
         self.poses.append(T)
@@ -170,6 +172,9 @@ class Explorer:
     def next_pose(self) -> np.ndarray | None:
         """The pose of the next increment along the route (None: nothing to do)."""
         T = self.agent.pose
+        if self.backoff is not None:
+            target, self.backoff = self.backoff, None
+            return self.motion.towards(T, target)
         if self.route is None:
             if self.look_around_left <= 0:
                 return None
@@ -234,6 +239,8 @@ class Explorer:
         if result.collided or result.left_free_space:
             self.result.collisions += int(result.collided)
             self._goal_failed()
+            if self.map_free and len(self.poses) > 1:  # no map to plan around it: step back first
+                self.backoff = self.poses[-2][:2, 3].copy()
             return True
         return False
 

@@ -15,7 +15,7 @@ encoder stride (32) and the outputs are cropped back, so nothing is resized insi
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Optional
 

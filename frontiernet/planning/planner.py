@@ -166,18 +166,24 @@ class FrontierPlanner:
         start = grid.cell(robot_xy)
         if not grid.inside(*start):
             return [], None
-        cumulative, path_to = geodesic_paths(grid.cost, start)
-        cumulative = cumulative * grid.cell_m  # metres, weighted by clearance (1 + w / clearance)
+        cumulative, path_to = geodesic_paths(grid.cost, start)  # clearance-weighted: picks the paths
+        reachable = np.isfinite(cumulative)
+        if str(self.conf["distance"]) == "path":  # their lengths: unit costs over the same cells
+            length, _ = geodesic_paths(np.where(reachable, 1.0, np.inf), start)
+            length = length * grid.cell_m
         spacing = float(self.conf["edge_spacing_m"])
         scored = []
         for frontier in frontiers:
             parent = parent_xy(frontier.parent_pose)
-            at = walk_back(frontier.position[:2], parent, lambda p: np.isfinite(grid.lookup(cumulative, p)), spacing)
+            at = walk_back(frontier.position[:2], parent, lambda p: grid.lookup(reachable, p, outside=0) > 0, spacing)
             if at is None:
                 self.fail(frontier.id)
                 continue
             c_star = edge_points(frontier.position[:2], parent, spacing)[at]
-            distance = float(grid.lookup(cumulative, c_star[None])[0]) + spacing * at
+            if str(self.conf["distance"]) == "path":
+                distance = float(grid.lookup(length, c_star[None])[0]) + spacing * at
+            else:
+                distance = float(np.linalg.norm(frontier.position[:2] - np.asarray(robot_xy)[:2]))
             scored.append((frontier, distance, self.utility(frontier.gain_m3, distance), at))
 
         def trace(frontier, at):

@@ -1,0 +1,335 @@
+"""Closed-loop exploration (DESIGN.md items 4-7): motion increments, `frontiernet explore`, `frontiernet demo`.
+
+The end-to-end runs use the oracle perception (ground-truth frontiers) on a small floor plan
+of two rooms, so that they check the loop, not the model's quality; only the demo runs the
+shipped model.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import itertools
+import json
+
+import numpy as np
+import pytest
+from conftest import floorplan_spec
+from PIL import Image
+
+from frontiernet.cli.main import main
+from frontiernet.config import load_config
+from frontiernet.exploration.motion import Motion, wrap_angle, yaw_of
+from frontiernet.geometry import rotation_angle, rotation_from_yaw_pitch
+
+CAMERA_HEIGHT = 1.2
+AGENT_RADIUS = 0.2
+
+
+# -- motion increments ---------------------------------------------------------------------------
+
+
+@pytest.fixture
+def motion() -> Motion:
+    return Motion(load_config("explore").motion, z=CAMERA_HEIGHT)
+
+
+def test_increments_never_exceed_one_step_and_keep_height_and_pitch(motion):
+    conf = load_config("explore").motion
+    rng = np.random.default_rng(3)
+    pitch = np.radians(float(conf.pitch_deg))
+    for _ in range(300):
+        start = motion.pose(rng.uniform(-2, 2, 2), rng.uniform(-np.pi, np.pi))
+        target = rng.uniform(-3, 3, 2) * rng.choice([0.02, 1.0])  # near and far targets
+        T = motion.towards(start, target)
+        assert np.linalg.norm(T[:2, 3] - start[:2, 3]) <= float(conf.translation_m) + 1e-12
+        assert rotation_angle(start[:3, :3], T[:3, :3]) <= np.radians(float(conf.rotation_deg)) + 1e-9
+        assert T[2, 3] == CAMERA_HEIGHT
+        np.testing.assert_allclose(T[:3, :3], rotation_from_yaw_pitch(yaw_of(T), pitch), atol=1e-12)
+        # never away from the target
+        assert np.linalg.norm(target - T[:2, 3]) <= np.linalg.norm(target - start[:2, 3]) + 1e-12
+
+
+def test_following_a_straight_line_counts_one_paper_step_per_increment(motion):
+    from frontiernet.simulator.agent import StepCounter
+
+    T = motion.pose(np.zeros(2), 0.0)
+    counter = StepCounter(0.1, np.radians(10.0), T)
+    increments = 0
+    while not motion.reached(T[:2, 3], [1.0, 0.0]):
+        T = motion.towards(T, np.array([1.0, 0.0]))
+        counter.update(T)
+        increments += 1
+        assert increments < 50
+    assert increments == 9  # 0.99 m: within waypoint_tolerance_m (0.05) of the target
+    assert counter.count == increments  # every 0.11 m increment is one paper step (> 0.1 m)
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_target_behind_is_faced_by_turning_on_the_spot(motion, side):
+    T = motion.pose(np.array([2.0, 1.0]), 0.0)
+    target = np.array([1.0, 1.0 + 0.1 * side])  # behind, a little to the left (side 1) or right (-1)
+    first = motion.towards(T, target)
+    np.testing.assert_allclose(first[:3, 3], T[:3, 3])  # no translation while the target is far off
+    assert yaw_of(first) == pytest.approx(side * np.radians(11.0))  # the shorter way round
+    turning = 0
+    while np.allclose(T[:2, 3], [2.0, 1.0]):
+        T = motion.towards(T, target)
+        turning += 1
+        assert turning < 30
+    # it moves only once the target is within turn_in_place_deg (45) of the heading
+    error = abs(wrap_angle(np.arctan2(*(target - [2.0, 1.0])[::-1]) - yaw_of(T)))
+    assert error <= np.radians(45.0) and turning >= (174 - 45) // 11
+    for _ in range(30):
+        T = motion.towards(T, target)
+    assert motion.reached(T[:2, 3], target)
+
+
+def test_a_target_ahead_is_approached_while_turning(motion):
+    T = motion.pose(np.zeros(2), 0.0)
+    target = np.array([np.cos(np.radians(30)), np.sin(np.radians(30))])  # 30 degrees left, 1 m
+    T1 = motion.towards(T, target)
+    np.testing.assert_allclose(T1[:2, 3], 0.11 * target)  # straight at the target, one full increment
+    assert yaw_of(T1) == pytest.approx(np.radians(11.0))
+    np.testing.assert_allclose(motion.towards(T, np.zeros(2)), T)  # already there: stay
+
+
+def test_turn_to_reports_when_the_heading_is_reached(motion):
+    T = motion.pose(np.array([1.0, 1.0]), 0.0)
+    yaws = []
+    for _ in range(5):
+        T, aligned = motion.turn_to(T, np.radians(30.0))
+        yaws.append(np.degrees(yaw_of(T)))
+        if aligned:
+            break
+    np.testing.assert_allclose(yaws, [11.0, 22.0, 30.0])
+    np.testing.assert_allclose(T[:2, 3], [1.0, 1.0])
+
+
+@pytest.mark.parametrize("angle, wrapped", [(0.5, 0.5), (-0.5, -0.5), (np.pi, np.pi), (-np.pi, np.pi),
+                                            (3 * np.pi, np.pi), (1.5 * np.pi, -0.5 * np.pi),
+                                            (-1.5 * np.pi, 0.5 * np.pi), (2 * np.pi + 0.25, 0.25)])
+def test_wrap_angle_returns_the_documented_range(angle, wrapped):
+    assert wrap_angle(angle) == pytest.approx(wrapped, abs=1e-12)
+    assert -np.pi < wrap_angle(angle) <= np.pi
+
+
+# -- scenes and helpers --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def closet_spec(tmp_path_factory) -> str:
+    """One closed room of 1.9 x 1.9 m: a look-around sees every wall."""
+    plan = np.full((60, 60), 254, np.uint8)
+    plan[5:55, 5:11] = plan[5:55, 49:55] = 0
+    plan[5:11, 5:55] = plan[49:55, 5:55] = 0
+    return floorplan_spec(tmp_path_factory.mktemp("closet"), "closet", plan)
+
+
+def run_cli(args) -> tuple[int, str, str]:
+    """`frontiernet ARGS` in process: (exit code, stdout, stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in args])
+    return code, out.getvalue(), err.getvalue()
+
+
+def load(folder, name="metrics.json") -> dict:
+    return json.loads((folder / name).read_text())
+
+
+def explore_args(spec, out, steps, *extra) -> list:
+    return ["explore", "--scene", spec, "--method", "oracle", "--max-steps", steps, "--out", out, *extra]
+
+
+ORACLE_STEPS = 60
+
+
+@pytest.fixture(scope="module")
+def oracle_run(plan_spec, tmp_path_factory):
+    """One 60-step oracle run on the two-room plan (default seed, no video): (exit code, stdout, folder)."""
+    out = tmp_path_factory.mktemp("oracle") / "run"
+    code, stdout, _ = run_cli(explore_args(plan_spec, out, ORACLE_STEPS, "--no-video"))
+    return code, stdout, out
+
+
+# -- end to end ------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_oracle_exploration_writes_consistent_metrics_and_outputs(oracle_run):
+    code, stdout, out = oracle_run
+    assert code == 0
+    assert "coverage" in stdout and "metrics.json" in stdout and "exploration.mp4" not in stdout
+    metrics = load(out)
+    assert metrics["method"] == "oracle" and metrics["planner_mode"] == "map" and metrics["depth"] == "ground_truth"
+    assert 0 < metrics["steps"] <= ORACLE_STEPS and metrics["max_steps"] == ORACLE_STEPS
+    if metrics["stop_reason"] == "step budget spent":
+        assert metrics["steps"] == ORACLE_STEPS
+    coverage = np.array(metrics["coverage_per_step"])
+    assert len(coverage) == metrics["steps"] + 1
+    assert np.all(np.diff(coverage) >= 0) and 0 < coverage[0] and coverage[-1] <= 1
+    assert metrics["coverage"] == pytest.approx(coverage[-1], abs=1e-5)
+    vox = metrics["vox_at"]
+    assert vox["25"] <= vox["50"] <= vox["100"] == pytest.approx(metrics["coverage"])
+    assert vox["25"] == pytest.approx(coverage[ORACLE_STEPS // 4], abs=1e-5)
+    assert vox["50"] == pytest.approx(coverage[ORACLE_STEPS // 2], abs=1e-5)
+    assert metrics["success"] == (vox["100"] > 0.4)
+    assert metrics["collisions"] == 0
+    # a single room is about half the explorable volume: the robot has looked into the other one
+    assert metrics["coverage"] > 0.5 and metrics["goals"] >= 1 and metrics["path_length_m"] > 0.5
+    assert 0 < metrics["known_m3"] and metrics["explorable_m3"] > 30
+
+    trajectory = load(out, "trajectory.json")
+    assert len(trajectory["steps"]) == metrics["iterations"] + 1
+    assert [s["step"] for s in trajectory["steps"]] == sorted(s["step"] for s in trajectory["steps"])
+    assert trajectory["steps"][-1]["step"] == metrics["steps"]
+    assert all(g["frontier"] >= 0 and g["distance_m"] > 0 for g in trajectory["goals"])
+    frontiers = load(out, "frontiers.json")
+    assert len(frontiers["frontiers"]) == metrics["frontiers_left"]
+    assert frontiers["removed"] == metrics["frontiers_removed"]
+    png = Image.open(out / "coverage.png")
+    assert png.format == "PNG" and png.size[0] > 100
+    assert not (out / "exploration.mp4").exists()
+
+
+@pytest.mark.slow
+def test_the_robot_stays_clear_of_walls_and_moves_in_single_steps(oracle_run, plan_spec):
+    from frontiernet.scenes import load_scene
+    from frontiernet.simulator.raycast import distance_to_surface
+
+    _, _, out = oracle_run
+    poses = np.array(load(out, "trajectory.json")["T_world_cam"])
+    assert len(poses) > 10
+    scene = load_scene(plan_spec)
+    np.testing.assert_allclose(poses[:, 2, 3], scene.bounds[0, 2] + CAMERA_HEIGHT)  # the robot keeps its height
+    clearance = distance_to_surface(scene, poses[:, :3, 3])
+    assert clearance.min() >= AGENT_RADIUS - 1e-4
+    moved = np.linalg.norm(np.diff(poses[:, :2, 3], axis=0), axis=1)
+    turned = np.array([rotation_angle(a[:3, :3], b[:3, :3]) for a, b in itertools.pairwise(poses)])
+    assert moved.max() <= 0.11 + 1e-6 and turned.max() <= np.radians(11.0) + 1e-6
+
+
+@pytest.mark.slow
+def test_the_same_seed_gives_the_same_run(oracle_run, plan_spec, tmp_path):
+    _, _, first = oracle_run
+    code, _, _ = run_cli(explore_args(plan_spec, tmp_path / "again", ORACLE_STEPS, "--no-video"))
+    assert code == 0
+    a, b = load(first, "trajectory.json"), load(tmp_path / "again", "trajectory.json")
+    np.testing.assert_array_equal(np.array(a["T_world_cam"]), np.array(b["T_world_cam"]))
+    assert a["goals"] == b["goals"]
+    assert load(first)["coverage_per_step"] == load(tmp_path / "again")["coverage_per_step"]
+
+
+@pytest.mark.slow
+def test_video_has_one_frame_per_iteration(plan_spec, tmp_path):
+    import cv2
+
+    out = tmp_path / "video"
+    code, stdout, _ = run_cli(explore_args(plan_spec, out, 12))
+    assert code == 0 and "exploration.mp4" in stdout
+    metrics = load(out)
+    video = cv2.VideoCapture(str(out / "exploration.mp4"))
+    try:
+        frames = int(video.get(cv2.CAP_PROP_FRAME_COUNT))
+        ok, frame = video.read()
+    finally:
+        video.release()
+    assert ok and frames == metrics["iterations"] + 1
+    assert frame.shape[0] == 480 and frame.shape[1] > 480  # camera view beside the map
+    assert frame.std() > 5  # not a blank picture
+    assert not list(out.glob(".*partial*"))  # the temporary file was moved into place
+
+
+@pytest.mark.slow
+def test_a_closed_room_stops_when_no_frontier_is_left(closet_spec, tmp_path):
+    code, stdout, _ = run_cli(explore_args(closet_spec, tmp_path / "closet", 80, "--no-video"))
+    assert code == 0 and "no frontiers left" in stdout
+    metrics = load(tmp_path / "closet")
+    assert metrics["stop_reason"] == "no frontiers left"
+    assert metrics["steps"] < 80 and metrics["collisions"] == 0
+    poses = np.array(load(tmp_path / "closet", "trajectory.json")["T_world_cam"])
+    # it looked all around before giving up
+    yaws = np.unwrap([yaw_of(T) for T in poses])
+    assert abs(yaws[-1] - yaws[0]) >= np.radians(360.0 - 11.0)
+    coverage = np.array(metrics["coverage_per_step"])
+    assert len(coverage) == metrics["steps"] + 1
+    # the run's end counts for Vox@k beyond it (coverage_per_step is rounded to 5 decimals)
+    assert metrics["vox_at"]["100"] == pytest.approx(coverage[-1], abs=1e-5)
+    assert metrics["vox_at"]["50"] == pytest.approx(coverage[min(40, len(coverage) - 1)], abs=1e-5)
+
+
+@pytest.mark.slow
+def test_map_free_mode_explores(plan_spec, tmp_path):
+    out = tmp_path / "free"
+    code, _, _ = run_cli(explore_args(plan_spec, out, 40, "--no-video", "--map-free", "--seed", 2))
+    assert code == 0
+    metrics = load(out)
+    assert metrics["planner_mode"] == "map_free" and metrics["seed"] == 2
+    assert metrics["stop_reason"] == "step budget spent" and metrics["steps"] == 40
+    coverage = np.array(metrics["coverage_per_step"])
+    assert np.all(np.diff(coverage) >= 0) and coverage[-1] > coverage[0]
+    assert metrics["goals"] >= 1 and metrics["path_length_m"] > 0.5
+    assert metrics["frontiers_removed"]["occupied"] == 0  # no map, no occupancy check
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--start", "0.6,2.5,1.2,0"], "inside an obstacle"),
+    (["--start", "50,50,1.2,0"], "outside the scene"),
+    (["--start", "2,2.5,9,0"], "outside the scene"),  # above the walls
+    (["--max-steps", "0"], "at least 1"),
+    (["--start", "2,2.5,1.2"], "x,y,z,yaw"),
+    (["--start", "2,2.5,abc,0"], "x,y,z,yaw"),
+    (["--method", "frontiernet", "--model", "{tmp}/missing.safetensors"], "not found"),
+    (["--method", "frontiernet", "--model", "{tmp}/corrupt.safetensors"], "corrupt.safetensors"),
+    (["--method", "nope"], "valid: frontiernet, oracle"),
+    (["planner.mode=bogus"], "planner.mode"),
+])
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
+    (tmp_path / "corrupt.safetensors").write_bytes(b"\x08\x00\x00\x00\x00\x00\x00\x00{broken}" + bytes(64))
+    out = tmp_path / "out"
+    # a later --method / --max-steps overrides the oracle run's
+    args = explore_args(plan_spec, out, 5, "--no-video") + [e.format(tmp=tmp_path) for e in extra]
+    code, _, stderr = run_cli(args)
+    assert code == 2
+    assert message in stderr and stderr.count("\n") == 1 and "Traceback" not in stderr
+    assert stderr.startswith("frontiernet explore: error:")
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.slow
+def test_demo_prints_the_coverage_and_writes_the_video(plan_spec, tmp_path):
+    import cv2
+
+    out = tmp_path / "demo"
+    code, stdout, _ = run_cli(["demo", "--max-steps", 15, "--scene", plan_spec, "--out", out])
+    assert code == 0
+    assert "coverage" in stdout and "%" in stdout and "exploration.mp4" in stdout
+    metrics = load(out)
+    assert metrics["method"] == "frontiernet" and metrics["model"] == "shipped" and metrics["depth"] == "emulated"
+    assert metrics["steps"] <= 15 and metrics["collisions"] == 0
+    assert f"{metrics['coverage']:.1%}" in stdout
+    video = cv2.VideoCapture(str(out / "exploration.mp4"))
+    try:
+        assert int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == metrics["iterations"] + 1
+    finally:
+        video.release()
+    assert (out / "coverage.png").is_file()
+
+
+def test_sampled_start_is_seeded_and_clear_of_obstacles(plan_spec):
+    from frontiernet.exploration.run import sample_start
+    from frontiernet.scenes import load_scene
+    from frontiernet.simulator.raycast import distance_to_surface
+    from frontiernet.simulator.voxels import voxelize_scene
+
+    conf = load_config("explore")
+    scene = load_scene(plan_spec)
+    voxels = voxelize_scene(scene, load_config("sim").voxels)
+    starts = [sample_start(scene, voxels, conf, np.random.default_rng(seed)) for seed in (0, 0, 1)]
+    np.testing.assert_array_equal(starts[0], starts[1])
+    assert not np.allclose(starts[0], starts[2])
+    for T in starts:
+        assert T[2, 3] == pytest.approx(scene.bounds[0, 2] + CAMERA_HEIGHT)
+        # clearance to the walls (voxel-centre sampling: up to half a voxel diagonal less than configured)
+        assert distance_to_surface(scene, T[None, :3, 3])[0] >= float(conf.run.start_clearance_m) - 0.08

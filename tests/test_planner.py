@@ -1,0 +1,331 @@
+"""Planning (DESIGN.md item 6): the frontier tree, the pose graph, utility = gain / distance,
+goal keeping, blacklisting, map and map-free routes, route resampling."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from conftest import TWO_ROOM, explore_section
+from frontiernet.config import load_config
+from frontiernet.frontiers.tracking import Frontier
+from frontiernet.geometry import arc_lengths, pose_from_heading
+from frontiernet.mapping import OccupancyMap
+from frontiernet.planning.planner import FrontierPlanner, PlanningGrid, Route, resample_route
+from frontiernet.planning.tree import PoseGraph, edge_points, walk_back
+from frontiernet.simulator.camera import PinholeCamera, Renderer
+
+SMALL = PinholeCamera(120, 120, 75.0, 75.0, 59.5, 59.5, 3.5)  # the paper's field of view, 120 px
+Z = 1.2
+
+
+def planner_conf(**changes) -> dict:
+    return explore_section("planner", **changes)
+
+
+def frontier(fid: int, xy, gain: float, parent: int, yaw: float = 0.0) -> Frontier:
+    direction = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    return Frontier(fid, np.array([xy[0], xy[1], Z], float), direction, gain, gain, parent, 0, 0)
+
+
+def open_grid(size_m: float = 6.0, cell: float = 0.1) -> PlanningGrid:
+    """An obstacle-free grid of unit cell cost over [0, size_m]^2: path costs are lengths in metres."""
+    n = round(size_m / cell)
+    return PlanningGrid(np.zeros(2), cell, np.ones((n, n)))
+
+
+def parents(*xy):
+    points = [np.asarray(p, float) for p in xy]
+    return lambda index: points[index]
+
+
+# -- the frontier tree ------------------------------------------------------------------------------
+
+
+def test_edge_points_run_from_the_frontier_to_the_parent_at_most_spacing_apart():
+    points = edge_points(np.array([3.0, 1.0]), np.array([0.0, 5.0]), 0.1)
+    np.testing.assert_allclose(points[0], [3.0, 1.0])
+    np.testing.assert_allclose(points[-1], [0.0, 5.0])
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    assert len(points) == 51 and np.allclose(steps, 0.1)
+    # a frontier on its parent is one point pair, not an empty edge
+    assert len(edge_points(np.zeros(2), np.zeros(2), 0.1)) == 2
+
+
+def test_walk_back_finds_the_first_reachable_point_from_the_frontier_end():
+    frontier_xy, parent_xy = np.array([4.0, 0.0]), np.array([0.0, 0.0])
+    # the map reaches x <= 2.5: c* is the first edge point (from the frontier) at x <= 2.5
+    index = walk_back(frontier_xy, parent_xy, lambda p: p[:, 0] <= 2.5 + 1e-9, 0.1)
+    assert edge_points(frontier_xy, parent_xy, 0.1)[index][0] == pytest.approx(2.5)
+    assert index == 15
+    assert walk_back(frontier_xy, parent_xy, lambda p: np.ones(len(p), bool), 0.1) == 0  # the frontier itself
+    assert walk_back(frontier_xy, parent_xy, lambda p: np.zeros(len(p), bool), 0.1) is None
+    # a map with a hole: the first reachable point from the frontier side wins, not the longest run
+    index = walk_back(frontier_xy, parent_xy, lambda p: (p[:, 0] < 1.0) | ((p[:, 0] > 3.0) & (p[:, 0] < 3.5)), 0.1)
+    assert 3.0 < edge_points(frontier_xy, parent_xy, 0.1)[index][0] < 3.5
+
+
+def loop_trajectory() -> np.ndarray:
+    """Out along y = 0 to x = 3, up to y = 2, back to x = 0 and down to (0, 0.1): 0.1 m apart."""
+    legs = [np.c_[np.arange(0, 3.0, 0.1), np.zeros(30)], np.c_[np.full(20, 3.0), np.arange(0, 2.0, 0.1)],
+            np.c_[np.arange(3.0, 0.0, -0.1), np.full(30, 2.0)], np.c_[np.zeros(20), np.arange(2.0, 0.05, -0.1)]]
+    return np.concatenate(legs)
+
+
+def test_pose_graph_links_revisits_so_the_return_is_short():
+    xy = loop_trajectory()
+    assert np.allclose(xy[-1], [0.0, 0.1])
+    graph = PoseGraph(link_radius_m=0.3)
+    assert [graph.add(p) for p in xy] == list(range(len(xy)))
+    last = len(xy) - 1
+    distances, predecessors = graph.distances_from(last)
+    assert distances[0] == pytest.approx(0.1, abs=1e-3)  # the revisit closes the loop
+    # (0.5, 0): straight-line 0.51 m; along the linked poses at most 0.6 m (back to the start, then the first leg)
+    assert 0.5 < distances[5] <= 0.6 + 1e-3
+    path = graph.path(predecessors, 5)
+    np.testing.assert_allclose(path[0], xy[last])
+    np.testing.assert_allclose(path[-1], xy[5])
+    assert arc_lengths(path)[-1] == pytest.approx(distances[5], abs=1e-3)
+    assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.3 + 1e-9)  # only linked poses are joined
+
+    # without the link the way back re-traces the whole loop
+    retrace = PoseGraph(link_radius_m=0.05)
+    for p in xy:
+        retrace.add(p)
+    assert retrace.distances_from(last)[0][0] == pytest.approx(arc_lengths(xy)[-1], abs=1e-3)
+    assert arc_lengths(xy)[-1] > 9.5
+
+
+# -- utility and goal choice ------------------------------------------------------------------------
+
+
+def test_utility_is_gain_over_distance_with_a_floor_on_the_distance():
+    planner = FrontierPlanner(planner_conf(gain_exponent=1.0, min_distance_m=0.5))
+    assert planner.utility(6.0, 2.0) == pytest.approx(3.0)  # paper Eq. 8
+    assert planner.utility(1.0, 0.1) == pytest.approx(2.0)  # 0.1 m counts as 0.5 m
+    assert planner.utility(0.0, 1.0) == 0.0
+    assert FrontierPlanner(planner_conf(gain_exponent=2.0)).utility(3.0, 3.0) == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("far_gain, chosen", [(9.0, 1), (5.0, 0)])
+def test_best_route_maximises_gain_over_path_distance(far_gain, chosen):
+    """Near: 1 m away, gain 2 (u = 2). Far: 3 m away, gain 9 (u = 3) or 5 (u = 1.67)."""
+    robot = np.array([1.05, 3.05])  # a cell centre of the open grid
+    frontiers = [frontier(0, robot + [0.0, 1.0], 2.0, 0), frontier(1, robot + [3.0, 0.0], far_gain, 0)]
+    planner = FrontierPlanner(planner_conf())
+    route = planner.best_route(frontiers, robot, parents(robot), grid=open_grid())
+    assert route.frontier_id == chosen
+    expected_distance = [1.0, 3.0][chosen]
+    assert route.distance_m == pytest.approx(expected_distance, abs=1e-9)
+    assert route.utility == pytest.approx([2.0, far_gain][chosen] / expected_distance)
+    np.testing.assert_allclose(route.waypoints[-1], frontiers[chosen].position[:2], atol=0.051)
+    assert not planner.failures and not planner.blacklist
+
+
+def test_blacklisted_or_missing_frontiers_give_no_route():
+    planner = FrontierPlanner(planner_conf())
+    robot = np.array([1.05, 1.05])
+    assert planner.best_route([], robot, parents(robot), grid=open_grid()) is None
+    planner.blacklist.add(0)
+    assert planner.best_route([frontier(0, (2.0, 1.05), 5.0, 0)], robot, parents(robot), grid=open_grid()) is None
+
+
+@pytest.mark.parametrize("other_gain, switch", [(4.9, False), (5.2, True)])
+def test_the_current_goal_is_kept_unless_another_is_better_by_the_margin(other_gain, switch):
+    """Both 2 m away: the goal's utility is 2.0; the other's is 2.45 (22.5 % better) or 2.6 (30 %)."""
+    robot = np.array([3.05, 3.05])
+    frontiers = [frontier(7, robot + [2.0, 0.0], 4.0, 0), frontier(8, robot - [2.0, 0.0], other_gain, 0)]
+    planner = FrontierPlanner(planner_conf(goal_switch_margin=0.25))
+    route = planner.best_route(frontiers, robot, parents(robot), grid=open_grid(), keep=7, keep_margin=0.25)
+    assert route.frontier_id == (8 if switch else 7)
+    # without a current goal the better one always wins
+    assert planner.best_route(frontiers, robot, parents(robot), grid=open_grid()).frontier_id == 8
+
+
+def test_unreachable_frontier_is_blacklisted_after_max_failures_and_never_returned():
+    robot = np.array([1.05, 1.05])
+    grid = open_grid()
+    walled = PlanningGrid(grid.origin_xy, grid.cell_m, grid.cost.copy())
+    walled.cost[30, :] = np.inf  # a wall at x = 3.0 .. 3.1 cuts the grid in two
+    unreachable = frontier(3, (4.55, 1.05), 50.0, 1)  # behind the wall, seen from behind the wall
+    reachable = frontier(4, (2.05, 1.05), 1.0, 0)
+    where = parents(robot, (5.05, 1.05))
+    planner = FrontierPlanner(planner_conf(max_failures=3))
+    for _ in range(3):
+        assert 3 not in planner.blacklist
+        route = planner.best_route([unreachable, reachable], robot, where, grid=walled)
+        assert route.frontier_id == 4  # the valuable one cannot be reached
+    assert planner.failures[3] == 3 and planner.blacklist == {3}
+    assert 4 not in planner.failures
+    # even once a path exists (the wall was a mapping error), a blacklisted frontier is never the goal again
+    assert planner.best_route([unreachable, reachable], robot, where, grid=grid).frontier_id == 4
+    assert planner.best_route([unreachable], robot, where, grid=grid) is None
+
+
+def test_a_blacklisted_frontier_seen_again_does_not_become_the_goal_again():
+    """The explorer's sequence: the goal fails max_failures times (e.g. its motion collides), the planner
+    blacklists it and the explorer removes it from the tracker; the next frame sees it again."""
+    from types import SimpleNamespace
+
+    from frontiernet.frontiers import FrontierTracker
+
+    robot = np.array([1.05, 1.05])
+    seen = SimpleNamespace(position=np.array([3.05, 1.05, Z]), direction=np.array([1.0, 0.0, 0.0]), gain_m3=5.0)
+    tracker = FrontierTracker(dict(load_config("explore").tracking))
+    planner = FrontierPlanner(planner_conf(max_failures=3))
+    tracker.add([seen], parent_pose=0, step=0)
+    assert planner.best_route(tracker, robot, parents(robot), grid=open_grid()).frontier_id == 0
+    for _ in range(3):
+        planner.fail(0)
+    assert 0 in planner.blacklist
+    tracker.remove(0, "blacklisted")
+    assert tracker.add([seen], parent_pose=0, step=1) == [None]  # the same frontier, from the same pose
+    route = planner.best_route(tracker, robot, parents(robot), grid=open_grid())
+    assert route is None, f"frontier {route.frontier_id} at the blacklisted frontier's place is the goal again"
+
+
+def test_fail_reports_the_blacklisting_call():
+    planner = FrontierPlanner(planner_conf(max_failures=2))
+    assert planner.fail(5) is False
+    assert planner.fail(5) is True and 5 in planner.blacklist
+
+
+def test_robot_off_the_grid_gets_no_route():
+    planner = FrontierPlanner(planner_conf())
+    route = planner.best_route([frontier(0, (1.0, 1.0), 5.0, 0)], np.array([-3.0, 1.0]), parents((1.0, 1.0)),
+                               grid=open_grid())
+    assert route is None
+
+
+# -- routes on a real map: two rooms and a door -----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def two_room_map(two_room_scene, two_room_voxels):
+    """The robot's map after turning on the spot at (1.5, 2.0) in the left room (it sees through the
+    door up to the sensor range, x ~ 5 m, into the right room), as the explorer builds it."""
+    conf = load_config("explore")
+    occupancy = OccupancyMap.like(two_room_voxels, conf.map)
+    renderer = Renderer(two_room_scene, SMALL)
+    for yaw in range(0, 360, 45):
+        T = pose_from_heading(1.5, 2.0, Z, np.radians(yaw), np.radians(-5.0))
+        frame = renderer.render(T)
+        occupancy.integrate(frame.depth, frame.K, T)
+        occupancy.clear_sphere(T[:3, 3], 0.2)
+    return occupancy
+
+
+def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):
+    conf = planner_conf()
+    robot = np.array([1.0, 0.8])  # the left room's lower corner: the door is up and to the right
+    grid = PlanningGrid.from_map(two_room_map, Z, conf, robot)
+    parent = np.array([1.5, 2.0])  # the pose that saw the frontier through the door
+    goal = frontier(0, (5.7, 2.0), 10.0, 0)  # beyond the sensor range: unknown on the map
+    assert not np.isfinite(grid.lookup(grid.cost, goal.position[None, :2])[0])
+    route = FrontierPlanner(conf).best_route([goal], robot, parents(parent), grid=grid)
+    assert route is not None and route.frontier_id == 0
+
+    waypoints = route.waypoints
+    mapped, beyond = waypoints[:route.mapped_until], waypoints[route.mapped_until:]
+    assert 0 < route.mapped_until < len(waypoints)  # planned to c*, then along the tree edge
+    np.testing.assert_allclose(waypoints[-1], [5.7, 2.0])
+    assert np.allclose(beyond[:, 1], 2.0) and np.all(np.diff(beyond[:, 0]) > 0)  # the straight line of sight
+    assert 4.0 < mapped[-1, 0] < 5.7  # c* lies in the mapped part of the right room
+
+    # the mapped part: consecutive cells, through the door, every cell free with the clearance
+    assert np.linalg.norm(mapped[0] - robot) < 0.25  # the first cell next to the robot's
+    assert np.all(np.linalg.norm(np.diff(mapped, axis=0), axis=1) < 0.15)
+    (px0, px1), (dy0, dy1) = TWO_ROOM["partition_x"], TWO_ROOM["door_y"]
+    in_wall = (mapped[:, 0] > px0 - 0.05) & (mapped[:, 0] < px1 + 0.05)
+    assert in_wall.any()
+    clearance = float(conf["clearance_m"])
+    assert np.all(mapped[in_wall, 1] > dy0 + clearance - 0.05) and np.all(mapped[in_wall, 1] < dy1 - clearance + 0.05)
+    free, occupied = two_room_map.slice_2d(Z - conf["height_band_m"], Z + conf["height_band_m"])
+    to_obstacle = ndimage.distance_transform_edt(~occupied) * two_room_map.voxel_size
+    assert np.all(grid.lookup(free.astype(float), mapped, outside=0) == 1)
+    assert np.all(grid.lookup(to_obstacle, mapped, outside=0) >= clearance)
+    # and against the true walls (the agent's collision sphere is 0.2 m)
+    assert np.all((mapped[:, 0] > 0.2) & (mapped[:, 1] > 0.2) & (mapped[:, 1] < 3.8))
+    # the distance used in the utility is at least the route's length
+    assert route.distance_m >= arc_lengths(np.vstack([robot, waypoints]))[-1] - 0.2
+    assert route.utility == pytest.approx(10.0 / route.distance_m)
+
+
+def test_planning_grid_blocks_unknown_and_obstacles_and_keeps_the_robot_cell_open(two_room_map):
+    conf = planner_conf()
+    robot_in_unknown = np.array([4.0, 0.4])  # the right room's corner behind the partition: never seen
+    grid = PlanningGrid.from_map(two_room_map, Z, conf, robot_in_unknown)
+    costs = grid.lookup(grid.cost, np.array([[1.5, 1.0], [1.5, 0.05], [3.0, 1.0], [4.0, 0.6], [4.0, 0.4],
+                                             [-9.0, 0.0]]))
+    free_middle, wall_side, partition, unknown, robot, outside = costs
+    assert np.isfinite(free_middle) and free_middle >= 1.0
+    assert not np.isfinite(wall_side) and not np.isfinite(partition) and not np.isfinite(unknown)
+    assert np.isfinite(robot)  # the robot stands in free space whatever the map says
+    assert outside == np.inf
+    # the cost grows towards walls: paths keep to the middle
+    assert grid.lookup(grid.cost, np.array([[1.0, 0.5]]))[0] > grid.lookup(grid.cost, np.array([[1.0, 1.5]]))[0]
+
+
+# -- map-free mode: the tree and the trajectory -----------------------------------------------------
+
+
+def test_map_free_route_follows_the_trajectory_back_to_the_parent_then_the_edge():
+    """An L-shaped trajectory (0,0) -> (2,0) -> (2,2); the frontier at (1,-1) was seen from (1,0)."""
+    xy = np.concatenate([np.c_[np.arange(0, 2.0, 0.1), np.zeros(20)], np.c_[np.full(21, 2.0), np.arange(0, 2.01, 0.1)]])
+    graph = PoseGraph(0.05)
+    for p in xy:
+        graph.add(p)
+    robot = len(xy) - 1
+    target = frontier(0, (1.0, -1.0), 8.0, parent=10, yaw=-np.pi / 2)
+    planner = FrontierPlanner(planner_conf(edge_spacing_m=0.1))
+    route = planner.best_route([target], xy[robot], lambda i: xy[i], graph=graph, robot_index=robot)
+    assert route.distance_m == pytest.approx(2.0 + 1.0 + 1.0, abs=1e-3)  # back up, back along, then the edge
+    assert route.utility == pytest.approx(8.0 / 4.0, rel=1e-3)
+    back = route.waypoints[:route.mapped_until]
+    np.testing.assert_allclose(back, xy[robot - 1:9:-1])  # the poses visited, in reverse, to the parent
+    np.testing.assert_allclose(route.waypoints[-1], [1.0, -1.0])
+    edge = route.waypoints[route.mapped_until:]
+    assert np.allclose(edge[:, 0], 1.0) and np.all(np.diff(edge[:, 1]) < 0)
+
+
+def test_map_free_prefers_the_frontier_that_is_closer_along_the_trajectory():
+    """Two frontiers equally far from the robot in a straight line; one's parent is far back along the path."""
+    xy = np.concatenate([np.c_[np.arange(0, 3.0, 0.1), np.zeros(30)], np.c_[np.full(21, 3.0), np.arange(0, 2.01, 0.1)]])
+    graph = PoseGraph(0.05)
+    for p in xy:
+        graph.add(p)
+    robot = len(xy) - 1  # at (3, 2)
+    late = frontier(0, (3.5, 2.5), 3.0, parent=robot - 1)
+    early = frontier(1, (0.0, 0.5), 3.0, parent=0)
+    route = FrontierPlanner(planner_conf()).best_route([late, early], xy[robot], lambda i: xy[i], graph=graph,
+                                                        robot_index=robot)
+    assert route.frontier_id == 0
+
+
+# -- resampling into motion increments --------------------------------------------------------------
+
+
+def test_resample_route_spaces_waypoints_by_arc_and_keeps_the_mapped_part():
+    route = Route(0, np.array([[1.0, 0.0], [1.0, 1.0]]), mapped_until=1, distance_m=2.0, utility=1.0)
+    spacing = 0.11
+    resampled = resample_route(route, np.array([0.0, 0.0]), spacing)
+    points = np.vstack([[0.0, 0.0], resampled.waypoints])
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    assert np.all(steps <= spacing + 1e-9)  # no increment longer than one step
+    arc = np.append(np.arange(spacing, 2.0, spacing), 2.0)
+    assert len(resampled.waypoints) == len(arc)
+    np.testing.assert_allclose(resampled.waypoints[-1], [1.0, 1.0])  # the frontier is kept
+    straight = np.abs(resampled.waypoints[:, 0] - 1.0) > 1e-9
+    np.testing.assert_allclose(resampled.waypoints[straight, 0], arc[straight])  # along the first leg
+    # the mapped part ends where the original did (arc 1.0, the corner)
+    assert resampled.mapped_until == 9
+    assert np.all(resampled.waypoints[:9, 1] == 0.0) and np.all(resampled.waypoints[9:, 1] > 0.0)
+    assert (resampled.frontier_id, resampled.distance_m, resampled.utility) == (0, 2.0, 1.0)
+
+
+def test_resample_short_route_is_its_last_waypoint():
+    route = Route(2, np.array([[0.03, 0.0], [0.05, 0.02]]), mapped_until=2, distance_m=0.1, utility=1.0)
+    resampled = resample_route(route, np.zeros(2), 0.11)
+    np.testing.assert_allclose(resampled.waypoints, [[0.05, 0.02]])
+    assert resampled.mapped_until == 1

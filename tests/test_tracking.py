@@ -1,0 +1,253 @@
+"""Frontier bookkeeping (DESIGN.md item 5): merge, map-based gain reduction, drops, stable ids."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from conftest import box_scene, explore_section, room_boxes
+from frontiernet.config import load_config
+from frontiernet.frontiers import FrontierTracker
+from frontiernet.geometry import pose_from_heading
+from frontiernet.mapping import FREE, OCCUPIED, OccupancyMap
+from frontiernet.simulator.camera import PinholeCamera, Renderer
+
+# a closed room, interior [0, 4] x [0, 3] x [0, 2.5] m; the map's voxel faces lie half a voxel off the walls
+ROOM = (4.0, 3.0, 2.5)
+BOUNDS = np.array([[-0.45, -0.45, -0.45], [4.45, 3.45, 2.95]])
+SMALL = PinholeCamera(120, 120, 75.0, 75.0, 59.5, 59.5, 3.5)  # the paper's field of view, 120 px
+CAMERA_Z = 1.2
+
+
+def tracking_conf(**changes) -> dict:
+    return explore_section("tracking", **changes)
+
+
+def observation(xyz, yaw_deg: float = 0.0, gain: float = 10.0):
+    """A FrontierObservation-like record with a level view direction at heading `yaw_deg`."""
+    yaw = np.radians(yaw_deg)
+    return SimpleNamespace(position=np.asarray(xyz, float), direction=np.array([np.cos(yaw), np.sin(yaw), 0.0]),
+                           gain_m3=float(gain))
+
+
+def level_pose(x: float, y: float, yaw_deg: float, z: float = CAMERA_Z) -> np.ndarray:
+    return pose_from_heading(x, y, z, np.radians(yaw_deg))
+
+
+@pytest.fixture(scope="module")
+def mapped_room():
+    """The room's occupancy map after one level frame from (0.8, 1.5, 1.2) looking along +x."""
+    lower, upper = room_boxes(*ROOM, wall=0.25)
+    renderer = Renderer(box_scene(lower, upper, "tracking-room"), SMALL)
+    occupancy = OccupancyMap.from_bounds(BOUNDS, load_config("explore").map)
+    T = level_pose(0.8, 1.5, 0.0)  # the wall x = 4 is 3.2 m away, within range
+    frame = renderer.render(T)
+    occupancy.integrate(frame.depth, frame.K, T)
+    return occupancy
+
+
+# -- merging and ids --------------------------------------------------------------------------------
+
+
+def test_close_similar_observation_merges_into_a_running_mean():
+    tracker = FrontierTracker(tracking_conf())
+    assert tracker.add([observation((1.0, 1.0, 1.2), 0.0, gain=6.0)], parent_pose=0, step=0) == [0]
+    # 0.3 m away (< merge_distance_m 0.6), direction 30 degrees off (< merge_angle_deg 45)
+    assert tracker.add([observation((1.3, 1.0, 1.2), 30.0, gain=2.0)], parent_pose=4, step=7) == [0]
+    assert len(tracker) == 1
+    frontier = tracker.get(0)
+    np.testing.assert_allclose(frontier.position, [1.15, 1.0, 1.2])
+    assert frontier.predicted_gain_m3 == pytest.approx(4.0) and frontier.gain_m3 == pytest.approx(4.0)
+    assert np.degrees(frontier.yaw) == pytest.approx(15.0)  # the mean of the two directions
+    assert np.linalg.norm(frontier.direction) == pytest.approx(1.0)
+    assert frontier.observations == 2
+    assert frontier.parent_pose == 4  # the latest viewer is the parent in the frontier tree
+    assert (frontier.first_step, frontier.last_step) == (0, 7)
+    # a third observation weighs one third
+    tracker.add([observation((1.45, 1.0, 1.2), 15.0, gain=7.0)], parent_pose=5, step=8)
+    np.testing.assert_allclose(tracker.get(0).position, [(1.0 + 1.3 + 1.45) / 3, 1.0, 1.2])
+    assert tracker.get(0).predicted_gain_m3 == pytest.approx(5.0)
+
+
+@pytest.mark.parametrize("xyz, yaw_deg, why", [
+    ((1.7, 1.0, 1.2), 0.0, "0.7 m away"),
+    ((1.0, 1.0, 1.2), 180.0, "same place, opposite direction"),
+    ((1.2, 1.0, 1.2), 50.0, "direction 50 degrees off"),
+])
+def test_far_or_differently_directed_observation_is_a_new_frontier(xyz, yaw_deg, why):
+    tracker = FrontierTracker(tracking_conf())
+    tracker.add([observation((1.0, 1.0, 1.2), 0.0)], 0, 0)
+    assert tracker.add([observation(xyz, yaw_deg)], 1, 1) == [1], why
+    assert len(tracker) == 2
+    np.testing.assert_allclose(tracker.get(0).position, [1.0, 1.0, 1.2])  # the old one is untouched
+    assert tracker.get(0).observations == 1
+
+
+def test_an_observation_merges_into_the_closest_matching_frontier():
+    tracker = FrontierTracker(tracking_conf())
+    tracker.add([observation((1.0, 1.0, 1.2)), observation((2.0, 1.0, 1.2))], 0, 0)
+    assert tracker.add([observation((1.6, 1.0, 1.2))], 1, 1) == [1]  # 0.4 m from #1, 0.6 m from #0
+    assert tracker.get(0).observations == 1 and tracker.get(1).observations == 2
+
+
+def test_ids_are_never_reused_after_removal():
+    tracker = FrontierTracker(tracking_conf())
+    assert tracker.add([observation((x, 1.0, 1.2)) for x in (0.0, 2.0, 4.0)], 0, 0) == [0, 1, 2]
+    tracker.remove(2, "visited")
+    tracker.remove(1, "blacklisted")
+    assert tracker.removed["visited"] == 1 and tracker.removed["blacklisted"] == 1
+    # a new observation where #2 was gets a fresh id
+    assert tracker.add([observation((4.0, 1.0, 1.2))], 1, 1) == [3]
+    assert sorted(f.id for f in tracker) == [0, 3]
+    tracker.remove(3, "visited")
+    tracker.remove(3, "visited")  # removing twice counts once
+    assert tracker.removed["visited"] == 2
+
+
+def test_frontier_camera_pose_looks_along_its_direction():
+    tracker = FrontierTracker(tracking_conf())
+    tracker.add([observation((1.0, 2.0, 1.2), 90.0)], 0, 0)
+    T = tracker.get(0).camera_pose()
+    np.testing.assert_allclose(T[:3, 3], [1.0, 2.0, 1.2])
+    np.testing.assert_allclose(T[:3, 2], [0.0, 1.0, 0.0], atol=1e-12)  # optical axis (camera z) along +y
+    np.testing.assert_allclose(T[:3, :3].T @ T[:3, :3], np.eye(3), atol=1e-12)
+    record = tracker.as_list()[0]
+    assert record["id"] == 0 and record["position"] == [1.0, 2.0, 1.2]
+
+
+# -- gain reduction against the map --------------------------------------------------------------
+
+
+def test_gain_is_reduced_by_the_known_volume_in_front_of_the_frontier(mapped_room):
+    tracker = FrontierTracker(tracking_conf())
+    ahead, aside = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=20.0),  # looks into the mapped room
+                                observation((1.0, 1.5, 1.2), -90.0, gain=20.0)], 0, 0)  # at the unseen wall y=0
+    tracker.update_gains(OccupancyMap.from_bounds(BOUNDS))  # an empty map knows nothing
+    assert tracker.get(ahead).gain_m3 == pytest.approx(20.0) and tracker.get(aside).gain_m3 == pytest.approx(20.0)
+
+    tracker.update_gains(mapped_room)
+    view = tracking_conf()["gain_view"]
+    known = mapped_room.visible_known_volume(tracker.get(ahead).camera_pose(), int(view["width_px"]),
+                                             float(view["focal_px"]), float(view["max_depth_m"]))[0]
+    assert known > 8.0  # about 3 m of room mapped in front of it
+    assert tracker.get(ahead).gain_m3 == pytest.approx(20.0 - known)
+    assert tracker.get(ahead).predicted_gain_m3 == 20.0  # the prediction itself is kept
+    assert tracker.get(aside).gain_m3 > 17.0  # little of what it looks at is mapped
+
+    # once the known volume exceeds the prediction, the gain is 0 (not negative) and prune drops it
+    small = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=5.0)], 1, 1)[0]
+    assert small == ahead  # merged: predicted (20 + 5) / 2 = 12.5 < known
+    tracker.update_gains(mapped_room)
+    assert tracker.get(ahead).gain_m3 == 0.0
+    assert tracker.prune(np.zeros((0, 4, 4))) == [ahead]
+    assert tracker.removed["low_gain"] == 1 and tracker.get(aside) is not None
+
+
+def test_gain_reduction_can_be_switched_off(mapped_room):
+    tracker = FrontierTracker(tracking_conf(reduce_gain_by_map=False))
+    tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=20.0)], 0, 0)
+    tracker.update_gains(mapped_room)
+    assert tracker.get(0).gain_m3 == 20.0
+
+
+def test_frontiers_below_g_min_are_dropped():
+    tracker = FrontierTracker(tracking_conf(min_gain_m3=1.0))
+    low, high = tracker.add([observation((0.0, 0.0, 1.2), gain=0.9), observation((3.0, 0.0, 1.2), gain=1.1)], 0, 0)
+    assert tracker.prune(np.zeros((0, 4, 4))) == [low]
+    assert [f.id for f in tracker] == [high] and tracker.removed["low_gain"] == 1
+
+
+def test_view_z_puts_the_gain_view_and_the_occupied_check_at_the_robot_height(mapped_room):
+    # a frontier anchored on the floor at the end of the sensor's range (z = 0 lies in the floor's voxels)
+    floor_xyz = (2.5, 1.5, 0.0)
+    assert mapped_room.state_at(np.array([floor_xyz]))[0] == OCCUPIED
+    assert mapped_room.state_at(np.array([[2.5, 1.5, CAMERA_Z]]))[0] == FREE
+    view = tracking_conf()["gain_view"]
+
+    conf = tracking_conf(height_window_m=None)  # this test is about where the checks are made, not the window
+    at_floor = FrontierTracker(conf)
+    at_floor.add([observation(floor_xyz, 0.0, gain=30.0)], 0, 0)
+    at_floor.update_gains(mapped_room)
+    assert at_floor.prune(np.zeros((0, 4, 4)), mapped_room) == [0]
+    assert at_floor.removed["occupied"] == 1
+
+    at_robot = FrontierTracker(conf, view_z=CAMERA_Z)
+    at_robot.add([observation(floor_xyz, 0.0, gain=30.0)], 0, 0)
+    at_robot.update_gains(mapped_room)
+    T = at_robot.get(0).camera_pose()
+    T[2, 3] = CAMERA_Z
+    known = mapped_room.visible_known_volume(T, int(view["width_px"]), float(view["focal_px"]),
+                                             float(view["max_depth_m"]))[0]
+    assert known > 0.5
+    assert at_robot.get(0).gain_m3 == pytest.approx(30.0 - known)
+    assert at_robot.prune(np.zeros((0, 4, 4)), mapped_room) == []
+    assert at_robot.get(0).position[2] == 0.0  # the frontier itself is not moved
+
+
+def test_with_view_z_only_frontiers_in_the_height_window_are_kept():
+    low, high = tracking_conf()["height_window_m"]
+    tracker = FrontierTracker(tracking_conf(), view_z=CAMERA_Z)
+    heights = [CAMERA_Z + low - 0.05, CAMERA_Z + low + 0.05, CAMERA_Z, CAMERA_Z + high - 0.05, CAMERA_Z + high + 0.05]
+    ids = tracker.add([observation((2.0 * i, 0.0, z)) for i, z in enumerate(heights)], 0, 0)
+    assert ids == [None, 0, 1, 2, None]  # e.g. the tops of walls against the sky are not frontiers
+    # without view_z the frontier's own height is all there is: no window
+    assert FrontierTracker(tracking_conf()).add([observation((0.0, 0.0, CAMERA_Z + high + 1.0))], 0, 0) == [0]
+
+
+def test_a_blacklisted_frontier_leaves_a_tombstone_that_discards_its_reobservations():
+    tracker = FrontierTracker(tracking_conf())
+    given_up, dropped = tracker.add([observation((1.0, 1.0, 1.2), 0.0), observation((4.0, 1.0, 1.2), 0.0)], 0, 0)
+    tracker.remove(given_up, "blacklisted")
+    tracker.remove(dropped, "visited")
+    again = tracker.add([observation((1.2, 1.0, 1.2), 10.0),    # the blacklisted one, seen again
+                         observation((1.0, 1.0, 1.2), 180.0),   # same place, looking the other way
+                         observation((4.0, 1.0, 1.2), 0.0)], 1, 1)  # a visited one may come back
+    assert again == [None, 2, 3]
+    assert tracker.removed["blacklisted"] == 1 and len(tracker) == 2
+
+
+def test_frontier_in_occupied_space_is_dropped(mapped_room):
+    tracker = FrontierTracker(tracking_conf(reduce_gain_by_map=False))
+    wall, free = tracker.add([observation((4.0, 1.5, 1.2), 180.0), observation((2.0, 1.5, 1.2), 90.0)], 0, 0)
+    assert tracker.prune(np.zeros((0, 4, 4)), mapped_room) == [wall]
+    assert tracker.removed["occupied"] == 1 and tracker.get(free) is not None
+    # without a map (map-free mode) nothing is checked against occupancy
+    tracker.add([observation((4.0, 1.5, 1.2), 180.0)], 1, 1)
+    assert tracker.prune(np.zeros((0, 4, 4))) == []
+
+
+# -- visited poses ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("pose_xy, pose_yaw_deg, dropped", [
+    ((1.3, 1.0), 0.0, True),     # 0.3 m away, same heading
+    ((1.0, 1.3), 20.0, True),    # 0.3 m away, 0.35 rad off (< 0.4 rad)
+    ((1.0, 1.0), 180.0, False),  # on the spot, looking the other way
+    ((1.0, 1.0), 30.0, False),   # on the spot, 0.52 rad off
+    ((1.6, 1.0), 0.0, False),    # 0.6 m away (> 0.5 m), same heading
+])
+def test_a_visited_pose_drops_the_frontier_it_looked_at(pose_xy, pose_yaw_deg, dropped):
+    tracker = FrontierTracker(tracking_conf())
+    tracker.add([observation((1.0, 1.0, 1.2), 0.0, gain=5.0)], 0, 0)
+    far_away = level_pose(-5.0, -5.0, 0.0)
+    poses = np.stack([far_away, level_pose(*pose_xy, pose_yaw_deg)])
+    assert tracker.prune(poses) == ([0] if dropped else [])
+    assert tracker.removed["visited"] == int(dropped)
+
+
+def test_visited_uses_the_horizontal_heading_of_a_tilted_camera():
+    tracker = FrontierTracker(tracking_conf())
+    tracker.add([observation((1.0, 1.0, 1.2), 90.0, gain=5.0)], 0, 0)
+    tilted = pose_from_heading(1.0, 1.2, 1.2, np.radians(90.0), np.radians(-30.0))  # looks down and along +y
+    assert tracker.prune(tilted[None]) == [0]
+
+
+def test_max_frontiers_keeps_the_highest_gains():
+    tracker = FrontierTracker(tracking_conf(max_frontiers=3))
+    gains = [2.0, 9.0, 5.0, 1.5, 7.0]
+    ids = tracker.add([observation((2.0 * i, 0.0, 1.2), gain=g) for i, g in enumerate(gains)], 0, 0)
+    tracker.prune(np.zeros((0, 4, 4)))
+    assert sorted(f.id for f in tracker) == sorted([ids[1], ids[4], ids[2]])
+    assert tracker.removed["low_gain"] == 2
