@@ -136,17 +136,25 @@ def test_gain_is_reduced_by_the_known_volume_in_front_of_the_frontier(mapped_roo
     assert tracker.get(ahead).predicted_gain_m3 == 20.0  # the prediction itself is kept
     assert tracker.get(aside).gain_m3 > 17.0  # little of what it looks at is mapped
 
-    # once the known volume exceeds the prediction, the gain is 0 (not negative) and prune drops it
-    small = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=5.0)], 1, 1)[0]
-    assert small == ahead  # merged: predicted (20 + 5) / 2 = 12.5 < known
+    # a re-observation is a fresh prediction: only what gets mapped after it reduces its gain
+    again = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=5.0)], 1, 1)[0]
+    assert again == ahead  # merged: predicted (20 + 5) / 2 = 12.5
     tracker.update_gains(mapped_room)
-    assert tracker.get(ahead).gain_m3 == 0.0
+    assert tracker.get(ahead).gain_m3 == pytest.approx(12.5)
+
+
+def test_absolute_gain_reduction_drops_a_frontier_whose_view_is_mapped(mapped_room):
+    tracker = FrontierTracker(tracking_conf(gain_reduction="absolute"))
+    ahead, aside = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=5.0),
+                                observation((1.0, 1.5, 1.2), -90.0, gain=20.0)], 0, 0)
+    tracker.update_gains(mapped_room)  # the public code's rule: everything visible and known counts
+    assert tracker.get(ahead).gain_m3 == 0.0  # not negative
     assert tracker.prune(np.zeros((0, 4, 4))) == [ahead]
     assert tracker.removed["low_gain"] == 1 and tracker.get(aside) is not None
 
 
 def test_gain_reduction_can_be_switched_off(mapped_room):
-    tracker = FrontierTracker(tracking_conf(reduce_gain_by_map=False))
+    tracker = FrontierTracker(tracking_conf(gain_reduction="none"))
     tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=20.0)], 0, 0)
     tracker.update_gains(mapped_room)
     assert tracker.get(0).gain_m3 == 20.0
@@ -166,7 +174,7 @@ def test_view_z_puts_the_gain_view_and_the_occupied_check_at_the_robot_height(ma
     assert mapped_room.state_at(np.array([[2.5, 1.5, CAMERA_Z]]))[0] == FREE
     view = tracking_conf()["gain_view"]
 
-    conf = tracking_conf(height_window_m=None)  # this test is about where the checks are made, not the window
+    conf = tracking_conf(height_window_m=None, gain_reduction="absolute")  # where the checks are made, not the window
     at_floor = FrontierTracker(conf)
     at_floor.add([observation(floor_xyz, 0.0, gain=30.0)], 0, 0)
     at_floor.update_gains(mapped_room)
@@ -209,7 +217,7 @@ def test_a_blacklisted_frontier_leaves_a_tombstone_that_discards_its_reobservati
 
 
 def test_frontier_in_occupied_space_is_dropped(mapped_room):
-    tracker = FrontierTracker(tracking_conf(reduce_gain_by_map=False))
+    tracker = FrontierTracker(tracking_conf(gain_reduction="none"))
     wall, free = tracker.add([observation((4.0, 1.5, 1.2), 180.0), observation((2.0, 1.5, 1.2), 90.0)], 0, 0)
     assert tracker.prune(np.zeros((0, 4, 4)), mapped_room) == [wall]
     assert tracker.removed["occupied"] == 1 and tracker.get(free) is not None

@@ -8,8 +8,8 @@ list is folded into a :class:`FrontierTracker`, whose frontiers keep stable inte
   means of position, direction and predicted gain); otherwise it becomes a new frontier.
 * **Gain.** A frontier's gain is its predicted gain minus the known free volume a virtual
   camera at the frontier, looking along its direction, sees in the occupancy map (the
-  public code's map-based gain reduction): space mapped since the prediction no longer
-  counts.
+  public code's map-based gain reduction), by default only the part mapped since the
+  frontier was last observed: space mapped after the prediction no longer counts.
 * **Drop.** Frontiers whose gain falls below ``min_gain_m3`` (g_min), that lie in occupied
   space, or that a visited pose has looked at (closer than ``visited_distance_m`` and
   heading within ``visited_angle_rad`` of the view direction) are removed.
@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry import rotation_from_yaw_pitch
 
 
@@ -40,6 +41,9 @@ class Frontier:
         parent_pose: index (into the explorer's pose list) of the pose that last registered it.
         first_step, last_step: steps at which it was first and last observed.
         observations: number of merged observations.
+        known_baseline_m3: known free volume its gain view saw at its latest observation (the
+            ``since_observed`` gain reduction counts only what was mapped after it); None until
+            the next :meth:`FrontierTracker.update_gains`.
     """
 
     id: int
@@ -51,6 +55,7 @@ class Frontier:
     first_step: int
     last_step: int
     observations: int = 1
+    known_baseline_m3: float | None = None
 
     @property
     def yaw(self) -> float:
@@ -147,6 +152,7 @@ class FrontierTracker:
                 frontier.gain_m3 = frontier.predicted_gain_m3
                 frontier.observations = n + 1
                 frontier.parent_pose = parent_pose  # the latest viewer: the freshest line of sight
+                frontier.known_baseline_m3 = None  # a fresh prediction, relative to today's map
                 frontier.last_step = step
             ids.append(frontier.id)
         return ids
@@ -170,9 +176,15 @@ class FrontierTracker:
         return best
 
     def update_gains(self, occupancy) -> None:
-        """Gain = predicted gain - known free volume visible from the frontier in `occupancy`
-        (an :class:`~frontiernet.mapping.OccupancyMap`), when ``reduce_gain_by_map``."""
-        if not self.frontiers or not self.conf["reduce_gain_by_map"]:
+        """Reduce gains by the known free volume visible from each frontier in `occupancy` (an
+        :class:`~frontiernet.mapping.OccupancyMap`), per ``gain_reduction``: ``absolute`` (the
+        public code: gain = predicted - visible known volume) or ``since_observed`` (gain =
+        predicted - what became known since the frontier's latest observation: the network's
+        prediction already reflects what its image shows); ``none`` leaves gains alone."""
+        mode = str(self.conf["gain_reduction"])
+        if mode not in ("absolute", "since_observed", "none"):
+            raise InputError(f"tracking.gain_reduction must be absolute, since_observed or none, got {mode!r}")
+        if not self.frontiers or mode == "none":
             return
         frontiers = list(self.frontiers.values())
         view = self.conf["gain_view"]
@@ -182,7 +194,10 @@ class FrontierTracker:
         known = occupancy.visible_known_volume(poses, int(view["width_px"]), float(view["focal_px"]),
                                                float(view["max_depth_m"]))
         for frontier, volume in zip(frontiers, known):
-            frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - float(volume))
+            if frontier.known_baseline_m3 is None:
+                frontier.known_baseline_m3 = float(volume)
+            baseline = frontier.known_baseline_m3 if mode == "since_observed" else 0.0
+            frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - max(0.0, float(volume) - baseline))
 
     def prune(self, visited_poses: np.ndarray, occupancy=None) -> list[int]:
         """Drop low-gain, visited and (with `occupancy`) occupied frontiers; returns the dropped ids.
