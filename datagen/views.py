@@ -8,7 +8,7 @@ where it goes. :func:`sample_trajectory_poses` imitates that:
    multi-storey scenes work: the slice stays in the storey of that voxel) and put the
    camera ``camera_height_m`` (uniform) above it;
 2. plan on the 2D grid of voxel columns that are explorable over a vertical band of
-   +- ``min_clearance_m`` around that height (like :mod:`~frontiernet.simulator.flythrough`),
+   +- ``min_clearance_m`` around that height (:meth:`~frontiernet.simulator.voxels.VoxelGrid.column_clearance`),
    with a clearance cost that keeps paths in the middle of free space;
 3. start at the picked voxel's column (or a random free cell), pick a goal uniformly
    among the cells at least ``min_path_m`` away geodesically, take the cheapest path,
@@ -82,9 +82,7 @@ def slice_cost(voxels: VoxelGrid, k: int, clearance_m: float) -> np.ndarray:
     centre) are blocked, the margin covering where inside a voxel the surface lies.
     """
     size = voxels.voxel_size
-    band = math.ceil(clearance_m / size - 1e-9)
-    free = voxels.explorable[:, :, max(k - band, 0):k + band + 1].all(axis=2)
-    clearance = ndimage.distance_transform_edt(free) * size
+    clearance = voxels.column_clearance(k, math.ceil(clearance_m / size - 1e-9))
     return clearance_cost(clearance, clearance_m + size, _CENTRE_WEIGHT)
 
 

@@ -36,29 +36,29 @@ def add_parser(subparsers) -> None:
                                    description=__doc__.split("\n\n")[0])
     actions = parser.add_subparsers(dest="action", metavar="BENCHMARK", required=True,
                                     parser_class=type(parser))
-    render = actions.add_parser("render", help="render time per frame vs a bare cast_rays")
-    render.add_argument("--scene", default=None,
-                        help=f"scene spec (default: {HOUSE} when present, else procedural:0)")
+    render = _scene_bench(actions, "render", "render time per frame vs a bare cast_rays", run_render)
     render.add_argument("--repeats", type=int, default=20, help="timed repetitions (median is reported)")
     render.add_argument("--batch", type=int, default=8, help="poses per batched render")
-    render.add_argument("--json", action="store_true", help="print JSON only")
-    render.set_defaults(func=run_render)
-    occupancy = actions.add_parser("map", help="occupancy map update per frame vs a render")
-    occupancy.add_argument("--scene", default=None, help="scene spec (default as for bench render)")
+    occupancy = _scene_bench(actions, "map", "occupancy map update per frame vs a render", run_map)
     occupancy.add_argument("--frames", type=int, default=20, help="frames rendered and integrated (median is reported)")
     occupancy.add_argument("--views", type=int, default=50, help="frontier views of one visible_known_volume call")
-    occupancy.add_argument("--json", action="store_true", help="print JSON only")
-    occupancy.set_defaults(func=run_map)
-    explore = actions.add_parser("explore", help="cost of one exploration step by stage vs a render")
-    explore.add_argument("--scene", default=None, help="scene spec (default as for bench render)")
+    explore = _scene_bench(actions, "explore", "cost of one exploration step by stage vs a render", run_explore)
     explore.add_argument("--method", default="frontiernet", help="frontiernet or oracle")
     explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
-    explore.add_argument("--json", action="store_true", help="print JSON only")
-    explore.set_defaults(func=run_explore)
     from .main import plugin_commands
 
     for module in plugin_commands(BENCH_GROUP):  # e.g. deploy's `bench inference`
         module.add_parser(actions)
+
+
+def _scene_bench(actions, name: str, help_text: str, func):
+    """A benchmark subcommand with the options every scene benchmark takes (--scene, --json)."""
+    parser = actions.add_parser(name, help=help_text)
+    parser.add_argument("--scene", default=None,
+                        help=f"scene spec (default: {HOUSE} when present, else procedural:0)")
+    parser.add_argument("--json", action="store_true", help="print JSON only")
+    parser.set_defaults(func=func)
+    return parser
 
 
 def median_seconds(function, repeats: int, warmup: int = 2) -> float:

@@ -305,4 +305,4 @@ def _ball_offsets(radius: float, spacing: float) -> np.ndarray:
     return np.concatenate([np.zeros((1, 3)), grid[np.linalg.norm(grid, axis=1) > 0]])
 
 
-__all__ = ["Explorer", "ExplorationResult", "StepRecord", "STAGES", "wrap_angle"]
+__all__ = ["Explorer", "ExplorationResult", "StepRecord", "STAGES", "SIMULATOR_STAGES"]

@@ -51,9 +51,10 @@ def metrics(result: ExplorationResult, budget: int, info: dict, tracker=None) ->
     """The ``metrics.json`` record of a run (`info`: scene, method, depth, model, seed, start)."""
     steps = result.records[-1].step if result.records else 0
     coverage = coverage_per_step(result.records, steps)
+    vox = vox_at(coverage, budget)
     return {**info, "max_steps": int(budget), "steps": int(steps), "iterations": len(result.records) - 1,
             "stop_reason": result.stop_reason, "coverage": float(coverage[-1]),
-            "vox_at": vox_at(coverage, budget), "success": bool(vox_at(coverage, budget)["100"] > 0.4),
+            "vox_at": vox, "success": bool(vox["100"] > 0.4),
             "explorable_m3": round(result.explorable_m3, 3),
             "known_m3": round(result.records[-1].known_m3, 3) if result.records else 0.0,
             "path_length_m": round(result.path_length_m, 3), "collisions": int(result.collisions),

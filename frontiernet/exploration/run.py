@@ -11,7 +11,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import InputError
 from ..geometry import pose_from_heading
@@ -39,10 +38,8 @@ def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     """
     z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
     size = voxels.voxel_size
-    k = int(np.clip((z - voxels.origin[2]) / size, 0, voxels.shape[2] - 1))
     band = max(1, int(np.ceil(float(conf.planner.height_band_m) / size)))
-    free = voxels.explorable[:, :, max(k - band, 0):k + band + 1].all(axis=2)
-    clearance = ndimage.distance_transform_edt(free) * size
+    clearance = voxels.column_clearance(voxels.layer(z), band)
     cells = np.argwhere(clearance >= float(conf.run.start_clearance_m))
     if not len(cells):
         raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "

@@ -64,9 +64,7 @@ class StepPictures:
         free, occupied = explorer.map.slice_2d(z - self.band, z + self.band)
         path = np.array([T[:2, 3] for T in explorer.poses])
         if self._layout is None:
-            size = self.voxels.voxel_size
-            k = int(np.clip((z - self.voxels.origin[2]) / size, 0, self.voxels.shape[2] - 1))
-            self._layout = self.voxels.explorable[:, :, k]
+            self._layout = self.voxels.explorable[:, :, self.voxels.layer(z)]
         top = self.topdown.draw(self.topdown.background(free, occupied, self._layout), path, path[-1], record.yaw,
                                 list(explorer.tracker), record.goal, self._colour)
         return np.concatenate([camera, top], axis=1)

@@ -130,6 +130,16 @@ class VoxelGrid:
         """(..., 3) world points (metres) -> (...,) bool, in an occupied voxel (False off the grid)."""
         return self._lookup(self.occupied, points)
 
+    def layer(self, z: float) -> int:
+        """Index of the voxel layer holding height `z` (world metres), clipped to the grid."""
+        return int(np.clip((z - self.origin[2]) / self.voxel_size, 0, self.shape[2] - 1))
+
+    def column_clearance(self, k: int, band: int) -> np.ndarray:
+        """(X, Y) float64 in-plane distance (metres) from each column that is explorable over the
+        layers ``k - band .. k + band`` to the nearest column that is not (0 on those)."""
+        free = self.explorable[:, :, max(k - band, 0):k + band + 1].all(axis=2)
+        return ndimage.distance_transform_edt(free) * self.voxel_size
+
     def explorable_centres(self) -> np.ndarray:
         """(N, 3) float64 world centres of the explorable voxels (metres)."""
         return self.index_to_world(np.argwhere(self.explorable))
