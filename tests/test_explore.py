@@ -284,6 +284,8 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["--method", "frontiernet", "--model", "{tmp}/corrupt.safetensors"], "corrupt.safetensors"),
     (["--method", "nope"], "valid: frontiernet, oracle"),
     (["planner.mode=bogus"], "planner.mode"),
+    (["planner.clearance_m=0.2"], "planner.clearance_m = 0.2 is too small for the agent radius"),
+    (["tracking.gain_reduction=sometimes"], "beyond_frame, absolute or none"),
 ])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
     (tmp_path / "corrupt.safetensors").write_bytes(b"\x08\x00\x00\x00\x00\x00\x00\x00{broken}" + bytes(64))

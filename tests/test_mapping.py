@@ -220,6 +220,24 @@ def test_clear_sphere_frees_the_robot_footprint():
     assert occupancy.known_volume_m3 == pytest.approx(occupancy.observed.sum() * 1e-3)
 
 
+def test_sphere_touches_an_occupied_voxel_exactly_when_it_overlaps_its_cube():
+    occupancy = OccupancyMap.from_bounds(np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]), map_conf())
+    depth = np.full((9, 9), 1.0, np.float32)  # a frame looking along +x from x = 0.05 hits the voxel layer [1.0, 1.1)
+    T = np.array([[0, 0, 1, 0.05], [-1, 0, 0, 1.05], [0, -1, 0, 1.05], [0, 0, 0, 1]], np.float64)
+    occupancy.integrate(depth, np.array([[4.0, 0, 4], [0, 4.0, 4], [0, 0, 1]]), T)
+    assert occupancy.state_at(np.array([[1.05, 1.05, 1.05]]))[0] == OCCUPIED
+    # the occupied cube's face is at x = 1.0: a sphere at x = 0.75 reaches it with r > 0.25 only
+    assert not occupancy.sphere_touches_occupied(np.array([0.75, 1.05, 1.05]), 0.24)
+    assert occupancy.sphere_touches_occupied(np.array([0.75, 1.05, 1.05]), 0.26)
+    # diagonally off the lit patch's corner edge the distance is to that edge, not to a centre
+    i, k = 10, 10  # the voxel column x in [1.0, 1.1), z in [1.0, 1.1)
+    j_last = int(np.flatnonzero(occupancy.occupied_mask()[i, :, k]).max())
+    corner = np.array([1.0, occupancy.origin[1] + (j_last + 1) * 0.1])
+    centre = np.array([corner[0] - 0.1, corner[1] + 0.1, 1.05])
+    assert not occupancy.sphere_touches_occupied(centre, 0.14)  # sqrt(0.1^2 + 0.1^2) = 0.1414
+    assert occupancy.sphere_touches_occupied(centre, 0.15)
+
+
 def test_bad_inputs_raise_input_errors(two_room_voxels):
     occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf())
     depth, K, T = np.ones((60, 80), np.float32), SMALL.K.copy(), np.eye(4)

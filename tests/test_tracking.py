@@ -9,6 +9,7 @@ import pytest
 
 from conftest import box_scene, explore_section, room_boxes
 from frontiernet.config import load_config
+from frontiernet.errors import InputError
 from frontiernet.frontiers import FrontierTracker
 from frontiernet.geometry import pose_from_heading
 from frontiernet.mapping import FREE, OCCUPIED, OccupancyMap
@@ -38,14 +39,9 @@ def level_pose(x: float, y: float, yaw_deg: float, z: float = CAMERA_Z) -> np.nd
 
 @pytest.fixture(scope="module")
 def mapped_room():
-    """The room's occupancy map after one level frame from (0.8, 1.5, 1.2) looking along +x."""
-    lower, upper = room_boxes(*ROOM, wall=0.25)
-    renderer = Renderer(box_scene(lower, upper, "tracking-room"), SMALL)
-    occupancy = OccupancyMap.from_bounds(BOUNDS, load_config("explore").map)
-    T = level_pose(0.8, 1.5, 0.0)  # the wall x = 4 is 3.2 m away, within range
-    frame = renderer.render(T)
-    occupancy.integrate(frame.depth, frame.K, T)
-    return occupancy
+    """The room's occupancy map after one level frame from (0.8, 1.5, 1.2) looking along +x
+    (the wall x = 4 is 3.2 m away, within range)."""
+    return room_map(0.0)
 
 
 # -- merging and ids --------------------------------------------------------------------------------
@@ -120,27 +116,64 @@ def test_frontier_camera_pose_looks_along_its_direction():
 # -- gain reduction against the map --------------------------------------------------------------
 
 
-def test_gain_is_reduced_by_the_known_volume_in_front_of_the_frontier(mapped_room):
-    tracker = FrontierTracker(tracking_conf())
-    ahead, aside = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=20.0),  # looks into the mapped room
-                                observation((1.0, 1.5, 1.2), -90.0, gain=20.0)], 0, 0)  # at the unseen wall y=0
-    tracker.update_gains(OccupancyMap.from_bounds(BOUNDS))  # an empty map knows nothing
-    assert tracker.get(ahead).gain_m3 == pytest.approx(20.0) and tracker.get(aside).gain_m3 == pytest.approx(20.0)
+def room_map(*yaws_deg: float) -> OccupancyMap:
+    """The room's map after level frames from (0.8, 1.5, 1.2) at these headings, in order."""
+    lower, upper = room_boxes(*ROOM, wall=0.25)
+    renderer = Renderer(box_scene(lower, upper, "tracking-room"), SMALL)
+    occupancy = OccupancyMap.from_bounds(BOUNDS, load_config("explore").map)
+    for yaw in yaws_deg:
+        T = level_pose(0.8, 1.5, yaw)
+        frame = renderer.render(T)
+        occupancy.integrate(frame.depth, frame.K, T)
+    return occupancy
 
-    tracker.update_gains(mapped_room)
+
+def visible_known(occupancy: OccupancyMap, frontier) -> float:
     view = tracking_conf()["gain_view"]
-    known = mapped_room.visible_known_volume(tracker.get(ahead).camera_pose(), int(view["width_px"]),
-                                             float(view["focal_px"]), float(view["max_depth_m"]))[0]
-    assert known > 8.0  # about 3 m of room mapped in front of it
-    assert tracker.get(ahead).gain_m3 == pytest.approx(20.0 - known)
-    assert tracker.get(ahead).predicted_gain_m3 == 20.0  # the prediction itself is kept
-    assert tracker.get(aside).gain_m3 > 17.0  # little of what it looks at is mapped
+    return float(occupancy.visible_known_volume(frontier.camera_pose(), int(view["width_px"]),
+                                                float(view["focal_px"]), float(view["max_depth_m"]))[0])
 
-    # a re-observation is a fresh prediction: only what gets mapped after it reduces its gain
-    again = tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=5.0)], 1, 1)[0]
+
+def test_gain_is_reduced_by_what_the_map_knows_beyond_the_predicting_frame():
+    ahead_xyz = (1.0, 1.5, 1.2)  # looks along +x into the room
+    # the frame that predicted it saw part of its view: the prediction already left that part out
+    tracker = FrontierTracker(tracking_conf())
+    ahead = tracker.add([observation(ahead_xyz, 0.0, gain=20.0)], 0, 0)[0]
+    seen_by_it = room_map(50.0)
+    tracker.update_gains(seen_by_it)
+    assert visible_known(seen_by_it, tracker.get(ahead)) > 2.0  # some of the room in front of it ...
+    assert tracker.get(ahead).gain_m3 == pytest.approx(20.0)   # ... none of which counts twice
+
+    # a later frame maps more of its view: that part is subtracted
+    later = room_map(50.0, 0.0)
+    tracker.update_gains(later)
+    extra = visible_known(later, tracker.get(ahead)) - visible_known(seen_by_it, tracker.get(ahead))
+    assert extra > 0.5
+    assert tracker.get(ahead).gain_m3 == pytest.approx(20.0 - extra)
+    assert tracker.get(ahead).predicted_gain_m3 == 20.0  # the prediction itself is kept
+
+    # predicted by a frame that looked elsewhere, over a map that knows the room from before: reduced at birth
+    born_late = FrontierTracker(tracking_conf())
+    late = born_late.add([observation(ahead_xyz, 0.0, gain=20.0)], 0, 0)[0]
+    map_then = room_map(0.0, -90.0)  # the latest frame looks at the wall y = 0
+    born_late.update_gains(map_then)
+    assert born_late.get(late).gain_m3 < 20.0 - 6.0
+
+    # a re-observation is a fresh prediction relative to its own frame
+    again = tracker.add([observation(ahead_xyz, 0.0, gain=5.0)], 1, 1)[0]
     assert again == ahead  # merged: predicted (20 + 5) / 2 = 12.5
-    tracker.update_gains(mapped_room)
-    assert tracker.get(ahead).gain_m3 == pytest.approx(12.5)
+    tracker.update_gains(later)  # its frame: the latest of `later`
+    latest_only = later.visible_known_volume(tracker.get(ahead).camera_pose(), *(
+        lambda v: (int(v["width_px"]), float(v["focal_px"]), float(v["max_depth_m"])))(tracking_conf()["gain_view"]),
+        latest_frame_only=True)[0]
+    assert tracker.get(ahead).gain_m3 == pytest.approx(max(0.0, 12.5 - (visible_known(later, tracker.get(ahead)) - latest_only)))
+
+
+def test_unknown_gain_reduction_mode_is_an_input_error(mapped_room):
+    tracker = FrontierTracker(tracking_conf(gain_reduction="since_forever"))
+    tracker.add([observation((1.0, 1.5, 1.2))], 0, 0)
+    with pytest.raises(InputError, match="beyond_frame, absolute or none"):
+        tracker.update_gains(mapped_room)
 
 
 def test_absolute_gain_reduction_drops_a_frontier_whose_view_is_mapped(mapped_room):
@@ -174,7 +207,7 @@ def test_view_z_puts_the_gain_view_and_the_occupied_check_at_the_robot_height(ma
     assert mapped_room.state_at(np.array([[2.5, 1.5, CAMERA_Z]]))[0] == FREE
     view = tracking_conf()["gain_view"]
 
-    conf = tracking_conf(height_window_m=None, gain_reduction="absolute")  # where the checks are made, not the window
+    conf = tracking_conf(height_window_m=None, gain_reduction="absolute", relocate_m=0.0)  # where the checks are made
     at_floor = FrontierTracker(conf)
     at_floor.add([observation(floor_xyz, 0.0, gain=30.0)], 0, 0)
     at_floor.update_gains(mapped_room)
@@ -217,13 +250,29 @@ def test_a_blacklisted_frontier_leaves_a_tombstone_that_discards_its_reobservati
 
 
 def test_frontier_in_occupied_space_is_dropped(mapped_room):
-    tracker = FrontierTracker(tracking_conf(gain_reduction="none"))
+    tracker = FrontierTracker(tracking_conf(gain_reduction="none", relocate_m=0.0))
     wall, free = tracker.add([observation((4.0, 1.5, 1.2), 180.0), observation((2.0, 1.5, 1.2), 90.0)], 0, 0)
     assert tracker.prune(np.zeros((0, 4, 4)), mapped_room) == [wall]
     assert tracker.removed["occupied"] == 1 and tracker.get(free) is not None
     # without a map (map-free mode) nothing is checked against occupancy
     tracker.add([observation((4.0, 1.5, 1.2), 180.0)], 1, 1)
     assert tracker.prune(np.zeros((0, 4, 4))) == []
+
+
+def test_frontier_just_inside_a_wall_moves_out_to_the_nearest_unoccupied_voxel(mapped_room):
+    # the wall x = 4 is mapped occupied; x = 4.0 lies one voxel deep, 4.3 behind the wall's mapped layer
+    assert mapped_room.state_at(np.array([[4.0, 1.5, 1.2]]))[0] == OCCUPIED
+    tracker = FrontierTracker(tracking_conf(gain_reduction="none", relocate_m=0.3))
+    beside, deep = tracker.add([observation((4.0, 1.5, 1.2), 90.0), observation((1.0, 1.5, 1.2), 90.0)], 0, 0)
+    assert tracker.prune(np.zeros((0, 4, 4)), mapped_room) == []
+    moved = tracker.get(beside).position
+    assert mapped_room.state_at(moved[None])[0] != OCCUPIED
+    assert 0.0 < np.linalg.norm(moved[:2] - [4.0, 1.5]) <= 0.3 and moved[2] == 1.2
+    assert tracker.get(deep).position.tolist() == [1.0, 1.5, 1.2]  # free: not moved
+    # nothing unoccupied within reach: dropped
+    buried = FrontierTracker(tracking_conf(gain_reduction="none", relocate_m=0.05))
+    buried.add([observation((4.0, 1.5, 1.2), 90.0)], 0, 0)
+    assert buried.prune(np.zeros((0, 4, 4)), mapped_room) == [0]
 
 
 # -- visited poses ---------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
 from .motion import Motion, wrap_angle, yaw_of
 
+_ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
 STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion", "coverage")
 SIMULATOR_STAGES = ("motion", "coverage")
 """Timed stages of a step. ``motion`` (the simulator's collision check) and ``coverage`` (the
@@ -86,11 +87,16 @@ class Explorer:
         if str(conf.planner.mode) not in ("map", "map_free"):
             raise InputError(f"planner.mode must be 'map' or 'map_free', got {conf.planner.mode!r}")
         self.agent = Agent(scene, T_start, sim_conf.agent, voxels)
+        # moves are checked with the largest body that planned routes keep clear of occupied voxels
+        self.body_radius = float(conf.planner.clearance_m) - float(conf.map.voxel_size) / np.sqrt(2.0) - _ROUTE_SLACK_M
+        if self.body_radius < self.agent.radius:
+            raise InputError(f"planner.clearance_m = {conf.planner.clearance_m} is too small for the agent radius "
+                             f"{self.agent.radius} m: it must be at least radius + half a voxel's diagonal + "
+                             f"{_ROUTE_SLACK_M} m ({self.agent.radius + float(conf.map.voxel_size) / np.sqrt(2.0) + _ROUTE_SLACK_M:.3f} m)")
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = OccupancyMap.like(voxels, conf.map)
         self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
-        self.safety_offsets = _ball_offsets(float(conf.planner.clearance_m), float(conf.map.voxel_size) / 2)
         self.planner = FrontierPlanner(conf.planner)
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
         self.poses: list[np.ndarray] = []
@@ -163,6 +169,15 @@ class Explorer:
                                       "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
         self.route, self.waypoint, self.steps_since_plan = route, 0, 0
 
+    def _route_failed(self) -> None:
+        """The next increment of the route is not allowed by the map. A route planned on an
+        older map is only dropped (the next round replans on today's map); a fresh one counts
+        as a failure of its goal."""
+        if self.steps_since_plan > 0:
+            self.route = None
+        else:
+            self._goal_failed()
+
     def _goal_failed(self) -> None:
         if self.route is not None:
             if self.planner.fail(self.route.frontier_id):
@@ -185,7 +200,7 @@ class Explorer:
             self.waypoint += 1
         if self.waypoint < len(waypoints):
             if self.waypoint >= self.route.mapped_until and not self.map_free and self._blocked(waypoints[self.waypoint]):
-                self._goal_failed()  # the frontier-tree edge runs into a mapped obstacle
+                self._route_failed()  # the frontier-tree edge runs into a mapped obstacle
                 return None
             target = self.motion.towards(T, waypoints[self.waypoint])
             verdict = self._check_move(T, target)
@@ -193,7 +208,7 @@ class Explorer:
                 offset = waypoints[self.waypoint] - T[:2, 3]
                 return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
             if verdict == "fail":
-                self._goal_failed()
+                self._route_failed()
                 return None
             return target
         frontier = self.tracker.get(self.route.frontier_id)
@@ -208,16 +223,19 @@ class Explorer:
 
     def _check_move(self, T: np.ndarray, target: np.ndarray) -> str:
         """Whether the map allows the increment to `target`: ``ok`` (a turn, or a move into known
-        free space with no occupied voxel within the clearance), ``look`` (the target is unknown
-        and the camera does not face it yet) or ``fail`` (occupied, or still unknown when faced)."""
-        from ..mapping import FREE, OCCUPIED
+        free space where a sphere of `body_radius` touches no occupied voxel), ``look`` (the
+        target is unknown and the camera does not face it yet) or ``fail`` (occupied, or still
+        unknown when faced). `body_radius` is ``planner.clearance_m`` (kept between route cell
+        centres and occupied voxel centres) less a voxel's half diagonal and a slack for route
+        points between cell centres: a fresh route passes this check on the map it was planned
+        on, and the body checked is at least the agent's."""
+        from ..mapping import FREE
 
         if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
             return "ok"
-        states = self.map.state_at(target[:3, 3] + self.safety_offsets)
-        if (states == OCCUPIED).any():
+        if self.map.sphere_touches_occupied(target[:3, 3], self.body_radius):
             return "fail"
-        if states[0] == FREE:
+        if self.map.state_at(target[None, :3, 3])[0] == FREE:
             return "ok"
         return "fail" if self._looked_at(T, target) else "look"
 
@@ -295,14 +313,6 @@ class Explorer:
         self.result.records.append(record)
         if self.on_step is not None:
             self.on_step(self, record, frame, seen)
-
-
-def _ball_offsets(radius: float, spacing: float) -> np.ndarray:
-    """(N, 3) offsets on a grid of `spacing` inside a ball of `radius`, the origin first."""
-    axis = np.arange(-radius, radius + 1e-9, spacing)
-    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
-    grid = grid[np.linalg.norm(grid, axis=1) <= radius + 1e-9]
-    return np.concatenate([np.zeros((1, 3)), grid[np.linalg.norm(grid, axis=1) > 0]])
 
 
 __all__ = ["Explorer", "ExplorationResult", "StepRecord", "STAGES", "SIMULATOR_STAGES"]

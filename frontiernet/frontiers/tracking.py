@@ -8,10 +8,11 @@ list is folded into a :class:`FrontierTracker`, whose frontiers keep stable inte
   means of position, direction and predicted gain); otherwise it becomes a new frontier.
 * **Gain.** A frontier's gain is its predicted gain minus the known free volume a virtual
   camera at the frontier, looking along its direction, sees in the occupancy map (the
-  public code's map-based gain reduction), by default only the part mapped since the
-  frontier was last observed: space mapped after the prediction no longer counts.
+  public code's map-based gain reduction), by default less the part that the frame which
+  predicted it observed: the prediction already left that out.
 * **Drop.** Frontiers whose gain falls below ``min_gain_m3`` (g_min), that lie in occupied
-  space, or that a visited pose has looked at (closer than ``visited_distance_m`` and
+  space (after a move of at most ``relocate_m`` to the nearest unoccupied voxel: a frontier
+  anchored beside a thin wall often falls into the wall's voxels), or that a visited pose has looked at (closer than ``visited_distance_m`` and
   heading within ``visited_angle_rad`` of the view direction) are removed.
 
 Each frontier remembers the trajectory pose that last registered it (its parent in the
@@ -41,9 +42,10 @@ class Frontier:
         parent_pose: index (into the explorer's pose list) of the pose that last registered it.
         first_step, last_step: steps at which it was first and last observed.
         observations: number of merged observations.
-        known_baseline_m3: known free volume its gain view saw at its latest observation (the
-            ``since_observed`` gain reduction counts only what was mapped after it); None until
-            the next :meth:`FrontierTracker.update_gains`.
+        known_baseline_m3: known free volume its gain view sees of what the frame of its latest
+            observation observed (the ``beyond_frame`` gain reduction does not subtract it: the
+            prediction already left it out); None until the next
+            :meth:`FrontierTracker.update_gains`.
     """
 
     id: int
@@ -176,14 +178,20 @@ class FrontierTracker:
         return best
 
     def update_gains(self, occupancy) -> None:
-        """Reduce gains by the known free volume visible from each frontier in `occupancy` (an
-        :class:`~frontiernet.mapping.OccupancyMap`), per ``gain_reduction``: ``absolute`` (the
-        public code: gain = predicted - visible known volume) or ``since_observed`` (gain =
-        predicted - what became known since the frontier's latest observation: the network's
-        prediction already reflects what its image shows); ``none`` leaves gains alone."""
+        """Reduce gains by the known free volume a virtual camera at each frontier sees in
+        `occupancy` (an :class:`~frontiernet.mapping.OccupancyMap` that has just integrated the
+        frame of the latest observations), per ``gain_reduction``:
+
+        * ``beyond_frame``: gain = predicted - (visible known volume - the part of it that the
+          frame of the frontier's latest observation saw). The prediction is the volume that
+          frame did not observe (the ground truth's V_out, datagen), so only what the map knows
+          beyond that frame is subtracted: space explored earlier or later, never twice.
+        * ``absolute`` (public code): gain = predicted - visible known volume.
+        * ``none``: gains stay as predicted.
+        """
         mode = str(self.conf["gain_reduction"])
-        if mode not in ("absolute", "since_observed", "none"):
-            raise InputError(f"tracking.gain_reduction must be absolute, since_observed or none, got {mode!r}")
+        if mode not in ("beyond_frame", "absolute", "none"):
+            raise InputError(f"tracking.gain_reduction must be beyond_frame, absolute or none, got {mode!r}")
         if not self.frontiers or mode == "none":
             return
         frontiers = list(self.frontiers.values())
@@ -191,12 +199,15 @@ class FrontierTracker:
         poses = np.stack([f.camera_pose() for f in frontiers])
         if self.view_z is not None:
             poses[:, 2, 3] = self.view_z
-        known = occupancy.visible_known_volume(poses, int(view["width_px"]), float(view["focal_px"]),
-                                               float(view["max_depth_m"]))
+        settings = (int(view["width_px"]), float(view["focal_px"]), float(view["max_depth_m"]))
+        known = occupancy.visible_known_volume(poses, *settings)
+        fresh = [i for i, f in enumerate(frontiers) if f.known_baseline_m3 is None]
+        if mode == "beyond_frame" and fresh:
+            seen = occupancy.visible_known_volume(poses[fresh], *settings, latest_frame_only=True)
+            for i, volume in zip(fresh, seen):
+                frontiers[i].known_baseline_m3 = float(volume)
         for frontier, volume in zip(frontiers, known):
-            if frontier.known_baseline_m3 is None:
-                frontier.known_baseline_m3 = float(volume)
-            baseline = frontier.known_baseline_m3 if mode == "since_observed" else 0.0
+            baseline = frontier.known_baseline_m3 if mode == "beyond_frame" else 0.0
             frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - max(0.0, float(volume) - baseline))
 
     def prune(self, visited_poses: np.ndarray, occupancy=None) -> list[int]:
@@ -217,13 +228,9 @@ class FrontierTracker:
             seen = self._visited(positions, np.stack([f.direction for f in frontiers]), visited_poses)
             reason[(reason == "") & seen] = "visited"
         if occupancy is not None:
-            from ..mapping import OCCUPIED
-
-            at = positions.copy()
-            if self.view_z is not None:
-                at[:, 2] = self.view_z
-            occupied = occupancy.state_at(at) == OCCUPIED
-            reason[(reason == "") & occupied] = "occupied"
+            for index in np.flatnonzero(reason == ""):
+                if not self._out_of_walls(frontiers[index], occupancy):
+                    reason[index] = "occupied"
         dropped = []
         for frontier, why in zip(frontiers, reason):
             if why:
@@ -231,6 +238,33 @@ class FrontierTracker:
                 dropped.append(frontier.id)
         self._keep_best(int(self.conf["max_frontiers"]))
         return dropped
+
+    def _out_of_walls(self, frontier: Frontier, occupancy) -> bool:
+        """Whether `frontier` lies in space the map does not mark occupied (at `view_z`), after
+        moving it to the nearest such voxel centre within ``relocate_m`` if it did not."""
+        from ..mapping import OCCUPIED
+
+        at = frontier.position.copy()
+        if self.view_z is not None:
+            at[2] = self.view_z
+        if occupancy.state_at(at[None])[0] != OCCUPIED:
+            return True
+        radius = float(self.conf.get("relocate_m", 0.0))
+        if radius <= 0:
+            return False
+        size = float(occupancy.voxel_size)
+        centre = occupancy.origin + (np.floor((at - occupancy.origin) / size) + 0.5) * size
+        steps = np.arange(-np.ceil(radius / size), np.ceil(radius / size) + 1) * size
+        offsets = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)
+        candidates = np.column_stack([centre[:2] + offsets, np.full(len(offsets), at[2])])
+        distance = np.linalg.norm(candidates[:, :2] - at[:2], axis=1)
+        order = np.argsort(distance[distance <= radius], kind="stable")
+        candidates = candidates[distance <= radius][order]
+        free = np.flatnonzero(occupancy.state_at(candidates) != OCCUPIED)
+        if not len(free):
+            return False
+        frontier.position[:2] = candidates[free[0], :2]
+        return True
 
     def _visited(self, positions: np.ndarray, directions: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """(F,) bool: some pose is within the visited distance and looks within the visited angle."""

@@ -68,6 +68,7 @@ class OccupancyMap:
         self._log_odds = np.zeros(dims, np.float32)
         self._observed = np.zeros(dims, bool)
         self._known_voxels = 0
+        self._latest_frame: tuple[np.ndarray, np.ndarray] | None = None  # (box lo, voxels seen)
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
@@ -132,6 +133,13 @@ class OccupancyMap:
         """Volume of the observed (free or occupied) voxels, cubic metres."""
         return self._known_voxels * self.voxel_size ** 3
 
+    def sphere_touches_occupied(self, centre: np.ndarray, radius_m: float) -> bool:
+        """Whether a ball of `radius_m` around `centre` ((3,) world metres) overlaps an occupied
+        voxel (exact sphere-box test: a body there would touch what the map holds)."""
+        box, inside = self._sphere(centre, radius_m, "sphere_touches_occupied", touching=True)
+        occupied = self._observed[box] & (self._log_odds[box] > self.settings.occupied_threshold)
+        return bool((occupied & inside).any())
+
     def state_at(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points (metres) -> (N,) int8 :data:`UNKNOWN` / :data:`FREE` / :data:`OCCUPIED`
         of the voxels holding them (UNKNOWN off the grid or for non-finite points)."""
@@ -175,6 +183,7 @@ class OccupancyMap:
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
                         self.origin + lo * self.voxel_size, self.voxel_size, passed, hit)
+        self._latest_frame = (lo, passed | hit)
         self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                            np.float32(s.log_odds_hit), np.float32(s.log_odds_miss),
                                            np.float32(s.log_odds_min), np.float32(s.log_odds_max))
@@ -182,15 +191,7 @@ class OccupancyMap:
     def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
         as free (observed, log-odds at most ``log_odds_miss``): where the robot stands is free."""
-        centre = np.asarray(centre, np.float64)
-        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
-            raise InputError(f"clear_sphere centre must be a finite (3,) world point, got {centre!r}")
-        radius = positive_number(scalar(radius_m), "clear_sphere radius_m", "metres", allow_zero=True)
-        lo, hi = self._index_box(np.stack([centre - radius, centre + radius]), margin=0)
-        box = tuple(slice(a, b) for a, b in zip(lo, hi))
-        axes = [self.origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * self.voxel_size - centre[a] for a in range(3)]
-        squared = axes[0][:, None, None] ** 2 + axes[1][None, :, None] ** 2 + axes[2][None, None, :] ** 2
-        inside = squared <= radius ** 2
+        box, inside = self._sphere(centre, radius_m, "clear_sphere")
         self._known_voxels += int(np.count_nonzero(inside & ~self._observed[box]))
         self._observed[box] |= inside
         miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
@@ -199,7 +200,7 @@ class OccupancyMap:
     # -- queries ---------------------------------------------------------------------------------
 
     def visible_known_volume(self, T_world_cams: np.ndarray, width_px: int, focal_px: float,
-                             max_depth_m: float) -> np.ndarray:
+                             max_depth_m: float, latest_frame_only: bool = False) -> np.ndarray:
         """Known free volume each virtual camera sees, up to occlusion by occupied voxels.
 
         Each camera is a square pinhole of `width_px` pixels, focal length `focal_px`
@@ -211,6 +212,8 @@ class OccupancyMap:
         Args:
             T_world_cams: (V, 4, 4) float64 camera poses (or one (4, 4) pose).
             width_px: image width = height, pixels; focal_px: pixels; max_depth_m: metres.
+            latest_frame_only: count only the free voxels that the latest :meth:`integrate`
+                call observed (what one frame saw; 0 before any frame).
         Returns:
             (V,) float64 cubic metres.
         """
@@ -232,6 +235,8 @@ class OccupancyMap:
             return volumes
         box = tuple(slice(a, b) for a, b in zip(lo, hi))
         observed, occupied = self._observed[box], self._log_odds[box] > self.settings.occupied_threshold
+        if latest_frame_only:
+            observed = observed & self._latest_frame_mask(lo, hi)
         frustum_volume(np.ascontiguousarray(T[:, :3, 3]), np.ascontiguousarray(T[:, :3, :3]), directions, max_depth,
                        focal, self.origin + lo * self.voxel_size, self.voxel_size, ~(observed & occupied),
                        observed & ~occupied, volumes)
@@ -290,6 +295,33 @@ class OccupancyMap:
         return occupancy
 
     # -- pieces ----------------------------------------------------------------------------------
+
+    def _sphere(self, centre, radius_m, what: str, touching: bool = False) -> tuple[tuple, np.ndarray]:
+        """The index box (a tuple of slices) around a ball and the (bool) mask of the box's voxels
+        whose centres lie within it (`touching`: whose cubes overlap it)."""
+        centre = np.asarray(centre, np.float64)
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
+            raise InputError(f"{what} centre must be a finite (3,) world point, got {centre!r}")
+        radius = positive_number(scalar(radius_m), f"{what} radius_m", "metres", allow_zero=True)
+        lo, hi = self._index_box(np.stack([centre - radius, centre + radius]), margin=int(touching))
+        box = tuple(slice(a, b) for a, b in zip(lo, hi))
+        axes = [self.origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * self.voxel_size - centre[a] for a in range(3)]
+        if touching:  # per-axis distance from the centre to the cube, not to its centre
+            axes = [np.maximum(np.abs(axis) - self.voxel_size / 2, 0.0) for axis in axes]
+        squared = axes[0][:, None, None] ** 2 + axes[1][None, :, None] ** 2 + axes[2][None, None, :] ** 2
+        return box, (squared < radius ** 2) if touching else (squared <= radius ** 2)
+
+    def _latest_frame_mask(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """(hi - lo) bool: the voxels of the index box [lo, hi) that the latest frame observed."""
+        mask = np.zeros(tuple(hi - lo), bool)
+        if self._latest_frame is None:
+            return mask
+        frame_lo, touched = self._latest_frame
+        a, b = np.maximum(lo, frame_lo), np.minimum(hi, frame_lo + np.asarray(touched.shape))
+        if np.all(b > a):
+            mask[tuple(slice(x, y) for x, y in zip(a - lo, b - lo))] = \
+                touched[tuple(slice(x, y) for x, y in zip(a - frame_lo, b - frame_lo))]
+        return mask
 
     def _index_box(self, points: np.ndarray, margin: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Voxel index range [lo, hi) (two (3,) int64) of the bounding box of (N, 3) world
