@@ -179,6 +179,10 @@ def test_visible_known_volume(room, renderer):
     assert truth.min() > 5.0
     np.testing.assert_allclose(known, truth, rtol=0.07)  # the map misses a few voxels (blind spots, edges)
     assert occupancy.visible_known_volume(T[0], *args).shape == (1,)
+    # unknown volume: all of the frusta in the empty map (nothing stops the rays), little in the mapped room
+    unknown_empty = empty.visible_unknown_volume(T, *args)
+    assert np.all(unknown_empty > truth)
+    assert np.all(occupancy.visible_unknown_volume(T, *args) < 0.2 * truth)  # blind spots near the camera
 
 
 def test_slice_2d_marks_walls_occupied_and_the_room_free(renderer):

@@ -136,8 +136,9 @@ def visible_known(occupancy: OccupancyMap, frontier) -> float:
 
 def test_gain_is_reduced_by_what_the_map_knows_beyond_the_predicting_frame():
     ahead_xyz = (1.0, 1.5, 1.2)  # looks along +x into the room
+    no_cap = {"unknown_cap_yaw_offsets_deg": []}
     # the frame that predicted it saw part of its view: the prediction already left that part out
-    tracker = FrontierTracker(tracking_conf())
+    tracker = FrontierTracker(tracking_conf(**no_cap))
     ahead = tracker.add([observation(ahead_xyz, 0.0, gain=20.0)], 0, 0)[0]
     seen_by_it = room_map(50.0)
     tracker.update_gains(seen_by_it)
@@ -153,7 +154,7 @@ def test_gain_is_reduced_by_what_the_map_knows_beyond_the_predicting_frame():
     assert tracker.get(ahead).predicted_gain_m3 == 20.0  # the prediction itself is kept
 
     # predicted by a frame that looked elsewhere, over a map that knows the room from before: reduced at birth
-    born_late = FrontierTracker(tracking_conf())
+    born_late = FrontierTracker(tracking_conf(**no_cap))
     late = born_late.add([observation(ahead_xyz, 0.0, gain=20.0)], 0, 0)[0]
     map_then = room_map(0.0, -90.0)  # the latest frame looks at the wall y = 0
     born_late.update_gains(map_then)
@@ -167,6 +168,33 @@ def test_gain_is_reduced_by_what_the_map_knows_beyond_the_predicting_frame():
         lambda v: (int(v["width_px"]), float(v["focal_px"]), float(v["max_depth_m"])))(tracking_conf()["gain_view"]),
         latest_frame_only=True)[0]
     assert tracker.get(ahead).gain_m3 == pytest.approx(max(0.0, 12.5 - (visible_known(later, tracker.get(ahead)) - latest_only)))
+
+
+def min_gain() -> float:
+    return float(tracking_conf()["min_gain_m3"])
+
+
+def test_gain_is_capped_by_the_unknown_volume_the_frontier_can_still_see():
+    conf = tracking_conf(gain_reduction="none")  # the cap alone
+    at_xyz = (2.0, 1.5, 1.2)
+    half_seen = FrontierTracker(conf)
+    half_seen.add([observation(at_xyz, 0.0, gain=30.0)], 0, 0)
+    half_seen.update_gains(room_map(0.0))  # one frame: most of the room around it is still unknown
+    assert half_seen.get(0).gain_m3 > 5.0
+    mapped = room_map(*range(0, 360, 45))  # a full turn: the closed room is mapped
+    everywhere = FrontierTracker(conf)
+    everywhere.add([observation(at_xyz, 0.0, gain=30.0)], 0, 0)
+    everywhere.update_gains(mapped)
+    assert everywhere.get(0).gain_m3 < min_gain() < half_seen.get(0).gain_m3  # below g_min: it will be dropped
+    assert everywhere.get(0).predicted_gain_m3 == 30.0
+    # the cap is the best of the headings: a frontier facing a mapped wall still sees the unknown beside it
+    facing_wall = FrontierTracker(conf)
+    facing_wall.add([observation((1.0, 0.5, 1.2), -90.0, gain=30.0)], 0, 0)
+    facing_wall.update_gains(room_map(0.0))
+    alone = FrontierTracker(tracking_conf(gain_reduction="none", unknown_cap_yaw_offsets_deg=[0.0]))
+    alone.add([observation((1.0, 0.5, 1.2), -90.0, gain=30.0)], 0, 0)
+    alone.update_gains(room_map(0.0))
+    assert facing_wall.get(0).gain_m3 >= alone.get(0).gain_m3
 
 
 def test_unknown_gain_reduction_mode_is_an_input_error(mapped_room):
@@ -187,7 +215,7 @@ def test_absolute_gain_reduction_drops_a_frontier_whose_view_is_mapped(mapped_ro
 
 
 def test_gain_reduction_can_be_switched_off(mapped_room):
-    tracker = FrontierTracker(tracking_conf(gain_reduction="none"))
+    tracker = FrontierTracker(tracking_conf(gain_reduction="none", unknown_cap_yaw_offsets_deg=[]))
     tracker.add([observation((1.0, 1.5, 1.2), 0.0, gain=20.0)], 0, 0)
     tracker.update_gains(mapped_room)
     assert tracker.get(0).gain_m3 == 20.0
@@ -207,7 +235,8 @@ def test_view_z_puts_the_gain_view_and_the_occupied_check_at_the_robot_height(ma
     assert mapped_room.state_at(np.array([[2.5, 1.5, CAMERA_Z]]))[0] == FREE
     view = tracking_conf()["gain_view"]
 
-    conf = tracking_conf(height_window_m=None, gain_reduction="absolute", relocate_m=0.0)  # where the checks are made
+    conf = tracking_conf(height_window_m=None, gain_reduction="absolute", relocate_m=0.0,  # where the checks are made
+                         unknown_cap_yaw_offsets_deg=[])
     at_floor = FrontierTracker(conf)
     at_floor.add([observation(floor_xyz, 0.0, gain=30.0)], 0, 0)
     at_floor.update_gains(mapped_room)

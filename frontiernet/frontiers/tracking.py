@@ -64,10 +64,11 @@ class Frontier:
         """Heading of the view direction in the world xy-plane (radians)."""
         return float(np.arctan2(self.direction[1], self.direction[0]))
 
-    def camera_pose(self, pitch: float = 0.0) -> np.ndarray:
-        """(4, 4) ``T_world_cam`` of a level camera at the frontier looking along its heading."""
+    def camera_pose(self, pitch: float = 0.0, yaw_offset: float = 0.0) -> np.ndarray:
+        """(4, 4) ``T_world_cam`` of a level camera at the frontier looking along its heading
+        (turned by `yaw_offset` radians)."""
         T = np.eye(4)
-        T[:3, :3] = rotation_from_yaw_pitch(self.yaw, pitch)
+        T[:3, :3] = rotation_from_yaw_pitch(self.yaw + yaw_offset, pitch)
         T[:3, 3] = self.position
         return T
 
@@ -188,11 +189,16 @@ class FrontierTracker:
           beyond that frame is subtracted: space explored earlier or later, never twice.
         * ``absolute`` (public code): gain = predicted - visible known volume.
         * ``none``: gains stay as predicted.
+
+        Then, with ``unknown_cap_yaw_offsets_deg``, no gain exceeds the unknown volume the gain
+        view sees from the frontier at the best of those headings around its direction (as
+        datagen's label takes the best heading): mapped surroundings end a frontier whatever
+        its direction.
         """
         mode = str(self.conf["gain_reduction"])
         if mode not in ("beyond_frame", "absolute", "none"):
             raise InputError(f"tracking.gain_reduction must be beyond_frame, absolute or none, got {mode!r}")
-        if not self.frontiers or mode == "none":
+        if not self.frontiers:
             return
         frontiers = list(self.frontiers.values())
         view = self.conf["gain_view"]
@@ -200,15 +206,24 @@ class FrontierTracker:
         if self.view_z is not None:
             poses[:, 2, 3] = self.view_z
         settings = (int(view["width_px"]), float(view["focal_px"]), float(view["max_depth_m"]))
-        known = occupancy.visible_known_volume(poses, *settings)
+        known = occupancy.visible_known_volume(poses, *settings) if mode != "none" else np.zeros(len(frontiers))
         fresh = [i for i, f in enumerate(frontiers) if f.known_baseline_m3 is None]
         if mode == "beyond_frame" and fresh:
             seen = occupancy.visible_known_volume(poses[fresh], *settings, latest_frame_only=True)
             for i, volume in zip(fresh, seen):
                 frontiers[i].known_baseline_m3 = float(volume)
         for frontier, volume in zip(frontiers, known):
-            baseline = frontier.known_baseline_m3 if mode == "beyond_frame" else 0.0
+            baseline = frontier.known_baseline_m3 if mode == "beyond_frame" else 0.0  # (none: known = 0)
             frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - max(0.0, float(volume) - baseline))
+        offsets = self.conf.get("unknown_cap_yaw_offsets_deg")
+        if offsets:  # no frontier gains more than the unknown volume it can still see
+            turns = np.radians(np.asarray(list(offsets), np.float64))
+            views = np.stack([f.camera_pose(yaw_offset=turn) for f in frontiers for turn in turns])
+            if self.view_z is not None:
+                views[:, 2, 3] = self.view_z
+            unknown = occupancy.visible_unknown_volume(views, *settings).reshape(len(frontiers), len(turns))
+            for frontier, cap in zip(frontiers, unknown.max(axis=1)):
+                frontier.gain_m3 = min(frontier.gain_m3, float(cap))
 
     def prune(self, visited_poses: np.ndarray, occupancy=None) -> list[int]:
         """Drop low-gain, visited and (with `occupancy`) occupied frontiers; returns the dropped ids.

@@ -217,6 +217,16 @@ class OccupancyMap:
         Returns:
             (V,) float64 cubic metres.
         """
+        return self._visible_volume(T_world_cams, width_px, focal_px, max_depth_m,
+                                    "latest_frame" if latest_frame_only else "known")
+
+    def visible_unknown_volume(self, T_world_cams: np.ndarray, width_px: int, focal_px: float,
+                               max_depth_m: float) -> np.ndarray:
+        """(V,) float64 unknown volume (m^3) each virtual camera sees: as
+        :meth:`visible_known_volume`, summing the unobserved voxels the rays cross instead."""
+        return self._visible_volume(T_world_cams, width_px, focal_px, max_depth_m, "unknown")
+
+    def _visible_volume(self, T_world_cams, width_px, focal_px, max_depth_m, counted: str) -> np.ndarray:
         T = np.asarray(T_world_cams, np.float64)
         T = T[None] if T.shape == (4, 4) else T
         if T.ndim != 3 or T.shape[1:] != (4, 4) or not np.all(np.isfinite(T)):
@@ -235,11 +245,15 @@ class OccupancyMap:
             return volumes
         box = tuple(slice(a, b) for a, b in zip(lo, hi))
         observed, occupied = self._observed[box], self._log_odds[box] > self.settings.occupied_threshold
-        if latest_frame_only:
-            observed = observed & self._latest_frame_mask(lo, hi)
+        if counted == "unknown":
+            counted_mask = ~observed
+        elif counted == "latest_frame":
+            counted_mask = observed & ~occupied & self._latest_frame_mask(lo, hi)
+        else:
+            counted_mask = observed & ~occupied
         frustum_volume(np.ascontiguousarray(T[:, :3, 3]), np.ascontiguousarray(T[:, :3, :3]), directions, max_depth,
                        focal, self.origin + lo * self.voxel_size, self.voxel_size, ~(observed & occupied),
-                       observed & ~occupied, volumes)
+                       counted_mask, volumes)
         return volumes
 
     def slice_2d(self, z_min: float, z_max: float) -> tuple[np.ndarray, np.ndarray]:
