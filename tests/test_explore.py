@@ -282,7 +282,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["--start", "2,2.5,abc,0"], "x,y,z,yaw"),
     (["--method", "frontiernet", "--model", "{tmp}/missing.safetensors"], "not found"),
     (["--method", "frontiernet", "--model", "{tmp}/corrupt.safetensors"], "corrupt.safetensors"),
-    (["--method", "nope"], "valid: frontiernet, oracle"),
+    (["--method", "nope"], "df-uniform, discontinuity-gain, discontinuity-uniform"),
     (["planner.mode=bogus"], "planner.mode"),
     (["planner.clearance_m=0.2"], "planner.clearance_m = 0.2 is too small for the agent radius"),
     (["tracking.gain_reduction=sometimes"], "beyond_frame, absolute or none"),

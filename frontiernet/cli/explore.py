@@ -13,7 +13,9 @@ def add_parser(subparsers) -> None:
                                    description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", required=True, help="scene spec (see `frontiernet scene --help`)")
     parser.add_argument("--method", default="frontiernet",
-                        help="frontiernet (the model) or a registered perception such as oracle (ground truth)")
+                        help="exploration method: frontiernet (the model), oracle (ground-truth frontiers), the Fig. 9 "
+                             "ablations df-uniform, discontinuity-gain, discontinuity-uniform, the baselines classic, "
+                             "gain-distance, random-frontier, vacuum, or a plugin (docs/exploration.md)")
     parser.add_argument("--model", help="model file (.safetensors, .ckpt, .onnx, .pt; default: the shipped model)")
     parser.add_argument("--depth", help="depth source: gt, emulated, depth_anything_v2, metric3d_v2 "
                                         "(default: configs/explore.yaml run.depth)")

@@ -21,11 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..frontiers import FrontierTracker, anchor_prediction
+from ..frontiers import FrontierTracker
 from ..mapping import OccupancyMap
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
+from .methods import ImageSource, Method, plain_view
 from .motion import Motion, wrap_angle, yaw_of
 
 _ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
@@ -71,7 +72,9 @@ class Explorer:
         scene: the scene; voxels: its :class:`~frontiernet.simulator.voxels.VoxelGrid`
             (the ground-truth explorable volume for coverage; the robot never reads it).
         renderer: a :class:`~frontiernet.simulator.camera.Renderer` of the scene.
-        perception: a :class:`~frontiernet.exploration.perception.Perception`.
+        method: a :class:`~frontiernet.exploration.methods.Method` (or a
+            :class:`~frontiernet.exploration.perception.Perception`, run as the paper's
+            pipeline: its frontier pixels anchored, goals by Eq. 8).
         depth_source: a :class:`~frontiernet.depth.DepthSource` (reset by the caller).
         conf: the whole ``configs/explore.yaml`` config; sim_conf: ``configs/sim.yaml``.
         T_start: (4, 4) start pose (level camera at the configured height).
@@ -79,10 +82,12 @@ class Explorer:
             (video frames, progress).
     """
 
-    def __init__(self, scene, voxels, renderer, perception, depth_source, conf, sim_conf, T_start: np.ndarray,
+    def __init__(self, scene, voxels, renderer, method, depth_source, conf, sim_conf, T_start: np.ndarray,
                  on_step=None) -> None:
         self.scene, self.voxels, self.renderer = scene, voxels, renderer
-        self.perception, self.depth_source, self.conf = perception, depth_source, conf
+        if not isinstance(method, Method):
+            method = Method(getattr(method, "name", "perception"), ImageSource(method))
+        self.method, self.depth_source, self.conf = method, depth_source, conf
         self.map_free = str(conf.planner.mode) == "map_free"
         if str(conf.planner.mode) not in ("map", "map_free"):
             raise InputError(f"planner.mode must be 'map' or 'map_free', got {conf.planner.mode!r}")
@@ -97,13 +102,14 @@ class Explorer:
         self.map = OccupancyMap.like(voxels, conf.map)
         self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
-        self.planner = FrontierPlanner(conf.planner)
+        self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed))
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
         self.poses: list[np.ndarray] = []
         self.rng = np.random.default_rng(int(conf.run.seed))
         self.on_step = on_step
         self.route = None
         self.backoff = None  # (2,) xy to step back to after a collision (map-free mode)
+        self.vacuum_yaw = None  # the vacuum method's heading
         self.waypoint = 0
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
@@ -123,10 +129,11 @@ class Explorer:
         T = self.agent.pose
         frame = self._timed("render", self.renderer.render, T)
         depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, frame.depth)
-        seen = self._timed("perception", self.perception, frame, depth)
-        observations = self._timed("anchoring", anchor_prediction, seen.distance_field, seen.gain_class, seen.depth,
-                                   seen.K, T, self.conf.anchoring, seen.labels, self.rng)
         self._timed("map", self._integrate, depth, frame, T)
+        if self.method.source is None:
+            observations, seen = [], plain_view(frame, depth)
+        else:
+            observations, seen = self.method.source(self, frame, depth, self._timed)
         self._timed("tracking", self._track, observations, T)
         self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
         return frame, seen
@@ -138,8 +145,13 @@ class Explorer:
     def _track(self, observations, T) -> None:
         self.poses.append(T)
         index = self.graph.add(T[:2, 3])
-        self.tracker.add(observations, index, self.agent.steps)
-        if not self.map_free:
+        fresh = self.method.fresh_frontiers
+        ids = self.tracker.add(observations, index, self.agent.steps, average=not fresh)
+        if fresh:  # the proposals are the whole current set (map frontiers): the others are gone
+            for frontier in list(self.tracker):
+                if frontier.id not in ids:
+                    self.tracker.remove(frontier.id, "stale")
+        elif not self.map_free:
             self.tracker.update_gains(self.map)
         self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
 
@@ -221,6 +233,26 @@ class Explorer:
             self.planner.fail(frontier.id)
         return pose
 
+    def vacuum_pose(self) -> np.ndarray:
+        """GLEAM's "vacuum" baseline: straight on while the map allows it, else (or after a
+        collision) turn to a random new heading 90-270 deg away, like a robot vacuum."""
+        T = self.agent.pose
+        if self.vacuum_yaw is None:
+            self.vacuum_yaw = yaw_of(T)
+        pose, aligned = self.motion.turn_to(T, self.vacuum_yaw)
+        if not aligned:
+            return pose
+        ahead = T[:2, 3] + self.motion.max_translation * np.array([np.cos(self.vacuum_yaw), np.sin(self.vacuum_yaw)])
+        target = self.motion.pose(ahead, self.vacuum_yaw)
+        if self._check_move(T, target) == "ok":
+            return target
+        self._vacuum_turn()
+        return self.motion.turn_to(T, self.vacuum_yaw)[0]
+
+    def _vacuum_turn(self) -> None:
+        current = yaw_of(self.agent.pose) if self.vacuum_yaw is None else self.vacuum_yaw
+        self.vacuum_yaw = wrap_angle(current + float(self.rng.uniform(np.pi / 2, 3 * np.pi / 2)))
+
     def _check_move(self, T: np.ndarray, target: np.ndarray) -> str:
         """Whether the map allows the increment to `target`: ``ok`` (a turn, or a move into known
         free space where a sphere of `body_radius` touches no occupied voxel), ``look`` (the
@@ -257,6 +289,8 @@ class Explorer:
         if result.collided or result.left_free_space:
             self.result.collisions += int(result.collided)
             self._goal_failed()
+            if self.method.goal == "vacuum":
+                self._vacuum_turn()
             if self.map_free and len(self.poses) > 1:  # no map to plan around it: step back first
                 self.backoff = self.poses[-2][:2, 3].copy()
             return True
@@ -282,7 +316,7 @@ class Explorer:
                 if len(self.tracker) or self.route is not None:
                     self.plan()
             self._timings["planning"] = time.perf_counter() - start
-            target = self.next_pose()
+            target = self.vacuum_pose() if self.method.goal == "vacuum" else self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
                     self.result.stop_reason = "no frontiers left"

@@ -6,6 +6,8 @@ at the perception's working size, which anchoring lifts to 3D frontiers.
 
 * :class:`ModelPerception` runs a FrontierNet model (any runtime: torch, ONNX, TorchScript)
   at its inference size (320 px, the public demo's resize + centre crop, intrinsics adjusted).
+* :mod:`.ablations`: the paper's Fig. 9 ablations ``df-uniform``, ``discontinuity-gain`` and
+  ``discontinuity-uniform`` (uniform gain, depth-discontinuity frontiers), built in.
 * Other perceptions register under the entry point group ``frontiernet.perception``
   (``name = "module:Class"``, the class built as ``Class(scene, voxels, sim_conf)``), e.g.
   ``datagen``'s ``oracle``: ground-truth frontiers in place of the network, the upper bound
@@ -87,21 +89,71 @@ def perception_plugins() -> dict:
     return {entry.name: entry for entry in entry_points(group=PERCEPTION_GROUP)}
 
 
-def make_perception(method: str, model=None, scene=None, voxels=None, sim_conf=None) -> Perception:
+def _model(model) -> ModelPerception:
+    from ..model import open_runtime
+
+    return ModelPerception(open_runtime(model))
+
+
+def _ablations(conf):
+    """``ablations:`` of the explore config `conf` (None: the shipped ``configs/explore.yaml``)."""
+    from ..config import load_config
+
+    conf = load_config("explore") if conf is None else conf
+    section = conf.get("ablations") if hasattr(conf, "get") else None
+    if section is None:
+        raise InputError("the explore config has no 'ablations' section (configs/explore.yaml has the defaults)")
+    return section
+
+
+def _df_uniform(model, conf) -> Perception:
+    from .ablations import UniformGain
+
+    return UniformGain(_model(model), _ablations(conf).uniform_gain_class)
+
+
+def _discontinuity(base, conf) -> Perception:
+    from .ablations import DiscontinuityFrontiers, DiscontinuitySettings
+
+    return DiscontinuityFrontiers(base, DiscontinuitySettings.from_config(_ablations(conf).discontinuity))
+
+
+def _discontinuity_uniform(model, conf) -> Perception:
+    from .ablations import UniformGain
+
+    return UniformGain(_discontinuity(None, conf), _ablations(conf).uniform_gain_class)
+
+
+#: Built-in methods: name -> ``builder(model, conf) -> Perception``. ``frontiernet`` is the paper's
+#: system; the others its Fig. 9 ablations (:mod:`.ablations`); only ``discontinuity-uniform``
+#: loads no model.
+BUILTIN_PERCEPTIONS = {
+    "frontiernet": lambda model, conf: _model(model),
+    "df-uniform": _df_uniform,
+    "discontinuity-gain": lambda model, conf: _discontinuity(_model(model), conf),
+    "discontinuity-uniform": _discontinuity_uniform,
+}
+
+
+def make_perception(method: str, model=None, scene=None, voxels=None, sim_conf=None, *, conf=None) -> Perception:
     """Build the perception of an exploration method.
 
     Args:
-        method: ``frontiernet`` (the model in `model`, default the shipped one) or a plugin name.
-        model: model file path or None.
+        method: a name of :data:`BUILTIN_PERCEPTIONS` (``frontiernet``, ``df-uniform``,
+            ``discontinuity-gain``, ``discontinuity-uniform``) or a plugin name (``oracle``).
+        model: model file path or None (the shipped model) for the methods that run one.
+        scene, voxels, sim_conf: what plugins are built with.
+        conf: the explore config (``configs/explore.yaml``; its ``ablations:`` section; None:
+            the shipped one).
     Raises:
         InputError: unknown method (the valid ones are listed) or a model that does not load.
     """
-    if method == "frontiernet":
-        from ..model import open_runtime
-
-        return ModelPerception(open_runtime(model))
+    if method in BUILTIN_PERCEPTIONS:
+        perception = BUILTIN_PERCEPTIONS[method](model, conf)
+        perception.name = method
+        return perception
     plugins = perception_plugins()
     if method not in plugins:
-        valid = ", ".join(["frontiernet", *sorted(plugins)])
+        valid = ", ".join([*BUILTIN_PERCEPTIONS, *sorted(plugins)])
         raise InputError(f"unknown exploration method '{method}'; valid: {valid}")
     return plugins[method].load()(scene, voxels, sim_conf)

@@ -49,6 +49,17 @@ def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)), np.radians(float(conf.motion.pitch_deg)))
 
 
+def _uses_model(method) -> bool:
+    """Whether the method runs the FrontierNet model (its perception, or the one it wraps)."""
+    from .methods import ImageSource
+    from .perception import ModelPerception
+
+    perception = method.source.perception if isinstance(method.source, ImageSource) else None
+    while perception is not None and not isinstance(perception, ModelPerception):
+        perception = getattr(perception, "base", None)
+    return perception is not None
+
+
 def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
          max_steps: int | None = None, start: str | None = None, seed: int | None = None, video: bool = True,
          rerun: bool = False, progress: bool = True) -> dict:
@@ -56,8 +67,10 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
 
     Args:
         conf: ``configs/explore.yaml`` (merged with the user's file and overrides).
-        method: ``frontiernet`` or a registered perception (``oracle``).
-        model: model file for ``frontiernet`` (None: the shipped model).
+        method: an exploration method (:mod:`frontiernet.exploration.methods`: ``frontiernet``,
+            ``oracle``, the ablations, ``classic``, ``gain-distance``, ``random-frontier``,
+            ``vacuum``, plugins).
+        model: model file of the learned methods (None: the shipped model).
         depth: depth source (``gt`` or a source of ``configs/depth.yaml``; None: ``run.depth``).
         max_steps, seed: override ``run.max_steps`` and ``run.seed``.
         start: ``"x,y,z,yaw"`` (metres, degrees; None: sampled with the seed).
@@ -71,7 +84,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from ..simulator.voxels import voxelize_scene
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
-    from .perception import make_perception
+    from .methods import make_method
     from .recording import RerunRecorder
     from .video import StepPictures
 
@@ -94,7 +107,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         T_start = pose_from_heading(x, y, z, np.radians(yaw), np.radians(float(conf.motion.pitch_deg)))
     depth_source = make_depth_source(depth_name, load_config("depth"))
     depth_source.reset(seed)
-    perception = make_perception(method, model, loaded, voxels, sim)
+    exploration_method = make_method(method, model, loaded, voxels, sim, conf)
     renderer = Renderer(loaded, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     out = ensure_dir(out)
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
@@ -106,7 +119,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         if recorder is not None:
             recorder(*args)
 
-    explorer = Explorer(loaded, voxels, renderer, perception, depth_source, conf, sim, T_start, on_step=on_step)
+    explorer = Explorer(loaded, voxels, renderer, exploration_method, depth_source, conf, sim, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock
     try:
         with pictures:
@@ -117,7 +130,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         if recorder is not None:
             recorder.close()
     info = {"scene": scene, "method": method, "depth": depth_name, "planner_mode": str(conf.planner.mode),
-            "model": None if method != "frontiernet" else str(model or "shipped"), "seed": seed,
+            "model": str(model or "shipped") if _uses_model(exploration_method) else None, "seed": seed,
             "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),
             "wall_s": round(time.perf_counter() - clock, 2)}
     record = write_run(out, result, budget, info, explorer.tracker)

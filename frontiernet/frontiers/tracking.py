@@ -118,7 +118,7 @@ class FrontierTracker:
     def get(self, frontier_id: int) -> Frontier | None:
         return self.frontiers.get(frontier_id)
 
-    def add(self, observations, parent_pose: int, step: int) -> list[int]:
+    def add(self, observations, parent_pose: int, step: int, average: bool = True) -> list[int]:
         """Fold one frame's observations in; returns the id each observation went to (None: it
         matched a blacklisted frontier, or lay outside ``height_window_m`` around `view_z`, and
         was discarded).
@@ -127,6 +127,9 @@ class FrontierTracker:
             observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``).
             parent_pose: index of the pose that saw them (their parent in the frontier tree).
             step: the current step count.
+            average: a merged observation updates running means (image frontiers, seen again
+                and again); False: it replaces the frontier's position, direction and gain
+                (map frontiers, recomputed from the whole map each frame).
         """
         max_distance = float(self.conf["merge_distance_m"])
         min_cos = float(np.cos(np.radians(float(self.conf["merge_angle_deg"]))))
@@ -148,12 +151,12 @@ class FrontierTracker:
                 self.next_id += 1
             else:
                 frontier = match
-                n = frontier.observations
+                n = frontier.observations if average else 0
                 frontier.position = (frontier.position * n + position) / (n + 1)
                 frontier.direction = _unit(frontier.direction * n + direction)
                 frontier.predicted_gain_m3 = (frontier.predicted_gain_m3 * n + float(observation.gain_m3)) / (n + 1)
                 frontier.gain_m3 = frontier.predicted_gain_m3
-                frontier.observations = n + 1
+                frontier.observations += 1
                 frontier.parent_pose = parent_pose  # the latest viewer: the freshest line of sight
                 frontier.known_baseline_m3 = None  # a fresh prediction, relative to today's map
                 frontier.last_step = step

@@ -109,11 +109,19 @@ class Route:
 
 @dataclass
 class FrontierPlanner:
-    """Chooses goals and routes; configured by the ``planner`` section of ``configs/explore.yaml``."""
+    """Chooses goals and routes; configured by the ``planner`` section of ``configs/explore.yaml``.
+
+    `goal` is the method's goal rule (:meth:`score`); `seed` seeds the ``random`` rule."""
 
     conf: dict
+    goal: str = "utility"
+    seed: int = 0
     failures: dict = field(default_factory=dict)
     blacklist: set = field(default_factory=set)
+    _random_scores: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng(self.seed)
 
     def fail(self, frontier_id: int) -> bool:
         """Count a failure of `frontier_id`; returns True when it is now blacklisted."""
@@ -126,6 +134,16 @@ class FrontierPlanner:
     def utility(self, gain_m3: float, distance_m: float) -> float:
         """Paper Eq. 8: ``gain^e / max(distance, min_distance_m)``."""
         return float(gain_m3) ** float(self.conf["gain_exponent"]) / max(distance_m, float(self.conf["min_distance_m"]))
+
+    def score(self, frontier, distance_m: float) -> float:
+        """How good `frontier` is as the goal at route length `distance_m`, by the goal rule:
+        ``utility`` (Eq. 8), ``nearest`` (1 / distance: Yamauchi's nearest frontier first) or
+        ``random`` (a uniform draw, fixed per frontier id, seeded)."""
+        if self.goal == "nearest":
+            return 1.0 / max(distance_m, float(self.conf["min_distance_m"]))
+        if self.goal == "random":
+            return self._random_scores.setdefault(frontier.id, float(self._rng.random()))
+        return self.utility(frontier.gain_m3, distance_m)
 
     def best_route(self, frontiers, robot_xy: np.ndarray, parent_xy, grid: PlanningGrid | None = None,
                    graph: PoseGraph | None = None, robot_index: int | None = None,
@@ -184,7 +202,7 @@ class FrontierPlanner:
                 distance = float(grid.lookup(length, c_star[None])[0]) + spacing * at
             else:
                 distance = float(np.linalg.norm(frontier.position[:2] - np.asarray(robot_xy)[:2]))
-            scored.append((frontier, distance, self.utility(frontier.gain_m3, distance), at))
+            scored.append((frontier, distance, self.score(frontier, distance), at))
 
         def trace(frontier, at):
             edge = edge_points(frontier.position[:2], parent_xy(frontier.parent_pose), spacing)
@@ -208,7 +226,7 @@ class FrontierPlanner:
                 self.fail(frontier.id)
                 continue
             distance = float(distances[parent]) + float(np.linalg.norm(parent_xy(parent) - frontier.position[:2]))
-            scored.append((frontier, distance, self.utility(frontier.gain_m3, distance), None))
+            scored.append((frontier, distance, self.score(frontier, distance), None))
 
         def trace(frontier, _):
             back = graph.path(predecessors, frontier.parent_pose)

@@ -1,0 +1,104 @@
+"""Exploration methods (issue 6): every method runs in the same explorer and differs only in
+where its goal candidates come from and how the goal is chosen."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from conftest import explore_section
+from frontiernet.cli.main import main
+from frontiernet.errors import InputError
+from frontiernet.exploration.methods import ImageSource, MapSource, Method, make_method, method_names
+from frontiernet.frontiers import FrontierTracker
+from frontiernet.planning.planner import FrontierPlanner
+
+BASELINES = ("classic", "gain-distance", "random-frontier", "vacuum")
+
+
+def run_method(spec, out, method: str, steps: int) -> dict:
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+        code = main(["explore", "--scene", spec, "--method", method, "--max-steps", str(steps), "--no-video",
+                     "--out", str(out)])
+    assert code == 0, stream.getvalue()
+    return json.loads((out / "metrics.json").read_text())
+
+
+def test_every_built_in_method_is_listed_and_built():
+    names = method_names()
+    for name in ("frontiernet", "oracle", "df-uniform", "discontinuity-gain", "discontinuity-uniform", *BASELINES):
+        assert name in names
+    classic, gain, random_frontier, vacuum = (make_method(name) for name in BASELINES)
+    assert isinstance(classic.source, MapSource) and classic.goal == "nearest" and classic.fresh_frontiers
+    assert gain.source.gain == "unknown_volume" and gain.goal == "utility"
+    assert random_frontier.goal == "random" and vacuum.source is None and vacuum.goal == "vacuum"
+    uniform = make_method("discontinuity-uniform")  # needs no model file
+    assert isinstance(uniform.source, ImageSource) and not uniform.fresh_frontiers and uniform.goal == "utility"
+
+
+def test_unknown_method_or_goal_rule_is_an_input_error_listing_the_valid_ones():
+    with pytest.raises(InputError, match="valid: .*classic.*gain-distance.*vacuum"):
+        make_method("nbvp")
+    with pytest.raises(InputError, match="goal rule"):
+        Method("mine", None, "closest")
+    with pytest.raises(InputError, match="no frontier source"):
+        Method("mine", None, "utility")
+
+
+def frontier(frontier_id: int, xy, gain: float):
+    return SimpleNamespace(id=frontier_id, gain_m3=gain, position=np.array([*xy, 1.2]))
+
+
+@pytest.mark.parametrize("goal, best", [("utility", 1), ("nearest", 0)])
+def test_goal_rules_rank_by_gain_over_distance_or_by_distance_alone(goal, best):
+    planner = FrontierPlanner(explore_section("planner"), goal=goal)
+    near, far = frontier(0, (1, 0), 2.0), frontier(1, (4, 0), 20.0)
+    scores = [planner.score(near, 1.0), planner.score(far, 4.0)]
+    assert int(np.argmax(scores)) == best
+
+
+def test_the_random_goal_rule_is_seeded_and_fixed_per_frontier():
+    first = FrontierPlanner(explore_section("planner"), goal="random", seed=3)
+    again = FrontierPlanner(explore_section("planner"), goal="random", seed=3)
+    frontiers = [frontier(i, (i, 0), 5.0) for i in range(6)]
+    scores = [first.score(f, 1.0 + f.id) for f in frontiers]
+    assert scores == [again.score(f, 0.5) for f in frontiers]  # distance plays no part
+    assert scores == [first.score(f, 9.0) for f in frontiers]  # a frontier keeps its draw
+    assert len(set(scores)) == 6
+
+
+def test_fresh_proposals_replace_a_frontier_instead_of_averaging():
+    tracker = FrontierTracker(explore_section("tracking"))
+    seen = SimpleNamespace(position=np.array([1.0, 1.0, 1.2]), direction=np.array([1.0, 0, 0]), gain_m3=10.0)
+    moved = SimpleNamespace(position=np.array([1.4, 1.0, 1.2]), direction=np.array([1.0, 0, 0]), gain_m3=4.0)
+    [first] = tracker.add([seen], 0, 0, average=False)
+    assert tracker.add([moved], 1, 1, average=False) == [first]
+    kept = tracker.get(first)
+    assert kept.position.tolist() == [1.4, 1.0, 1.2] and kept.predicted_gain_m3 == 4.0 and kept.observations == 2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", BASELINES)
+def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_path, method):
+    metrics = run_method(plan_spec, tmp_path / method, method, 60)
+    assert metrics["method"] == method and metrics["model"] is None and metrics["collisions"] == 0
+    assert metrics["coverage"] > metrics["coverage_per_step"][0] and metrics["path_length_m"] > 0.5
+    if method != "vacuum":
+        assert metrics["goals"] >= 1 and metrics["coverage"] > 0.5  # it has looked into the second room
+    else:
+        assert metrics["goals"] == 0 and metrics["steps"] == 60  # no goals, it runs until the budget ends
+
+
+@pytest.mark.slow
+def test_map_frontiers_are_the_current_maps_frontiers_only(plan_spec, tmp_path):
+    metrics = run_method(plan_spec, tmp_path / "classic", "classic", 40)
+    frontiers = json.loads((tmp_path / "classic" / "frontiers.json").read_text())
+    assert metrics["frontiers_removed"].get("stale", 0) > 0  # frontiers that the map no longer has are gone
+    assert all(f["predicted_gain_m3"] == explore_section("map_frontiers")["uniform_gain_m3"]
+               for f in frontiers["frontiers"])
