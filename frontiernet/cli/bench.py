@@ -32,10 +32,13 @@ def default_bench_scene(spec: str | None) -> str:
 
 
 def add_parser(subparsers) -> None:
-    parser = subparsers.add_parser("bench", help="benchmarks (ratios to a same-run baseline)",
+    parser = subparsers.add_parser("bench", help="the exploration benchmark (--scenes ...), or a hot-path "
+                                                 "benchmark (ratios to a same-run baseline)",
                                    description=__doc__.split("\n\n")[0])
-    actions = parser.add_subparsers(dest="action", metavar="BENCHMARK", required=True,
+    _exploration_options(parser)
+    actions = parser.add_subparsers(dest="action", metavar="BENCHMARK", required=False,
                                     parser_class=type(parser))
+    parser.set_defaults(func=run_exploration_benchmark)
     render = _scene_bench(actions, "render", "render time per frame vs a bare cast_rays", run_render)
     render.add_argument("--repeats", type=int, default=20, help="timed repetitions (median is reported)")
     render.add_argument("--batch", type=int, default=8, help="poses per batched render")
@@ -49,6 +52,46 @@ def add_parser(subparsers) -> None:
 
     for module in plugin_commands(BENCH_GROUP):  # e.g. deploy's `bench inference`
         module.add_parser(actions)
+
+
+def _exploration_options(parser) -> None:
+    """``frontiernet bench --scenes ... --methods ...``: every method on the same scenes, starts and budget."""
+    group = parser.add_argument_group("exploration benchmark (docs/benchmark.md)")
+    group.add_argument("--scenes", nargs="+", metavar="SPEC", help="scene specs")
+    group.add_argument("--methods", default="frontiernet,classic",
+                       help="comma-separated methods (default frontiernet,classic; see `frontiernet explore -h`)")
+    group.add_argument("--starts", type=int, default=3, help="start poses per scene (sampled once, shared)")
+    group.add_argument("--repeats", type=int, default=3, help="runs per start and method (seeds seed..seed+R-1)")
+    group.add_argument("--max-steps", type=int, help="step budget (default: configs/explore.yaml run.max_steps)")
+    group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
+    group.add_argument("--workers", type=int, default=1, help="parallel runs")
+    group.add_argument("--backend", default="local", help="local (processes) or ray")
+    group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
+    group.add_argument("--model", help="model file of the learned methods (default: the shipped model)")
+    group.add_argument("--depth", help="depth source of every run (default: run.depth)")
+    group.add_argument("--config", help="YAML overriding configs/explore.yaml")
+    group.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="config overrides")
+
+
+def run_exploration_benchmark(args) -> int:
+    from ..benchmark import main
+    from ..config import load_config
+    from ..errors import InputError
+
+    if args.action is None and not args.scenes:
+        raise InputError("give a benchmark (render, map, explore, ...) or --scenes for the exploration benchmark")
+    if not args.out:
+        raise InputError("the exploration benchmark needs --out DIR")
+    conf = load_config("explore", args.config, args.set)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
+                  max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
+                  model=args.model, depth=args.depth, progress=True)
+    failed = sum(row["status"] != "done" for row in result["rows"])
+    print(Path(result["table"]).read_text())
+    print(f"bench: {len(result['rows'])} runs ({failed} failed) in {result['wall_s']} s; "
+          f"{result['results']}, {result['table']}, {len(result['plots'])} coverage plot(s) in {args.out}")
+    return 0
 
 
 def _scene_bench(actions, name: str, help_text: str, func):

@@ -1,0 +1,17 @@
+"""The exploration benchmark (``frontiernet bench --scenes ... --methods ...``).
+
+Every method runs on the same scenes, start poses, camera and step budget; the report is the
+paper's Table I for any scene set. Steps, one module each (hloc style):
+
+* :mod:`.plan`: start poses sampled once per scene (seeded) and the list of runs;
+* :mod:`.runner`: the runs, in parallel (local processes or Ray), resumable, failures recorded;
+* :mod:`.report`: ``results.csv``, ``table.md`` (Vox@25/50/100 with shared step thresholds,
+  success) and coverage curves per scene.
+"""
+
+from .main import main
+from .plan import RunSpec, plan_runs, start_poses
+from .report import write_report
+from .runner import run_all
+
+__all__ = ["main", "RunSpec", "plan_runs", "start_poses", "run_all", "write_report"]

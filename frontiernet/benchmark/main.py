@@ -1,0 +1,71 @@
+"""``main(conf, scenes, methods, ...)``: the whole benchmark, behind ``frontiernet bench --scenes``."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from ..errors import InputError
+from ..exploration.methods import method_names
+from ..io import ensure_dir, write_json
+from .plan import MIN_BUDGET, plan_runs
+from .report import write_report
+from .runner import run_all
+
+
+def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
+         max_steps: int | None = None, workers: int = 1, backend: str = "local", seed: int | None = None,
+         model=None, depth: str | None = None, progress: bool = True) -> dict:
+    """Run every method on every scene from shared start poses and write the report to `out`.
+
+    Args:
+        conf: ``configs/explore.yaml`` (with the user's overrides); scenes: scene specs;
+        methods: method names (:mod:`frontiernet.exploration.methods`).
+        starts, repeats: start poses per scene, runs per start and method.
+        max_steps: step budget (None: ``run.max_steps``); seed: start poses and run seeds
+            (None: ``run.seed``); model, depth: as ``frontiernet explore``.
+        workers, backend: parallel runs, ``local`` or ``ray``.
+    Returns:
+        ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
+    Raises:
+        InputError: an unknown method or scene, a budget too small for Vox@25, a changed
+            plan in a folder that holds another benchmark's runs.
+    """
+    budget = int(conf.run.max_steps if max_steps is None else max_steps)
+    if budget < MIN_BUDGET:
+        raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
+    seed = int(conf.run.seed if seed is None else seed)
+    valid = method_names()
+    for method in methods:
+        if method not in valid:
+            raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
+    out = Path(out)
+    settings = {"budget": budget, "seed": seed, "model": str(model) if model else None, "depth": depth,
+                "conf": OmegaConf.to_container(conf, resolve=True)}
+    plan_path = out / "plan.json"
+    poses = None
+    if plan_path.is_file():  # resuming: the same settings, the same start poses
+        previous = json.loads(plan_path.read_text())
+        if previous["settings"] != settings:
+            raise InputError(f"{out} holds a benchmark with other settings (budget, seed, model, depth or config); "
+                             "use another --out or remove it")
+        poses = previous["start_poses"]
+    clock = time.perf_counter()
+    runs = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses)
+    ensure_dir(out)
+    start_poses = {run.scene: [] for run in runs}
+    for run in runs:
+        if list(run.start_pose) not in start_poses[run.scene]:
+            start_poses[run.scene].append(list(run.start_pose))
+    write_json(plan_path, {"settings": settings, "start_poses": start_poses,
+                           "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
+    rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],
+                          "depth": depth}, workers, backend, progress)
+    report = write_report(out, rows, list(scenes), list(methods))
+    return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
+
+
+__all__ = ["main"]

@@ -1,0 +1,113 @@
+"""Benchmark plan: start poses per scene and the runs (scene x method x start x repeat).
+
+Start poses are sampled once per scene with the benchmark's seed (the explorer's own
+:func:`~frontiernet.exploration.run.sample_start`: camera height above the floor, clearance
+from obstacles, random heading) and shared by every method and repeat, so methods differ by
+their goal choice alone. Repeat r of a start runs with seed ``seed + r`` (the depth source,
+anchoring's pixel subset and random methods draw from it).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+MIN_BUDGET = 4  # Vox@25 needs a step at a quarter of the budget
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One exploration run of the benchmark.
+
+    Attributes:
+        scene: scene spec; method: method name; start, repeat: indices.
+        start_pose: (x, y, z, yaw) metres and degrees, world frame.
+        seed: the run's seed.
+    """
+
+    scene: str
+    method: str
+    start: int
+    repeat: int
+    start_pose: tuple
+    seed: int
+
+    @property
+    def key(self) -> str:
+        """Relative folder of the run's outputs: ``<scene key>/<method>/start<i>_repeat<r>``."""
+        return f"{scene_key(self.scene)}/{self.method}/start{self.start}_repeat{self.repeat}"
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "start_pose": list(self.start_pose)}
+
+
+def scene_key(spec: str) -> str:
+    """A short, filesystem-safe, unique name of a scene spec (its stem and a spec hash)."""
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(str(spec).split("?")[0]).name or str(spec))[:40]
+    return f"{stem}-{hashlib.sha1(str(spec).encode()).hexdigest()[:6]}"
+
+
+def start_poses(spec: str, count: int, seed: int, conf) -> list[tuple]:
+    """`count` start poses (x, y, z, yaw_deg) of scene `spec`, seeded (see the module docstring).
+
+    Raises:
+        InputError: an unknown or unreadable scene, or one without free space to start from.
+    """
+    from ..config import load_config
+    from ..exploration.motion import yaw_of
+    from ..exploration.run import sample_start
+    from ..scenes import load_scene
+    from ..simulator.voxels import voxelize_scene
+
+    scene = load_scene(spec)
+    voxels = voxelize_scene(scene, load_config("sim").voxels)
+    rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
+    poses = []
+    for _ in range(count):
+        T = sample_start(scene, voxels, conf, rng)
+        poses.append(tuple(round(float(v), 4) for v in (*T[:3, 3], np.degrees(yaw_of(T)))))
+    return poses
+
+
+def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
+              poses: dict | None = None) -> list[RunSpec]:
+    """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by method.
+
+    Args:
+        poses: start poses already sampled, by scene (e.g. read back from a previous
+            ``plan.json`` so a resumed benchmark keeps them); missing scenes are sampled.
+    Raises:
+        InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
+            repeats below 1, or a scene that does not load.
+    """
+    from ..exploration.methods import method_names
+
+    if not scenes:
+        raise InputError("give at least one scene (--scenes)")
+    if not methods:
+        raise InputError("give at least one method (--methods)")
+    valid = method_names()
+    for method in methods:
+        if method not in valid:
+            raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
+    if int(starts) < 1 or int(repeats) < 1:
+        raise InputError(f"--starts and --repeats must be at least 1, got {starts} and {repeats}")
+    poses = dict(poses or {})
+    runs = []
+    for scene in scenes:
+        if scene not in poses or len(poses[scene]) < int(starts):
+            poses[scene] = start_poses(scene, int(starts), seed, conf)
+        for start in range(int(starts)):
+            for repeat in range(int(repeats)):
+                runs.extend(RunSpec(scene, method, start, repeat, tuple(poses[scene][start]), int(seed) + repeat)
+                            for method in methods)
+    return runs
+
+
+__all__ = ["RunSpec", "plan_runs", "start_poses", "scene_key", "MIN_BUDGET"]

@@ -1,0 +1,137 @@
+"""Benchmark report: ``results.csv``, ``table.md`` and coverage curves per scene.
+
+**Vox@k** (DESIGN.md item 7, the paper's Table I): coverage (known fraction of the scene's
+explorable volume) when the step count reaches k % of the run. Runs of one comparison (same
+scene, start and repeat) can end at different steps (no frontiers left), so for k = 25 and
+50 the step is shared: the mean over the compared methods of k % of each one's steps; a run
+that ended earlier holds its final coverage. k = 100 is the end of each run (the budget
+unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +- std over
+starts x repeats; the last column is the mean over scenes.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_write
+from .plan import scene_key
+from .runner import ROW_FIELDS
+
+SUCCESS_COVERAGE = 0.4
+METRICS = (("vox25_shared", "Vox@25 (%)", 100.0), ("vox50_shared", "Vox@50 (%)", 100.0),
+           ("vox100", "Vox@100 (%)", 100.0), ("success", "success (%)", 100.0),
+           ("path_length_m", "path length (m)", 1.0), ("step_ms", "time per step (ms)", 1.0))
+
+
+def coverage_at(curve: np.ndarray, step: float) -> float:
+    """Coverage of a per-step curve (index = step) when the step count reaches `step` (the
+    first whole step at or beyond it), holding the last value beyond the curve's end."""
+    return float(curve[min(int(np.ceil(step - 1e-9)), len(curve) - 1)])
+
+
+def add_shared_vox(rows: list[dict], curves: dict) -> None:
+    """Set ``vox25_shared`` and ``vox50_shared`` of every finished row (see the module docstring).
+
+    Args:
+        rows: result rows (:data:`~frontiernet.benchmark.runner.ROW_FIELDS`).
+        curves: row index -> (S + 1,) coverage per step of the finished runs.
+    """
+    groups = defaultdict(list)
+    for index, row in enumerate(rows):
+        if index in curves:
+            groups[(row["scene"], row["start"], row["repeat"])].append(index)
+    for members in groups.values():
+        for k in (25, 50):
+            step = float(np.mean([k / 100 * (len(curves[i]) - 1) for i in members]))
+            for i in members:
+                rows[i][f"vox{k}_shared"] = coverage_at(curves[i], step)
+
+
+def _cell(values: list, scale: float) -> str:
+    if not values:
+        return "--"
+    values = np.asarray(values, np.float64) * scale
+    return f"{values.mean():.1f} +- {values.std():.1f}" if len(values) > 1 else f"{values.mean():.1f}"
+
+
+def table_markdown(rows: list[dict], scenes: list[str], methods: list[str]) -> str:
+    """One Table I per metric: rows methods, columns scenes and their mean, cells mean +- std."""
+    done = [r for r in rows if r["status"] == "done"]
+    names = [scene_key(s) for s in scenes]
+    lines = []
+    for field, title, scale in METRICS:
+        lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
+                  "| --- |" + " --- |" * (len(names) + 1)]
+        for method in methods:
+            per_scene = [[float(r[field]) for r in done if r["method"] == method and r["scene"] == s] for s in scenes]
+            means = [np.mean(v) * scale for v in per_scene if v]
+            overall = f"{np.mean(means):.1f}" if len(means) == len(scenes) else "--"
+            lines.append(f"| {method} | " + " | ".join(_cell(v, scale) for v in per_scene) + f" | {overall} |")
+        lines.append("")
+    failed = [r for r in rows if r["status"] != "done"]
+    if failed:
+        lines += [f"{len(failed)} run(s) failed (see results.csv):", ""]
+        lines += [f"- {r['method']} on {scene_key(r['scene'])}, start {r['start']}, repeat {r['repeat']}: "
+                  f"{r['error']}" for r in failed] + [""]
+    return "\n".join(lines)
+
+
+def plot_curves(rows: list[dict], curves: dict, scene: str, path: Path) -> None:
+    """Mean coverage per step of each method on `scene` (band: +- std over starts x repeats)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(6, 4), dpi=100)
+    for method in dict.fromkeys(r["method"] for r in rows):
+        runs = [curves[i] for i, r in enumerate(rows) if i in curves and r["method"] == method and r["scene"] == scene]
+        if not runs:
+            continue
+        length = max(len(c) for c in runs)
+        stacked = np.stack([np.pad(c, (0, length - len(c)), mode="edge") for c in runs]) * 100
+        mean, std = stacked.mean(0), stacked.std(0)
+        axes.plot(mean, label=method)
+        axes.fill_between(np.arange(length), mean - std, mean + std, alpha=0.15)
+    axes.set(xlabel="step", ylabel="coverage (% of explorable volume)", title=scene_key(scene))
+    axes.grid(alpha=0.3)
+    if axes.lines:
+        axes.legend(fontsize=8)
+    figure.tight_layout()
+    atomic_write(path, lambda tmp: figure.savefig(tmp, format="png"))
+    plt.close(figure)
+
+
+def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str]) -> dict:
+    """Write ``results.csv``, ``table.md`` and ``coverage_<scene>.png`` into `out`; returns paths."""
+    out = Path(out)
+    curves = {}
+    for index, row in enumerate(rows):
+        if row["status"] == "done":
+            key = f"{scene_key(row['scene'])}/{row['method']}/start{row['start']}_repeat{row['repeat']}"
+            metrics = json.loads((out / "runs" / key / "metrics.json").read_text())
+            curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
+    add_shared_vox(rows, curves)
+    fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]
+
+    def write_csv(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
+            writer.writeheader()
+            writer.writerows(rows)
+
+    atomic_write(out / "results.csv", write_csv)
+    atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table_markdown(rows, scenes, methods)))
+    plots = []
+    for scene in scenes:
+        plots.append(out / f"coverage_{scene_key(scene)}.png")
+        plot_curves(rows, curves, scene, plots[-1])
+    return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
+
+
+__all__ = ["write_report", "add_shared_vox", "table_markdown", "coverage_at", "SUCCESS_COVERAGE"]

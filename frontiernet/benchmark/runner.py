@@ -1,0 +1,192 @@
+"""Benchmark runs: one exploration each, in parallel, resumable, failures recorded.
+
+:func:`run_one` never raises: a run that fails comes back as a row with its error (and
+``failed/<key>.json`` records it; a later invocation tries it again), so one bad run never
+stops a benchmark. A finished run (``runs/<key>/metrics.json``) is never redone: an
+interrupted benchmark resumes where it stopped. Runs write into ``<key>.partial`` and are
+renamed when complete, so a half-written run is never taken for a finished one.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+from pathlib import Path
+
+from ..errors import InputError
+
+log = logging.getLogger(__name__)
+
+BACKENDS = ("local", "ray")
+ROW_FIELDS = ("scene", "method", "start", "repeat", "seed", "status", "error", "steps", "max_steps", "coverage",
+              "vox25", "vox50", "vox100", "success", "path_length_m", "collisions", "step_ms", "wall_s",
+              "stop_reason")
+
+
+def _row(run: dict, status: str, record: dict | None = None, error: str = "") -> dict:
+    row = {name: run[name] for name in ("scene", "method", "start", "repeat", "seed")}
+    row.update(status=status, error=error)
+    if record is not None:
+        vox = record["vox_at"]
+        row.update(steps=record["steps"], max_steps=record["max_steps"], coverage=record["coverage"],
+                   vox25=vox["25"], vox50=vox["50"], vox100=vox["100"], success=record["success"],
+                   path_length_m=record["path_length_m"], collisions=record["collisions"],
+                   step_ms=record["timing"]["step_ms_without_motion"], wall_s=record["wall_s"],
+                   stop_reason=record["stop_reason"])
+    return row
+
+
+def _limit_threads(threads: int) -> None:
+    """Keep a worker to its share of the cores (torch and numba would each take all of them)."""
+    try:
+        import torch
+
+        torch.set_num_threads(threads)
+    except Exception:  # pragma: no cover - torch is a dependency; never fail a run over threads
+        pass
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    except Exception:  # pragma: no cover
+        pass
+
+
+def run_one(run: dict, settings: dict) -> dict:
+    """Run (or find finished) one benchmark run; returns its result row. Never raises.
+
+    Args:
+        run: a :class:`~frontiernet.benchmark.plan.RunSpec` as a dict, plus its ``key``.
+        settings: ``out`` (benchmark folder), ``conf`` (the explore config as a dict),
+            ``max_steps``, ``model``, ``depth``, ``threads``.
+    """
+    from omegaconf import OmegaConf
+
+    from ..exploration.run import main
+
+    out = Path(settings["out"])
+    final, failed = out / "runs" / run["key"], out / "failed" / (run["key"].replace("/", "__") + ".json")
+    if (final / "metrics.json").is_file():
+        return _row(run, "done", json.loads((final / "metrics.json").read_text()))
+    partial = final.with_name(final.name + ".partial")
+    shutil.rmtree(partial, ignore_errors=True)
+    _limit_threads(int(settings["threads"]))
+    try:
+        record = main(OmegaConf.create(settings["conf"]), run["scene"], partial, method=run["method"],
+                      model=settings["model"], depth=settings["depth"], max_steps=int(settings["max_steps"]),
+                      start=",".join(str(v) for v in run["start_pose"]), seed=int(run["seed"]), video=False,
+                      progress=False)
+        shutil.rmtree(final, ignore_errors=True)
+        os.replace(partial, final)
+        failed.unlink(missing_ok=True)
+        return _row(run, "done", record)
+    except Exception as error:  # a failing run is recorded, never stops the benchmark
+        log.debug("run %s failed", run["key"], exc_info=True)
+        message = (str(error).splitlines() or [type(error).__name__])[0]
+        if not isinstance(error, InputError):
+            message = f"{type(error).__name__}: {message}"
+        failed.parent.mkdir(parents=True, exist_ok=True)
+        tmp = failed.with_suffix(".tmp")
+        tmp.write_text(json.dumps({**run, "error": message}, indent=1))
+        os.replace(tmp, failed)
+        shutil.rmtree(partial, ignore_errors=True)
+        return _row(run, "failed", error=message)
+
+
+def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", progress: bool = True) -> list[dict]:
+    """Every run of `runs` (:class:`~frontiernet.benchmark.plan.RunSpec`), rows in the same order.
+
+    Args:
+        workers: parallel runs (local processes, or Ray tasks in flight); each gets
+            ``cores // workers`` threads (at least 1).
+        backend: ``local`` (processes on this machine) or ``ray`` (a Ray cluster: ``ray.init()``
+            connects to ``RAY_ADDRESS`` when set; needs the ``ray`` extra).
+    """
+    if backend not in BACKENDS:
+        raise InputError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if int(workers) < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    tasks = [{**run.as_dict(), "key": run.key} for run in runs]
+    settings = {**settings, "threads": max(1, (os.cpu_count() or 1) // int(workers))}
+    rows: list = [None] * len(tasks)
+    with _Progress(len(tasks), progress) as bar:
+        if backend == "ray":
+            _run_ray(tasks, settings, int(workers), rows, bar)
+        elif int(workers) == 1:
+            for index, task in enumerate(tasks):
+                rows[index] = run_one(task, settings)
+                bar.advance(rows[index])
+        else:
+            _run_processes(tasks, settings, int(workers), rows, bar)
+    return rows
+
+
+def _run_processes(tasks, settings, workers, rows, bar) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    # spawn: torch and Open3D threads in this process must not be forked half-initialised
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(run_one, task, settings): index for index, task in enumerate(tasks)}
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                rows[index] = future.result()
+            except Exception as error:  # a worker that died (killed, out of memory)
+                rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
+            bar.advance(rows[index])
+
+
+def _run_ray(tasks, settings, workers, rows, bar) -> None:
+    try:
+        import ray
+    except ImportError:
+        raise InputError("--backend ray needs Ray: pip install 'frontiernet[ray]'") from None
+    ray.init(ignore_reinit_error=True, log_to_driver=False)
+    remote = ray.remote(num_cpus=settings["threads"])(run_one)
+    pending, index_of, next_task = [], {}, 0
+    while next_task < len(tasks) or pending:
+        while next_task < len(tasks) and len(pending) < workers:
+            ref = remote.remote(tasks[next_task], settings)
+            index_of[ref] = next_task
+            pending.append(ref)
+            next_task += 1
+        done, pending = ray.wait(pending, num_returns=1)
+        for ref in done:
+            index = index_of.pop(ref)
+            try:
+                rows[index] = ray.get(ref)
+            except Exception as error:  # the task's worker died
+                rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
+            bar.advance(rows[index])
+
+
+class _Progress:
+    """A rich progress bar over the runs (silent when disabled)."""
+
+    def __init__(self, total: int, enabled: bool) -> None:
+        self.total, self.enabled, self._bar = total, enabled, None
+
+    def __enter__(self):
+        if self.enabled:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+            self._bar = Progress(TextColumn("bench"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                                 TextColumn("{task.fields[last]}"))
+            self._bar.__enter__()
+            self._task = self._bar.add_task("runs", total=self.total, last="")
+        return self
+
+    def advance(self, row: dict) -> None:
+        if self._bar is not None:
+            last = f"{row['method']} {row['status']}" + (f" {row.get('coverage', 0):.1%}" if row["status"] == "done" else "")
+            self._bar.update(self._task, advance=1, last=last)
+
+    def __exit__(self, *exc) -> None:
+        if self._bar is not None:
+            self._bar.__exit__(*exc)
+
+
+__all__ = ["run_one", "run_all", "BACKENDS", "ROW_FIELDS"]

@@ -1,0 +1,98 @@
+"""The exploration benchmark (issue 6): shared starts, resumable parallel runs, Table I report."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+
+import numpy as np
+import pytest
+
+from frontiernet.benchmark.report import add_shared_vox, coverage_at
+from frontiernet.cli.main import main
+
+
+def bench(*args) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["bench", *[str(a) for a in args]])
+    return code, out.getvalue(), err.getvalue()
+
+
+def test_shared_vox_thresholds_are_the_mean_of_each_runs_quarter_and_half():
+    long = np.linspace(0.0, 1.0, 101)  # 100 steps
+    short = np.concatenate([np.linspace(0.0, 0.6, 51)])  # stopped after 50 steps (no frontiers left)
+    rows = [{"scene": "s", "start": 0, "repeat": 0, "method": m} for m in ("a", "b")]
+    add_shared_vox(rows, {0: long, 1: short})
+    # k = 25: mean(25, 12.5) = 18.75 -> step 19; k = 50: mean(50, 25) = 37.5 -> step 38 (reached)
+    assert rows[0]["vox25_shared"] == pytest.approx(long[19]) and rows[1]["vox25_shared"] == pytest.approx(short[19])
+    assert rows[0]["vox50_shared"] == pytest.approx(long[38]) and rows[1]["vox50_shared"] == pytest.approx(short[38])
+    # beyond its end a run holds its final coverage
+    assert coverage_at(short, 80) == pytest.approx(0.6)
+
+
+def test_runs_of_other_comparisons_do_not_share_thresholds():
+    rows = [{"scene": "s", "start": start, "repeat": 0, "method": "a"} for start in (0, 1)]
+    add_shared_vox(rows, {0: np.linspace(0, 1, 101), 1: np.linspace(0, 1, 11)})
+    assert rows[0]["vox25_shared"] == pytest.approx(0.25) and rows[1]["vox25_shared"] == pytest.approx(0.3)
+
+
+@pytest.mark.slow
+def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
+    out = tmp_path / "bench"
+    args = ["--scenes", plan_spec, "--methods", "classic,random-frontier", "--starts", "2", "--repeats", "1",
+            "--max-steps", "40", "--out", out]
+    code, stdout, stderr = bench(*args)
+    assert code == 0, stderr
+    assert "Vox@25" in stdout and "4 runs (0 failed)" in stdout
+
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert len(rows) == 4 and {r["status"] for r in rows} == {"done"}
+    assert {(r["method"], r["start"]) for r in rows} == {(m, s) for m in ("classic", "random-frontier") for s in "01"}
+    plan = json.loads((out / "plan.json").read_text())
+    poses = plan["start_poses"][plan_spec]
+    assert len(poses) == 2 and poses[0] != poses[1]
+    for row in rows:  # both methods started from the same pose
+        run = next(r for r in plan["runs"] if r["method"] == row["method"] and str(r["start"]) == row["start"])
+        metrics = json.loads((out / "runs" / run["key"] / "metrics.json").read_text())
+        assert np.allclose(np.array(metrics["start"])[:2, 3], run["start_pose"][:2], atol=1e-3)
+        assert metrics["collisions"] == 0 and float(row["vox25_shared"]) <= float(row["vox100"]) + 1e-9
+    table = (out / "table.md").read_text()
+    assert "| classic |" in table and "| random-frontier |" in table and "+-" in table
+    assert list(out.glob("coverage_*.png"))
+
+    # resumed: finished runs are not redone
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "runs").rglob("metrics.json")}
+    code, stdout, stderr = bench(*args)
+    assert code == 0, stderr
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
+
+
+@pytest.mark.slow
+def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, tmp_path):
+    out = tmp_path / "bench"
+    code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "vacuum", "--starts", "1", "--repeats", "1",
+                                 "--max-steps", "8", "--depth", "no_such_depth", "--out", out)
+    assert code == 0, stderr
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert rows[0]["status"] == "failed" and "no_such_depth" in rows[0]["error"]
+    assert "1 run(s) failed" in (out / "table.md").read_text()
+    assert list((out / "failed").glob("*.json"))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--methods", "classic,nbvp"], "unknown method 'nbvp'; valid: classic"),
+    (["--max-steps", "3"], "at least 4 steps"),
+    (["--starts", "0"], "at least 1"),
+    (["--backend", "slurm"], "--backend must be one of local, ray"),
+])
+def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, message):
+    code, _, stderr = bench("--scenes", plan_spec, "--max-steps", "20", "--out", tmp_path / "b", *args)
+    assert code == 2 and message in stderr and stderr.count("\n") == 1
+
+
+def test_bench_without_a_benchmark_or_scenes_says_what_to_give():
+    code, _, stderr = bench()
+    assert code == 2 and "--scenes" in stderr
