@@ -89,6 +89,12 @@ def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_p
     metrics = run_method(plan_spec, tmp_path / method, method, 60)
     assert metrics["method"] == method and metrics["model"] is None and metrics["collisions"] == 0
     assert metrics["coverage"] > metrics["coverage_per_step"][0] and metrics["path_length_m"] > 0.5
+    # GLEAM's metrics come with every run: surface coverage grows, its AUC lies below its end value
+    surface = np.array(metrics["surface_coverage_per_step"])
+    assert np.all(np.diff(surface) >= 0) and 0 < surface[-1] <= 1
+    assert surface[-1] == pytest.approx(metrics["surface_coverage"], abs=1e-5)
+    assert 0 < metrics["surface_auc"] <= metrics["surface_coverage"]
+    assert 0 < metrics["chamfer_m"] < 1.0 and 0 < metrics["completeness"] <= 1
     if method != "vacuum":
         assert metrics["goals"] >= 1 and metrics["coverage"] > 0.5  # it has looked into the second room
     else:

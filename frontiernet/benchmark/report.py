@@ -6,7 +6,9 @@ scene, start and repeat) can end at different steps (no frontiers left), so for 
 50 the step is shared: the mean over the compared methods of k % of each one's steps; a run
 that ended earlier holds its final coverage. k = 100 is the end of each run (the budget
 unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +- std over
-starts x repeats; the last column is the mean over scenes.
+starts x repeats; the last column is the mean over scenes. GLEAM's metrics come with each
+run (:mod:`frontiernet.exploration.surface`): surface coverage of Poisson-disk samples of the
+mesh, its AUC over the budget and the one-way Chamfer distance to the robot's map.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ from .runner import ROW_FIELDS
 SUCCESS_COVERAGE = 0.4
 METRICS = (("vox25_shared", "Vox@25 (%)", 100.0), ("vox50_shared", "Vox@50 (%)", 100.0),
            ("vox100", "Vox@100 (%)", 100.0), ("success", "success (%)", 100.0),
+           ("surface_coverage", "surface coverage (%, GLEAM)", 100.0), ("surface_auc", "surface coverage AUC (%)", 100.0),
+           ("chamfer_m", "Chamfer distance (cm, one-way, lower is better)", 100.0),
            ("path_length_m", "path length (m)", 1.0), ("step_ms", "time per step (ms)", 1.0))
 
 
@@ -68,7 +72,8 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str]) -> s
         lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
                   "| --- |" + " --- |" * (len(names) + 1)]
         for method in methods:
-            per_scene = [[float(r[field]) for r in done if r["method"] == method and r["scene"] == s] for s in scenes]
+            per_scene = [[float(r[field]) for r in done if r["method"] == method and r["scene"] == s
+                          and r.get(field) is not None] for s in scenes]
             means = [np.mean(v) * scale for v in per_scene if v]
             overall = f"{np.mean(means):.1f}" if len(means) == len(scenes) else "--"
             lines.append(f"| {method} | " + " | ".join(_cell(v, scale) for v in per_scene) + f" | {overall} |")

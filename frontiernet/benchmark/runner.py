@@ -21,8 +21,8 @@ log = logging.getLogger(__name__)
 
 BACKENDS = ("local", "ray")
 ROW_FIELDS = ("scene", "method", "start", "repeat", "seed", "status", "error", "steps", "max_steps", "coverage",
-              "vox25", "vox50", "vox100", "success", "path_length_m", "collisions", "step_ms", "wall_s",
-              "stop_reason")
+              "vox25", "vox50", "vox100", "success", "surface_coverage", "surface_auc", "chamfer_m", "completeness",
+              "path_length_m", "collisions", "step_ms", "wall_s", "stop_reason")
 
 
 def _row(run: dict, status: str, record: dict | None = None, error: str = "") -> dict:
@@ -32,6 +32,8 @@ def _row(run: dict, status: str, record: dict | None = None, error: str = "") ->
         vox = record["vox_at"]
         row.update(steps=record["steps"], max_steps=record["max_steps"], coverage=record["coverage"],
                    vox25=vox["25"], vox50=vox["50"], vox100=vox["100"], success=record["success"],
+                   surface_coverage=record["surface_coverage"], surface_auc=record["surface_auc"],
+                   chamfer_m=record["chamfer_m"], completeness=record["completeness"],
                    path_length_m=record["path_length_m"], collisions=record["collisions"],
                    step_ms=record["timing"]["step_ms_without_motion"], wall_s=record["wall_s"],
                    stop_reason=record["stop_reason"])

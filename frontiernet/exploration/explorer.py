@@ -28,6 +28,7 @@ from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
 from .methods import ImageSource, Method, plain_view
 from .motion import Motion, wrap_angle, yaw_of
+from .surface import SurfaceCoverage
 
 _ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
 STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion", "coverage")
@@ -45,6 +46,7 @@ class StepRecord:
     position: list
     yaw: float
     coverage: float
+    surface_coverage: float
     known_m3: float
     frontiers: int
     goal: int | None
@@ -63,6 +65,7 @@ class ExplorationResult:
     collisions: int = 0
     path_length_m: float = 0.0
     explorable_m3: float = 0.0
+    reconstruction: dict = field(default_factory=dict)  # GLEAM's Chamfer distance and completeness
 
 
 class Explorer:
@@ -101,6 +104,9 @@ class Explorer:
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = OccupancyMap.like(voxels, conf.map)
         self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
+        self.surface = SurfaceCoverage(scene, conf, int(conf.run.seed), voxels=voxels)  # GLEAM's metrics
+        self.surface_seen = np.zeros(self.surface.num_samples, bool)  # once seen, a surface point stays seen
+        self.surface_coverage = 0.0
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
         self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed))
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
@@ -136,7 +142,12 @@ class Explorer:
             observations, seen = self.method.source(self, frame, depth, self._timed)
         self._timed("tracking", self._track, observations, T)
         self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
+        self._timed("coverage", self._cover_surface)
         return frame, seen
+
+    def _cover_surface(self) -> None:
+        self.surface_seen |= self.surface.covered_mask(self.coverage_map)
+        self.surface_coverage = float(self.surface_seen.mean()) if len(self.surface_seen) else 0.0
 
     def _integrate(self, depth, frame, T) -> None:
         self.map.integrate(depth, frame.K, T)
@@ -331,6 +342,7 @@ class Explorer:
         else:
             self.result.stop_reason = "iteration limit"
         self.result.poses = [T.tolist() for T in self.agent.trajectory]
+        self.result.reconstruction = self.surface.chamfer(self.map)
         return self.result
 
     def coverage(self) -> float:
@@ -341,7 +353,7 @@ class Explorer:
     def _record(self, iteration: int, collided: bool, frame, seen) -> None:
         T = self.agent.pose
         record = StepRecord(iteration, self.agent.steps, np.round(T[:3, 3], 4).tolist(), round(yaw_of(T), 4),
-                            self.coverage(), float(self.map.known_volume_m3), len(self.tracker),
+                            self.coverage(), self.surface_coverage, float(self.map.known_volume_m3), len(self.tracker),
                             None if self.route is None else self.route.frontier_id, collided,
                             {k: round(v * 1e3, 2) for k, v in self._timings.items()})
         self.result.records.append(record)

@@ -16,15 +16,17 @@ import numpy as np
 
 from ..io import atomic_write, write_json
 from .explorer import SIMULATOR_STAGES, STAGES, ExplorationResult
+from .surface import coverage_auc
 
 VOX_PERCENTS = (25, 50, 100)
 
 
-def coverage_per_step(records, steps: int) -> np.ndarray:
-    """(steps + 1,) float64: coverage after each step count 0..steps (last record at or below it)."""
+def coverage_per_step(records, steps: int, field: str = "coverage") -> np.ndarray:
+    """(steps + 1,) float64: a record field (``coverage``, ``surface_coverage``) after each step
+    count 0..steps (the last record at or below it)."""
     coverage = np.zeros(steps + 1)
     for record in records:
-        coverage[record.step:] = record.coverage
+        coverage[record.step:] = getattr(record, field)
     return coverage
 
 
@@ -51,6 +53,7 @@ def metrics(result: ExplorationResult, budget: int, info: dict, tracker=None) ->
     """The ``metrics.json`` record of a run (`info`: scene, method, depth, model, seed, start)."""
     steps = result.records[-1].step if result.records else 0
     coverage = coverage_per_step(result.records, steps)
+    surface = coverage_per_step(result.records, steps, "surface_coverage")
     vox = vox_at(coverage, budget)
     return {**info, "max_steps": int(budget), "steps": int(steps), "iterations": len(result.records) - 1,
             "stop_reason": result.stop_reason, "coverage": float(coverage[-1]),
@@ -60,7 +63,16 @@ def metrics(result: ExplorationResult, budget: int, info: dict, tracker=None) ->
             "path_length_m": round(result.path_length_m, 3), "collisions": int(result.collisions),
             "goals": len(result.goals), "frontiers_left": result.records[-1].frontiers if result.records else 0,
             "frontiers_removed": dict(tracker.removed) if tracker is not None else {},
-            "timing": timing_summary(result.records), "coverage_per_step": np.round(coverage, 5).tolist()}
+            "surface_coverage": float(surface[-1]), "surface_auc": round(coverage_auc(surface, budget), 5),
+            "chamfer_m": _finite_or_none(result.reconstruction.get("chamfer_m")),
+            "completeness": result.reconstruction.get("completeness"),
+            "timing": timing_summary(result.records), "coverage_per_step": np.round(coverage, 5).tolist(),
+            "surface_coverage_per_step": np.round(surface, 5).tolist()}
+
+
+def _finite_or_none(value):
+    """JSON has no infinity: an empty map's Chamfer distance is written as null."""
+    return round(float(value), 5) if value is not None and np.isfinite(value) else None
 
 
 def write_run(out: Path, result: ExplorationResult, budget: int, info: dict, tracker=None) -> dict:

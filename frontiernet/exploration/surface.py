@@ -63,7 +63,7 @@ class SurfaceSettings:
             conf = load_config("explore")
         if isinstance(conf, SurfaceSettings):
             return conf
-        conf = conf["surface"] if "surface" in conf else conf
+        conf = conf.get("surface", conf)
         try:
             return cls(_integer(conf["num_points"], "surface.num_points", 1),
                        _integer(conf["tolerance_voxels"], "surface.tolerance_voxels", 0, 3),
