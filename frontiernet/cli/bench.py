@@ -46,7 +46,7 @@ def add_parser(subparsers) -> None:
     occupancy.add_argument("--frames", type=int, default=20, help="frames rendered and integrated (median is reported)")
     occupancy.add_argument("--views", type=int, default=50, help="frontier views of one visible_known_volume call")
     explore = _scene_bench(actions, "explore", "cost of one exploration step by stage vs a render", run_explore)
-    explore.add_argument("--method", default="frontiernet", help="frontiernet or oracle")
+    explore.add_argument("--method", default="frontiernet", help="exploration method (see `frontiernet explore -h`)")
     explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
     from .main import plugin_commands
 
