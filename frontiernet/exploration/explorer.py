@@ -96,11 +96,12 @@ class Explorer:
             raise InputError(f"planner.mode must be 'map' or 'map_free', got {conf.planner.mode!r}")
         self.agent = Agent(scene, T_start, sim_conf.agent, voxels)
         # moves are checked with the largest body that planned routes keep clear of occupied voxels
-        self.body_radius = float(conf.planner.clearance_m) - float(conf.map.voxel_size) / np.sqrt(2.0) - _ROUTE_SLACK_M
+        margin = float(conf.map.voxel_size) / np.sqrt(2.0) + _ROUTE_SLACK_M  # half a voxel's diagonal + slack
+        self.body_radius = float(conf.planner.clearance_m) - margin
         if self.body_radius < self.agent.radius:
             raise InputError(f"planner.clearance_m = {conf.planner.clearance_m} is too small for the agent radius "
-                             f"{self.agent.radius} m: it must be at least radius + half a voxel's diagonal + "
-                             f"{_ROUTE_SLACK_M} m ({self.agent.radius + float(conf.map.voxel_size) / np.sqrt(2.0) + _ROUTE_SLACK_M:.3f} m)")
+                             f"{self.agent.radius} m: it must be at least {self.agent.radius + margin:.3f} m (radius + "
+                             f"half a voxel's diagonal + {_ROUTE_SLACK_M} m)")
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = OccupancyMap.like(voxels, conf.map)
         self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
