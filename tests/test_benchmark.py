@@ -96,3 +96,40 @@ def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, me
 def test_bench_without_a_benchmark_or_scenes_says_what_to_give():
     code, _, stderr = bench()
     assert code == 2 and "--scenes" in stderr
+
+
+def kth_folder(folder, starts) -> str:
+    """A two-room plan in KTH/MapEx's layout with a start_poses.json of `starts` (raw row, col)."""
+    occ = np.full((60, 100), 254, np.uint8)
+    occ[10:50, 10:13] = occ[10:50, 87:90] = occ[10:13, 10:90] = occ[47:50, 10:90] = 0
+    occ[10:50, 48:52] = 0
+    occ[20:40, 48:52] = 254  # a 1 m door
+    valid = np.zeros_like(occ)
+    valid[13:47, 13:48], valid[13:47, 52:87] = 1, 2
+    np.save(folder / "occ_map.npy", occ)
+    np.save(folder / "valid_space.npy", valid)
+    (folder / "start_poses.json").write_text(json.dumps({"start_poses": [{"raw_pixel_row_col": s} for s in starts]}))
+    return f"floorplan:{folder}"
+
+
+def test_scene_starts_come_first_from_a_plan_folders_start_poses(tmp_path):
+    from frontiernet.benchmark.plan import start_poses
+    from frontiernet.config import load_config
+
+    spec = kth_folder(tmp_path, [[30, 30], [30, 70]])
+    conf = load_config("explore")
+    poses = start_poses(spec, 3, 0, conf, scene_starts=True)
+    H, s = 60, 0.05
+    expected = [((30 + 0.5) * s, (H - 30 - 0.5) * s), ((70 + 0.5) * s, (H - 30 - 0.5) * s)]
+    np.testing.assert_allclose([p[:2] for p in poses[:2]], expected, atol=1e-4)
+    assert poses[0][2] == pytest.approx(conf.motion.camera_height_m) and len(poses) == 3  # the third is sampled
+    assert start_poses(spec, 3, 0, conf, scene_starts=True) == poses  # seeded headings
+    assert [p[:2] for p in start_poses(spec, 2, 0, conf)] != [p[:2] for p in poses[:2]]  # without: sampled
+
+
+def test_a_shipped_start_on_a_wall_is_an_input_error(tmp_path):
+    from frontiernet.errors import InputError
+    from frontiernet.scenes import load_scene
+
+    with pytest.raises(InputError, match="start_poses.json: start pose"):
+        load_scene(kth_folder(tmp_path, [[11, 30]]))

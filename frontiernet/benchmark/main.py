@@ -18,7 +18,7 @@ from .runner import run_all
 
 def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
          max_steps: int | None = None, workers: int = 1, backend: str = "local", seed: int | None = None,
-         model=None, depth: str | None = None, progress: bool = True) -> dict:
+         model=None, depth: str | None = None, scene_starts: bool = False, progress: bool = True) -> dict:
     """Run every method on every scene from shared start poses and write the report to `out`.
 
     Args:
@@ -28,6 +28,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         max_steps: step budget (None: ``run.max_steps``); seed: start poses and run seeds
             (None: ``run.seed``); model, depth: as ``frontiernet explore``.
         workers, backend: parallel runs, ``local`` or ``ray``.
+        scene_starts: start from the positions a scene ships (KTH plans: MapEx's) first.
     Returns:
         ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
     Raises:
@@ -44,6 +45,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
     out = Path(out)
     settings = {"budget": budget, "seed": seed, "model": str(model) if model else None, "depth": depth,
+                "scene_starts": bool(scene_starts),
                 "conf": OmegaConf.to_container(conf, resolve=True)}
     plan_path = out / "plan.json"
     poses = None
@@ -54,7 +56,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                              "use another --out or remove it")
         poses = previous["start_poses"]
     clock = time.perf_counter()
-    runs = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses)
+    runs = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts)
     ensure_dir(out)
     start_poses = {run.scene: [] for run in runs}
     for run in runs:

@@ -53,8 +53,12 @@ def scene_key(spec: str) -> str:
     return f"{stem}-{hashlib.sha1(str(spec).encode()).hexdigest()[:6]}"
 
 
-def start_poses(spec: str, count: int, seed: int, conf) -> list[tuple]:
+def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = False) -> list[tuple]:
     """`count` start poses (x, y, z, yaw_deg) of scene `spec`, seeded (see the module docstring).
+
+    With `scene_starts`, the positions a scene ships come first (a KTH plan folder's MapEx
+    ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``);
+    sampled poses fill up the count.
 
     Raises:
         InputError: an unknown or unreadable scene, or one without free space to start from.
@@ -69,19 +73,25 @@ def start_poses(spec: str, count: int, seed: int, conf) -> list[tuple]:
     voxels = voxelize_scene(scene, load_config("sim").voxels)
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
     poses = []
-    for _ in range(count):
+    if scene_starts:
+        z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+        for x, y in scene.metadata.extra.get("start_xy", [])[:count]:
+            poses.append((round(float(x), 4), round(float(y), 4), round(z, 4),
+                          round(float(rng.uniform(-180.0, 180.0)), 4)))
+    while len(poses) < count:
         T = sample_start(scene, voxels, conf, rng)
         poses.append(tuple(round(float(v), 4) for v in (*T[:3, 3], np.degrees(yaw_of(T)))))
     return poses
 
 
 def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
-              poses: dict | None = None) -> list[RunSpec]:
+              poses: dict | None = None, scene_starts: bool = False) -> list[RunSpec]:
     """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by method.
 
     Args:
         poses: start poses already sampled, by scene (e.g. read back from a previous
             ``plan.json`` so a resumed benchmark keeps them); missing scenes are sampled.
+        scene_starts: use the start positions a scene ships first (:func:`start_poses`).
     Raises:
         InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
             repeats below 1, or a scene that does not load.
@@ -102,7 +112,7 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
     runs = []
     for scene in scenes:
         if scene not in poses or len(poses[scene]) < int(starts):
-            poses[scene] = start_poses(scene, int(starts), seed, conf)
+            poses[scene] = start_poses(scene, int(starts), seed, conf, scene_starts)
         for start in range(int(starts)):
             for repeat in range(int(repeats)):
                 runs.extend(RunSpec(scene, method, start, repeat, tuple(poses[scene][start]), int(seed) + repeat)

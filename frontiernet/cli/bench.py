@@ -61,6 +61,8 @@ def _exploration_options(parser) -> None:
     group.add_argument("--methods", default="frontiernet,classic",
                        help="comma-separated methods (default frontiernet,classic; see `frontiernet explore -h`)")
     group.add_argument("--starts", type=int, default=3, help="start poses per scene (sampled once, shared)")
+    group.add_argument("--scene-starts", action="store_true",
+                       help="use the start positions a scene ships first (KTH plan folders: MapEx's)")
     group.add_argument("--repeats", type=int, default=3, help="runs per start and method (seeds seed..seed+R-1)")
     group.add_argument("--max-steps", type=int, help="step budget (default: configs/explore.yaml run.max_steps)")
     group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
@@ -86,7 +88,7 @@ def run_exploration_benchmark(args) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
-                  model=args.model, depth=args.depth, progress=True)
+                  model=args.model, depth=args.depth, scene_starts=args.scene_starts, progress=True)
     failed = sum(row["status"] != "done" for row in result["rows"])
     print(Path(result["table"]).read_text())
     print(f"bench: {len(result['rows'])} runs ({failed} failed) in {result['wall_s']} s; "

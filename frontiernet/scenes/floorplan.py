@@ -50,6 +50,28 @@ def plan_pixel_to_world(rows, cols, shape: tuple[int, int], resolution: float) -
     return np.stack([(cols + 0.5) * resolution, (shape[0] - rows - 0.5) * resolution], axis=-1)
 
 
+def plan_start_positions(path: Path, plan: FloorPlan) -> list[list[float]]:
+    """World (x, y) metres of the start poses a plan folder ships (``start_poses.json``, MapEx's
+    starts as ``raw_pixel_row_col`` into ``occ_map.npy``; shared/data/floorplans/README.md).
+
+    Raises:
+        InputError: a file that is not such a list, or a start off the plan or not free.
+    """
+    import json
+
+    try:
+        starts = [entry["raw_pixel_row_col"] for entry in json.loads(Path(path).read_text())["start_poses"]]
+        rows, cols = (np.asarray([start[i] for start in starts], np.int64).reshape(-1) for i in (0, 1))
+    except (ValueError, KeyError, TypeError, IndexError) as error:
+        raise InputError(f"{path}: not a start_poses.json with raw_pixel_row_col entries ({error})") from None
+    shape = plan.occupied.shape
+    bad = (rows < 0) | (rows >= shape[0]) | (cols < 0) | (cols >= shape[1])
+    if bad.any() or plan.occupied[rows, cols].any():
+        raise InputError(f"{path}: start pose(s) off the plan or on a wall: "
+                         f"{[starts[i] for i in np.flatnonzero(bad | plan.occupied[np.clip(rows, 0, shape[0] - 1), np.clip(cols, 0, shape[1] - 1)])]}")
+    return np.round(plan_pixel_to_world(rows, cols, shape, plan.resolution), 4).tolist()
+
+
 def mask_rectangles(mask: np.ndarray) -> np.ndarray:
     """Cover a boolean (H, W) mask exactly with axis-aligned rectangles.
 
@@ -229,10 +251,11 @@ def load_floorplan(path: str | Path, spec_text: str, conf) -> Scene:
                  door_height=float(conf.door_height), ceiling=bool(conf.ceiling),
                  texture_size_m=float(conf.texture_size_m))
     path = Path(path)
-    metadata = SceneMetadata(
-        name=path.name if path.is_dir() else path.stem, source="floorplan", spec=spec_text,
-        extra={"resolution": plan.resolution, "plan_shape": list(plan.occupied.shape),
-               "wall_height": float(conf.wall_height), "ceiling": bool(conf.ceiling),
-               "door_pixels": int(plan.doors.sum())},
-    )
+    extra = {"resolution": plan.resolution, "plan_shape": list(plan.occupied.shape),
+             "wall_height": float(conf.wall_height), "ceiling": bool(conf.ceiling),
+             "door_pixels": int(plan.doors.sum())}
+    if path.is_dir() and (path / "start_poses.json").is_file():
+        extra["start_xy"] = plan_start_positions(path / "start_poses.json", plan)
+    metadata = SceneMetadata(name=path.name if path.is_dir() else path.stem, source="floorplan", spec=spec_text,
+                             extra=extra)
     return builder.build(metadata)
