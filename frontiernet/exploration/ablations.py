@@ -26,20 +26,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..frontiers.discontinuity import discontinuity_mask, distance_field
-from .perception import Perception, PerceptionResult
+from .perception import Perception, PerceptionResult, model_labels, plain_view
 
 #: l given to anchoring with F_d frontiers: D is exactly 0 on F_d and >= 1 px elsewhere, so any
 #: l in (0, 1] selects F_d exactly, whatever threshold the model's labels carry for its learned D.
 DISCONTINUITY_THRESHOLD_PX = 0.5
-
-
-def model_labels() -> dict:
-    """The label encoding of ``configs/model.yaml`` (``labels:``) as a plain dict."""
-    from omegaconf import OmegaConf
-
-    from ..config import load_config
-
-    return OmegaConf.to_container(load_config("model").labels, resolve=True)
 
 
 def model_size() -> int:
@@ -143,17 +134,8 @@ class DiscontinuityFrontiers(Perception):
         self.size = None if base is not None else int(size or model_size())
         self.labels = None if base is not None else dict(labels or model_labels())
 
-    def _plain(self, frame, depth: np.ndarray) -> PerceptionResult:
-        """The frame at the working size, without frontiers or gain (no model)."""
-        from ..model.inputs import resize_and_crop
-
-        rgb, small, K = resize_and_crop(frame.rgb, depth, frame.K, self.size)
-        shape = small.shape
-        return PerceptionResult(rgb, small, K, np.full(shape, float(self.labels["truncation_px"]), np.float32),
-                                np.zeros(shape, np.uint8), dict(self.labels))
-
     def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
-        seen = self._plain(frame, depth) if self.base is None else self.base(frame, depth)
+        seen = plain_view(frame, depth, self.size, self.labels) if self.base is None else self.base(frame, depth)
         s = self.settings
         mask = discontinuity_mask(seen.depth, s.window_at(min(seen.depth.shape)), s.relative_jump, s.min_jump_m,
                                   s.invalid_is_far)
@@ -162,4 +144,5 @@ class DiscontinuityFrontiers(Perception):
         return replace(seen, distance_field=field, labels=labels)
 
 
-__all__ = ["DISCONTINUITY_THRESHOLD_PX", "DiscontinuityFrontiers", "DiscontinuitySettings", "UniformGain"]
+__all__ = ["DISCONTINUITY_THRESHOLD_PX", "DiscontinuityFrontiers", "DiscontinuitySettings", "UniformGain",
+           "model_labels"]

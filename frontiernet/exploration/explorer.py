@@ -26,8 +26,9 @@ from ..mapping import OccupancyMap
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
-from .methods import ImageSource, Method, plain_view
+from .methods import ImageSource, Method
 from .motion import Motion, wrap_angle, yaw_of
+from .perception import plain_view
 from .surface import SurfaceCoverage
 
 _ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most

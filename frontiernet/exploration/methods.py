@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .perception import PerceptionResult, make_perception, perception_plugins
+from .perception import BUILTIN_PERCEPTIONS, PerceptionResult, make_perception, perception_plugins, plain_view
 
 METHOD_GROUP = "frontiernet.methods"
 GOAL_RULES = ("utility", "nearest", "random", "vacuum")
@@ -87,19 +87,6 @@ class MapSource(FrontierSource):
         return observations, plain_view(frame, depth)
 
 
-def plain_view(frame, depth: np.ndarray) -> PerceptionResult:
-    """The frame as a :class:`PerceptionResult` without frontier pixels (D = r everywhere,
-    gain class 0), labelled as ``configs/model.yaml``: the video of a method that does not
-    look for frontiers in the image shows the plain camera view."""
-    from ..config import load_config
-
-    labels = dict(load_config("model").labels)
-    shape = np.asarray(depth).shape
-    return PerceptionResult(frame.rgb, np.asarray(depth, np.float32), frame.K,
-                            np.full(shape, float(labels["truncation_px"]), np.float32), np.zeros(shape, np.uint8),
-                            labels)
-
-
 @dataclass
 class Method:
     """An exploration method (see the module docstring).
@@ -126,7 +113,7 @@ class Method:
             raise InputError(f"method {self.name!r} has no frontier source: only the vacuum goal rule works without one")
 
 
-IMAGE_METHODS = ("frontiernet", "df-uniform", "discontinuity-gain", "discontinuity-uniform")
+IMAGE_METHODS = tuple(BUILTIN_PERCEPTIONS)  # the paper's system and its Fig. 9 ablations
 MAP_METHODS = {"classic": ("uniform", "nearest"), "gain-distance": ("unknown_volume", "utility"),
                "random-frontier": ("uniform", "random")}
 
@@ -160,5 +147,4 @@ def make_method(name: str, model=None, scene=None, voxels=None, sim_conf=None, c
     raise InputError(f"unknown exploration method '{name}'; valid: {', '.join(method_names())}")
 
 
-__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "make_method", "method_names", "plain_view",
-           "GOAL_RULES"]
+__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "make_method", "method_names", "GOAL_RULES"]

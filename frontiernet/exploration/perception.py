@@ -16,6 +16,7 @@ at the perception's working size, which anchoring lifts to 3D frontiers.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,6 +81,42 @@ class ModelPerception(Perception):
         result = self.runtime.predict_at_size(rgb, invalid_to_zero(depth_small), None)
         return PerceptionResult(rgb, depth_small, K, result["distance_field"], result["gain_class"],
                                 dict(self.runtime.labels))
+
+
+@functools.lru_cache(maxsize=1)
+def _model_labels() -> tuple:
+    from omegaconf import OmegaConf
+
+    from ..config import load_config
+
+    return tuple(OmegaConf.to_container(load_config("model").labels, resolve=True).items())
+
+
+def model_labels() -> dict:
+    """The label encoding of ``configs/model.yaml`` (``labels:``) as a plain dict (read once)."""
+    return {key: list(value) if isinstance(value, list) else value for key, value in _model_labels()}
+
+
+def plain_view(frame, depth: np.ndarray, size: int | None = None, labels: dict | None = None) -> PerceptionResult:
+    """The frame as a :class:`PerceptionResult` without frontier pixels (D = r everywhere, gain
+    class 0), for methods that do not look for frontiers in the image (the video shows the plain
+    camera view) and as the base of image-free ablations.
+
+    Args:
+        frame: the rendered Frame; depth: (H, W) float32 metres, NaN invalid.
+        size: working size (resize + centre crop as the model's input, intrinsics adjusted);
+            None: the frame's own size.
+        labels: the label encoding (None: ``configs/model.yaml``'s).
+    """
+    labels = dict(labels) if labels is not None else model_labels()
+    if size is None:
+        rgb, depth, K = frame.rgb, np.asarray(depth, np.float32), frame.K
+    else:
+        from ..model.inputs import resize_and_crop
+
+        rgb, depth, K = resize_and_crop(frame.rgb, depth, frame.K, int(size))
+    return PerceptionResult(rgb, depth, K, np.full(depth.shape, float(labels["truncation_px"]), np.float32),
+                            np.zeros(depth.shape, np.uint8), labels)
 
 
 def perception_plugins() -> dict:
