@@ -7,10 +7,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import box_scene, explore_section, room_boxes
+from omegaconf import OmegaConf
+
+from conftest import box_scene, room_boxes
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
-from frontiernet.frontiers.map_frontiers import frontier_regions, map_frontiers
+from frontiernet.frontiers.map_frontiers import frontier_regions, frontier_settings, map_frontiers
 from frontiernet.geometry import pose_from_heading
 from frontiernet.mapping import OccupancyMap
 from frontiernet.simulator.camera import PinholeCamera, Renderer
@@ -25,7 +27,17 @@ TWO_ROOM_BOUNDS = np.array([[-0.45, -0.45, -0.45], [8.45, 3.45, 2.95]])
 
 
 def conf(**changes) -> dict:
-    return explore_section("map_frontiers", **changes)
+    """The explore config with `changes` made where each key lives: the planner's band, the
+    tracker's gain view, or map_frontiers' own keys."""
+    explore = OmegaConf.to_container(load_config("explore"))
+    for key, value in changes.items():
+        if key == "height_band_m":
+            explore["planner"][key] = value
+        elif key in ("width_px", "focal_px", "max_depth_m"):
+            explore["tracking"]["gain_view"][key] = value
+        else:
+            explore["map_frontiers"][key] = value
+    return explore
 
 
 def doorway_boxes():
@@ -112,7 +124,7 @@ def test_frontiers_lie_on_the_unseen_side_on_free_cells_and_point_into_the_unkno
         assert frontier.direction[:2] @ steps > 0 or unknown[tuple(ahead)]
         assert frontier.direction[1] < 0 and frontier.direction[2] == 0
         assert np.linalg.norm(frontier.direction) == pytest.approx(1.0)
-        assert frontier.num_pixels >= conf()["min_cells"] and np.all(np.isnan(frontier.pixel))
+        assert frontier.num_pixels >= conf()["map_frontiers"]["min_cells"] and np.all(np.isnan(frontier.pixel))
         np.testing.assert_array_equal(frontier.T_world_cam, T)
         assert frontier.T_world_cam is not T
 
@@ -191,20 +203,19 @@ def test_regions_below_min_cells_are_noise_and_dropped():
 # -- config and input checks --------------------------------------------------------------------------
 
 
-def test_the_shipped_config_uses_the_planner_band_and_the_tracker_gain_view():
-    explore = load_config("explore")
-    assert explore.map_frontiers.height_band_m == explore.planner.height_band_m
-    for key in ("width_px", "focal_px", "max_depth_m"):
-        assert explore.map_frontiers[key] == explore.tracking.gain_view[key]
+def test_map_frontiers_use_the_planner_band_and_the_tracker_gain_view():
+    settings = frontier_settings(conf(height_band_m=0.5, width_px=16, focal_px=7.5, max_depth_m=3.0))
+    assert (settings["height_band_m"], settings["width_px"], settings["focal_px"], settings["max_depth_m"]) \
+        == (0.5, 16, 7.5, 3.0)
 
 
 @pytest.mark.parametrize("z, pose, changes, message", [
     (float("nan"), np.eye(4), {}, "z must be a finite number"),
     (Z, np.diag([1.0, 1.0, 2.0, 1.0]), {}, "T_world_cam must be a rigid transform"),
     (Z, np.eye(4), {"min_cells": 0}, "map_frontiers.min_cells must be a positive number"),
-    (Z, np.eye(4), {"width_px": 2.5}, "map_frontiers.width_px must be a positive integer"),
+    (Z, np.eye(4), {"width_px": 2.5}, "tracking.gain_view.width_px must be a positive integer"),
     (Z, np.eye(4), {"max_extent_m": -1.0}, "map_frontiers.max_extent_m must be a positive number"),
-    (Z, np.eye(4), {"height_band_m": None}, "map_frontiers.height_band_m is missing"),
+    (Z, np.eye(4), {"height_band_m": None}, "planner.height_band_m is missing"),
 ])
 def test_bad_inputs_are_input_errors_naming_the_value(z, pose, changes, message):
     occupancy = OccupancyMap.from_bounds(ROOM_BOUNDS, load_config("explore").map)

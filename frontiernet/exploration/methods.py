@@ -82,7 +82,7 @@ class MapSource(FrontierSource):
     def __call__(self, explorer, frame, depth, timed):
         from ..frontiers.map_frontiers import map_frontiers
 
-        observations = timed("anchoring", map_frontiers, explorer.map, explorer.motion.z, explorer.conf.map_frontiers,
+        observations = timed("anchoring", map_frontiers, explorer.map, explorer.motion.z, explorer.conf,
                              frame.T_world_cam, self.gain)
         return observations, plain_view(frame, depth)
 

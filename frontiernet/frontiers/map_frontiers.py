@@ -1,7 +1,7 @@
 """Classic map-based frontiers: Yamauchi, "A frontier-based approach for autonomous
 exploration" (CIRA 1997), the baseline the exploration benchmark compares against.
 
-1. Slice the map at ``z +- height_band_m`` (the planner's band: frontiers lie on its grid).
+1. Slice the map at ``z +- planner.height_band_m`` (the planner's band: frontiers lie on its grid).
 2. Frontier cells: free cells with at least one unknown 4-neighbour (cells off the map are
    not unknown: there is nothing to explore there).
 3. Frontier regions: 8-connected groups of frontier cells; groups of fewer than ``min_cells``
@@ -12,7 +12,8 @@ exploration" (CIRA 1997), the baseline the exploration benchmark compares agains
    :class:`~frontiernet.frontiers.FrontierTracker` and the planner.
 
 Frames: world Z-up, metres; cell ``[i, j]`` of ``OccupancyMap.slice_2d`` is centred at ``origin[:2]
-+ ([i, j] + 0.5) * voxel_size``. Every number comes from ``map_frontiers`` in ``configs/explore.yaml``.
++ ([i, j] + 0.5) * voxel_size``. Numbers: ``map_frontiers`` of ``configs/explore.yaml``, the band of
+``planner`` and the gain view of ``tracking`` (one view for every gain in the run).
 """
 
 from __future__ import annotations
@@ -27,8 +28,14 @@ from .anchoring import FrontierObservation
 
 GAINS = ("unknown_volume", "uniform")  # the valid values of map_frontiers' `gain`
 
-_NUMBERS = ("height_band_m", "max_extent_m", "uniform_gain_m3", "focal_px", "max_depth_m")
-_INTEGERS = ("min_cells", "width_px")
+# setting -> (config path, integer): the band is the planner's, the gain view the tracker's
+_SETTINGS = {"height_band_m": (("planner", "height_band_m"), False),
+             "min_cells": (("map_frontiers", "min_cells"), True),
+             "max_extent_m": (("map_frontiers", "max_extent_m"), False),
+             "uniform_gain_m3": (("map_frontiers", "uniform_gain_m3"), False),
+             "width_px": (("tracking", "gain_view", "width_px"), True),
+             "focal_px": (("tracking", "gain_view", "focal_px"), False),
+             "max_depth_m": (("tracking", "gain_view", "max_depth_m"), False)}
 
 
 def map_frontiers(occupancy, z: float, conf, T_world_cam: np.ndarray,
@@ -39,12 +46,12 @@ def map_frontiers(occupancy, z: float, conf, T_world_cam: np.ndarray,
         occupancy: an :class:`~frontiernet.mapping.OccupancyMap` (``slice_2d``, ``voxel_size``,
             ``origin``, ``visible_unknown_volume``).
         z: world height of the slice (the robot's camera height), metres.
-        conf: the ``map_frontiers`` section of ``configs/explore.yaml`` (dict or DictConfig),
-            or a whole explore config holding it.
+        conf: the explore config (``configs/explore.yaml``, dict or DictConfig): its
+            ``map_frontiers`` section, ``planner.height_band_m`` and ``tracking.gain_view``.
         T_world_cam: (4, 4) float64 pose of the robot's camera, stored in each observation.
         gain: ``unknown_volume``: the unknown volume (m^3) a level virtual camera at the
-            frontier, looking along its direction, sees in the map (``width_px``, ``focal_px``,
-            ``max_depth_m``); ``uniform``: ``uniform_gain_m3`` for every frontier.
+            frontier, looking along its direction, sees in the map (the tracker's gain view);
+            ``uniform``: ``map_frontiers.uniform_gain_m3`` for every frontier.
     Returns:
         One observation per piece: position (3,) float64 = the member cell centre nearest the
         centroid, at height `z` (on the frontier); direction (3,) float64 level unit mean of the
@@ -85,17 +92,21 @@ def map_frontiers(occupancy, z: float, conf, T_world_cam: np.ndarray,
 
 
 def frontier_settings(conf) -> dict:
-    """The checked ``map_frontiers`` section: floats for the metres, pixels and m^3, ints for
-    ``min_cells`` and ``width_px``; InputError naming the first missing or non-positive key."""
-    conf = conf.get("map_frontiers", conf) if hasattr(conf, "get") else {}
+    """The checked settings of :func:`map_frontiers` from the explore config (:data:`_SETTINGS`):
+    floats for the metres, pixels and m^3, ints for ``min_cells`` and ``width_px``; InputError
+    naming the first missing or non-positive key by its config path."""
     settings = {}
-    for key in _NUMBERS + _INTEGERS:
-        if conf.get(key) is None:
-            raise InputError(f"map_frontiers.{key} is missing from the map_frontiers config")
-        settings[key] = value = positive_number(scalar(conf.get(key)), f"map_frontiers.{key}")
-        if key in _INTEGERS and not value.is_integer():
-            raise InputError(f"map_frontiers.{key} must be a positive integer, got {conf.get(key)!r}")
-    return {key: int(value) if key in _INTEGERS else value for key, value in settings.items()}
+    for key, (path, integer) in _SETTINGS.items():
+        name, value = ".".join(path), conf
+        for part in path:
+            value = value.get(part) if hasattr(value, "get") else None
+        if value is None:
+            raise InputError(f"{name} is missing from the explore config")
+        value = positive_number(scalar(value), name)
+        if integer and not value.is_integer():
+            raise InputError(f"{name} must be a positive integer, got {value!r}")
+        settings[key] = int(value) if integer else value
+    return settings
 
 
 def frontier_cells(free: np.ndarray, occupied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
