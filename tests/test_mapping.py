@@ -201,6 +201,23 @@ def test_slice_2d_marks_walls_occupied_and_the_room_free(renderer):
     assert not empty_free.any() and not empty_occupied.any()
 
 
+def test_slice_2d_follows_every_map_update(renderer):
+    occupancy = integrated(renderer, surround_poses()[1:2])  # one level view
+    free, _ = occupancy.slice_2d(1.0, 1.4)
+    assert not free.flags.writeable  # kept for the next caller of the same band
+    again, _ = occupancy.slice_2d(1.0, 1.4)
+    np.testing.assert_array_equal(again, free)
+    for pose in surround_poses()[4::3]:  # more frames: more free cells
+        frame = renderer.render(pose)
+        occupancy.integrate(frame.depth, frame.K, pose)
+    more, _ = occupancy.slice_2d(1.0, 1.4)
+    assert more.sum() > free.sum()
+    i, j, _ = occupancy.world_to_index(np.array([[2.0, 2.6, 1.2]]))[0]
+    assert not more[i, j]  # not yet seen ...
+    occupancy.clear_sphere(np.array([2.0, 2.6, 1.2]), 0.3)
+    assert occupancy.slice_2d(1.0, 1.4)[0][i, j]  # ... freed by the robot's footprint
+
+
 def test_state_at_off_the_grid_and_save_load(renderer, tmp_path):
     occupancy = integrated(renderer, [pose_from_heading(*CAMERA, yaw=0.0)])
     far = occupancy.state_at(np.array([[100.0, 0, 0], [np.nan, 1.0, 1.0], [-5.0, 1.5, 1.2]]))

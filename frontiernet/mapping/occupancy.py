@@ -69,6 +69,7 @@ class OccupancyMap:
         self._observed = np.zeros(dims, bool)
         self._known_voxels = 0
         self._latest_frame: tuple[np.ndarray, np.ndarray] | None = None  # (box lo, voxels seen)
+        self._slice: tuple | None = None  # (k0, k1, free, occupied) of the latest slice_2d, until an update
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
@@ -183,7 +184,7 @@ class OccupancyMap:
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
                         self.origin + lo * self.voxel_size, self.voxel_size, passed, hit)
-        self._latest_frame = (lo, passed | hit)
+        self._latest_frame, self._slice = (lo, passed | hit), None
         self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                            np.float32(s.log_odds_hit), np.float32(s.log_odds_miss),
                                            np.float32(s.log_odds_min), np.float32(s.log_odds_max))
@@ -192,6 +193,7 @@ class OccupancyMap:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
         as free (observed, log-odds at most ``log_odds_miss``): where the robot stands is free."""
         box, inside = self._sphere(centre, radius_m, "clear_sphere")
+        self._slice = None
         self._known_voxels += int(np.count_nonzero(inside & ~self._observed[box]))
         self._observed[box] |= inside
         miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
@@ -262,7 +264,8 @@ class OccupancyMap:
         The band holds the voxel layers overlapping it (at least the one holding z_min).
         Returns (free, occupied), both (X, Y) bool: a column is occupied when any of its
         band voxels is occupied, free when all of them are free; a band off the grid
-        gives all False (unknown).
+        gives all False (unknown). The arrays are read-only: the latest slice is kept until the
+        map changes (map frontiers, the planner and the video take the same band each step).
         """
         z_min, z_max = finite_number(z_min, "z_min"), finite_number(z_max, "z_max")
         if z_max < z_min:
@@ -273,9 +276,13 @@ class OccupancyMap:
         if k1 <= k0:
             empty = np.zeros(self.shape[:2], bool)
             return empty, empty.copy()
-        band = slice(k0, k1)
-        observed, occupied = self._observed[:, :, band], self._log_odds[:, :, band] > self.settings.occupied_threshold
-        return np.all(observed & ~occupied, axis=2), np.any(observed & occupied, axis=2)
+        if self._slice is None or self._slice[:2] != (k0, k1):
+            band = slice(k0, k1)
+            observed = self._observed[:, :, band]
+            occupied = self._log_odds[:, :, band] > self.settings.occupied_threshold
+            self._slice = (k0, k1, _read_only(np.all(observed & ~occupied, axis=2)),
+                           _read_only(np.any(observed & occupied, axis=2)))
+        return self._slice[2], self._slice[3]
 
     # -- files -----------------------------------------------------------------------------------
 
