@@ -56,12 +56,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                              "use another --out or remove it")
         poses = previous["start_poses"]
     clock = time.perf_counter()
-    runs = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts)
+    runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts)
     ensure_dir(out)
-    start_poses = {run.scene: [] for run in runs}
-    for run in runs:
-        if list(run.start_pose) not in start_poses[run.scene]:
-            start_poses[run.scene].append(list(run.start_pose))
     write_json(plan_path, {"settings": settings, "start_poses": start_poses,
                            "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
     rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],

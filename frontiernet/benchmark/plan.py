@@ -85,8 +85,9 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
 
 def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
-              poses: dict | None = None, scene_starts: bool = False) -> list[RunSpec]:
-    """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by method.
+              poses: dict | None = None, scene_starts: bool = False) -> tuple[list[RunSpec], dict]:
+    """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by
+    method, and the start poses they use (scene -> list of (x, y, z, yaw_deg)).
 
     Args:
         poses: start poses already sampled, by scene (e.g. read back from a previous
@@ -117,7 +118,7 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
             for repeat in range(int(repeats)):
                 runs.extend(RunSpec(scene, method, start, repeat, tuple(poses[scene][start]), int(seed) + repeat)
                             for method in methods)
-    return runs
+    return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}
 
 
 __all__ = ["RunSpec", "plan_runs", "start_poses", "scene_key", "MIN_BUDGET"]

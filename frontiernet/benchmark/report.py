@@ -118,8 +118,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     curves = {}
     for index, row in enumerate(rows):
         if row["status"] == "done":
-            key = f"{scene_key(row['scene'])}/{row['method']}/start{row['start']}_repeat{row['repeat']}"
-            metrics = json.loads((out / "runs" / key / "metrics.json").read_text())
+            metrics = json.loads((out / "runs" / row["key"] / "metrics.json").read_text())
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
     add_shared_vox(rows, curves)
     fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]

@@ -26,7 +26,7 @@ ROW_FIELDS = ("scene", "method", "start", "repeat", "seed", "status", "error", "
 
 
 def _row(run: dict, status: str, record: dict | None = None, error: str = "") -> dict:
-    row = {name: run[name] for name in ("scene", "method", "start", "repeat", "seed")}
+    row = {name: run[name] for name in ("scene", "method", "start", "repeat", "seed", "key")}
     row.update(status=status, error=error)
     if record is not None:
         vox = record["vox_at"]
