@@ -133,3 +133,10 @@ def test_a_shipped_start_on_a_wall_is_an_input_error(tmp_path):
 
     with pytest.raises(InputError, match="start_poses.json: start pose"):
         load_scene(kth_folder(tmp_path, [[11, 30]]))
+
+
+def test_hot_path_benchmarks_keep_their_scene_option_beside_the_exploration_benchmark():
+    # `--scene` of `bench map` must not be taken for an abbreviation of the benchmark's `--scenes`
+    code, stdout, stderr = bench("map", "--scene", "procedural:0", "--frames", "2", "--views", "2", "--json")
+    assert code == 0, stderr
+    assert json.loads(stdout)["scene"] == "procedural:0"

@@ -34,7 +34,8 @@ def default_bench_scene(spec: str | None) -> str:
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("bench", help="the exploration benchmark (--scenes ...), or a hot-path "
                                                  "benchmark (ratios to a same-run baseline)",
-                                   description=__doc__.split("\n\n")[0])
+                                   description=__doc__.split("\n\n")[0],
+                                   allow_abbrev=False)  # `bench map --scene` is not --scenes abbreviated
     _exploration_options(parser)
     actions = parser.add_subparsers(dest="action", metavar="BENCHMARK", required=False,
                                     parser_class=type(parser))
@@ -80,7 +81,7 @@ def run_exploration_benchmark(args) -> int:
     from ..config import load_config
     from ..errors import InputError
 
-    if args.action is None and not args.scenes:
+    if not args.scenes:  # (a benchmark subcommand sets its own func)
         raise InputError("give a benchmark (render, map, explore, ...) or --scenes for the exploration benchmark")
     if not args.out:
         raise InputError("the exploration benchmark needs --out DIR")
