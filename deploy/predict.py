@@ -11,59 +11,14 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from frontiernet.errors import InputError
 from frontiernet.io import atomic_write, ensure_dir, write_image
 from frontiernet.model.overlay import distance_picture, frontier_overlay
+from frontiernet.sequences.images import read_depth, read_rgb
 
 from .runtime import load_runtime
-
-
-def read_rgb(path: str | Path) -> np.ndarray:
-    """(H, W, 3) uint8 RGB from an image file; InputError for a missing file or another channel count."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: image not found")
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise InputError(f"{path}: not a readable image")
-    channels = 1 if image.ndim == 2 else image.shape[2]
-    if channels != 3:
-        raise InputError(f"{path}: image has {channels} channel(s); an RGB image with 3 channels is needed")
-    if image.dtype != np.uint8:
-        raise InputError(f"{path}: image is {image.dtype}; an 8-bit RGB image is needed")
-    return np.ascontiguousarray(image[..., ::-1])
-
-
-def read_depth(path: str | Path, depth_scale: float = 1000.0) -> np.ndarray:
-    """(H, W) float32 metres from a depth file; 0 = invalid.
-
-    ``.npy``: float metres. Images (PNG, TIFF): integer images are divided by `depth_scale`
-    (1000 for millimetre PNGs as TUM/Redwood/our datasets write them; TUM's own is 5000);
-    float images are metres. NaN is refused (mark invalid pixels with 0).
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: depth file not found")
-    if path.suffix.lower() == ".npy":
-        try:
-            depth = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as error:
-            raise InputError(f"{path}: not a readable .npy array ({error})") from None
-    else:
-        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
-        if depth is None:
-            raise InputError(f"{path}: not a readable depth image")
-        if np.issubdtype(depth.dtype, np.integer):
-            depth = depth.astype(np.float32) / float(depth_scale)
-    if depth.ndim != 2:
-        raise InputError(f"{path}: depth must be a single-channel (H, W) map, got shape {tuple(depth.shape)}")
-    depth = depth.astype(np.float32)
-    if np.isnan(depth).any():
-        raise InputError(f"{path}: depth has {int(np.isnan(depth).sum())} NaN pixels; mark invalid pixels with 0")
-    return depth
 
 
 def predict_files(image: str | Path | None, depth: str | Path | None, model: str | Path | None, out: str | Path,

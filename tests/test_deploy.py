@@ -12,7 +12,7 @@ import torch
 from omegaconf import OmegaConf
 
 from deploy.export import export
-from deploy.predict import read_depth
+from frontiernet.sequences import read_depth
 from deploy.runtime import load_runtime
 from frontiernet.cli.main import main
 from frontiernet.config import load_config

@@ -1,0 +1,109 @@
+"""Reading RGB images and depth maps from disk, with the depth encodings of common datasets.
+
+* :func:`read_rgb`: (H, W, 3) uint8 RGB from any image OpenCV reads.
+* :func:`read_depth`: (H, W) float32 metres, 0 = invalid, from ``.npy`` (float metres) or a
+  depth image in one of the :data:`DEPTH_ENCODINGS`:
+
+  ``scale`` (default): integer images divided by ``depth_scale`` units per metre (1000 for
+  millimetre PNGs as Redwood, ICL-NUIM and ScanNet write them; 5000 for TUM RGB-D), float
+  images taken as metres; ``sun``: SUN3D / SUN RGB-D's bit-rotated millimetres
+  (``mm = v >> 3 | v << 13``); ``nyu``: NYU Depth V2's raw Kinect values, stored little-endian
+  in a PGM whose header says big-endian (``m = 351.3 / (1092.5 - raw)``, Open3D's
+  ``CreateFromNYUFormat``).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+
+DEPTH_ENCODINGS = ("scale", "sun", "nyu")
+_NYU_BASELINE, _NYU_OFFSET = 351.3, 1092.5  # Open3D RGBDImageFactory.cpp (NYU raw Kinect disparity)
+
+
+def read_rgb(path: str | Path) -> np.ndarray:
+    """(H, W, 3) uint8 RGB from an image file; InputError for a missing file or another channel count."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: image not found")
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise InputError(f"{path}: not a readable image")
+    channels = 1 if image.ndim == 2 else image.shape[2]
+    if channels == 4:  # RGBA (e.g. habitat renders): drop alpha
+        image = image[..., :3]
+    elif channels != 3:
+        raise InputError(f"{path}: image has {channels} channel(s); an RGB image with 3 channels is needed")
+    if image.dtype != np.uint8:
+        raise InputError(f"{path}: image is {image.dtype}; an 8-bit RGB image is needed")
+    return np.ascontiguousarray(image[..., ::-1])
+
+
+def _pgm_header(data: bytes, path: Path) -> tuple[int, int, int]:
+    """(width, height, offset of the pixels) of a binary PGM (P5): four whitespace-separated
+    tokens (comments after '#') and one whitespace byte."""
+    tokens, position = [], 0
+    while len(tokens) < 4 and position < len(data):
+        match = re.compile(rb"\s*(#[^\n]*\n\s*)*(\S+)").match(data, position)
+        if match is None:
+            break
+        tokens.append(match.group(2))
+        position = match.end()
+    if len(tokens) < 4 or tokens[0] != b"P5":
+        raise InputError(f"{path}: not a binary PGM (P5 header expected)")
+    try:
+        return int(tokens[1]), int(tokens[2]), position + 1
+    except ValueError:
+        raise InputError(f"{path}: PGM header has a non-numeric size") from None
+
+
+def _read_nyu(path: Path) -> np.ndarray:
+    data = path.read_bytes()
+    width, height, offset = _pgm_header(data, path)
+    if len(data) - offset < 2 * width * height:
+        raise InputError(f"{path}: NYU depth PGM is truncated ({len(data) - offset} bytes of pixels, "
+                         f"{2 * width * height} expected)")
+    raw = np.frombuffer(data, "<u2", width * height, offset=offset).reshape(height, width).astype(np.float64)
+    with np.errstate(divide="ignore"):
+        return np.where(raw < _NYU_OFFSET, _NYU_BASELINE / (_NYU_OFFSET - raw), 0.0).astype(np.float32)
+
+
+def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "scale") -> np.ndarray:
+    """(H, W) float32 metres from a depth file; 0 = invalid (see the module doc for `encoding`).
+
+    NaN is refused in float files (mark invalid pixels with 0); negative values are read as invalid.
+    """
+    path = Path(path)
+    if encoding not in DEPTH_ENCODINGS:
+        raise InputError(f"depth encoding '{encoding}' is unknown; valid: {', '.join(DEPTH_ENCODINGS)}")
+    if not path.is_file():
+        raise InputError(f"{path}: depth file not found")
+    if encoding == "nyu":
+        return _read_nyu(path)
+    if path.suffix.lower() == ".npy":
+        try:
+            depth = np.load(path, allow_pickle=False)
+        except (ValueError, OSError) as error:
+            raise InputError(f"{path}: not a readable .npy array ({error})") from None
+    else:
+        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        if depth is None:
+            raise InputError(f"{path}: not a readable depth image")
+        if encoding == "sun":
+            if depth.dtype != np.uint16:
+                raise InputError(f"{path}: SUN depth must be a 16-bit image, got {depth.dtype}")
+            depth = ((depth >> 3) | (depth << 13)).astype(np.float32) / 1000.0
+        elif np.issubdtype(depth.dtype, np.integer):
+            depth = depth.astype(np.float32) / float(depth_scale)
+    if depth.ndim != 2:
+        raise InputError(f"{path}: depth must be a single-channel (H, W) map, got shape {tuple(depth.shape)}")
+    depth = depth.astype(np.float32)
+    if np.isnan(depth).any():
+        raise InputError(f"{path}: depth has {int(np.isnan(depth).sum())} NaN pixels; mark invalid pixels with 0")
+    depth[~(depth > 0)] = 0.0
+    return depth
