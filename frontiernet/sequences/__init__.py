@@ -3,9 +3,74 @@
 * :mod:`.frames`: the :class:`Sequence` type (frames with images, optional depth, intrinsics,
   ``T_world_cam``) every reader returns.
 * :mod:`.images`: image and depth files, with the depth encodings of TUM, NYU, SUN, Redwood.
+* :mod:`.readers`: TUM RGB-D (:func:`read_tum`) and Redwood (:func:`read_redwood`) folders.
+* :mod:`.colmap`: COLMAP sparse models (:func:`read_colmap`).
+* :func:`open_sequence`: any of them, the format detected from the folder's contents.
 """
 
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import InputError
+from .colmap import find_model, read_colmap, sequence_from_reconstruction
 from .frames import Camera, Sequence, SequenceFrame
 from .images import DEPTH_ENCODINGS, read_depth, read_rgb
+from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, read_redwood, read_tum
 
-__all__ = ["Camera", "Sequence", "SequenceFrame", "DEPTH_ENCODINGS", "read_depth", "read_rgb"]
+FORMATS = ("tum", "redwood", "colmap", "images")
+
+__all__ = ["DEPTH_ENCODINGS", "FORMATS", "Camera", "Sequence", "SequenceFrame", "detect_format", "open_sequence",
+           "read_colmap", "read_depth", "read_redwood", "read_rgb", "read_tum", "sequence_from_reconstruction"]
+
+
+def _only_images(folder: Path) -> bool:
+    """Whether `folder` holds image files and nothing else (hidden files aside)."""
+    entries = [entry for entry in folder.iterdir() if not entry.name.startswith(".")]
+    return bool(entries) and all(entry.is_file() and entry.suffix.lower() in IMAGE_SUFFIXES for entry in entries)
+
+
+def detect_format(path: str | Path) -> str:
+    """The format of the sequence folder `path` (one of :data:`FORMATS`); InputError if none fits.
+
+    ``rgb.txt``: tum; a ``*.log`` trajectory and a colour folder: redwood; ``cameras.bin`` or
+    ``cameras.txt`` (directly, in ``sparse/0`` or ``sparse``): colmap; only image files: images.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError(f"{path}: sequence folder not found")
+    if (path / "rgb.txt").is_file():
+        return "tum"
+    if any(path.glob("*.log")) and any((path / name).is_dir() for name in REDWOOD_COLOUR_FOLDERS):
+        return "redwood"
+    if find_model(path) is not None:
+        return "colmap"
+    if _only_images(path):
+        return "images"
+    raise InputError(f"{path}: unknown sequence format; looked for rgb.txt (tum), a *.log trajectory with a "
+                     f"{'/, '.join(REDWOOD_COLOUR_FOLDERS)}/ folder (redwood), cameras.bin or cameras.txt in ., "
+                     f"sparse/0 or sparse (colmap), a folder of only images (images)")
+
+
+def open_sequence(path: str | Path, format: str = "auto", camera: Camera | None = None, **options) -> Sequence:
+    """The sequence at `path` read by the reader of `format` (``auto``: :func:`detect_format`).
+
+    `camera` overrides the intrinsics (not for colmap, whose model has its own); `options` go to
+    the reader (e.g. ``max_time_difference_s`` for tum, ``image_dir`` / ``depth_dir`` for colmap).
+    """
+    if format != "auto" and format not in FORMATS:
+        raise InputError(f"sequence format '{format}' is unknown; valid: auto, {', '.join(FORMATS)}")
+    if format == "auto":
+        format = detect_format(path)
+    if format == "tum":
+        return read_tum(path, camera, **options)
+    if format == "redwood":
+        return read_redwood(path, camera, **options)
+    if format == "colmap":
+        if camera is not None:
+            raise InputError(f"{path}: a COLMAP model has its own cameras; a camera cannot be given for it")
+        return read_colmap(path, **options)
+    # imported here: the image-folder reader (structure from motion) is heavier and optional
+    from .sfm import read_image_folder
+
+    return read_image_folder(path, camera, **options)
