@@ -16,9 +16,9 @@ import sys
 
 from .. import __version__
 from ..errors import InputError
-from . import bench, demo, explore, render, scene
+from . import bench, demo, explore, render, scene, sequence
 
-COMMANDS = (scene, render, explore, demo, bench)
+COMMANDS = (scene, render, explore, demo, bench, sequence)
 PLUGIN_GROUP = "frontiernet.commands"
 
 

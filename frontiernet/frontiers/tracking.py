@@ -108,6 +108,7 @@ class FrontierTracker:
     next_id: int = 0
     removed: dict = field(default_factory=lambda: {"low_gain": 0, "visited": 0, "occupied": 0, "blacklisted": 0})
     tombstones: list = field(default_factory=list)
+    removed_log: list = field(default_factory=list)  # {"reason", **Frontier.as_dict()} per removal
 
     def __len__(self) -> int:
         return len(self.frontiers)
@@ -310,6 +311,7 @@ class FrontierTracker:
         frontier = self.frontiers.pop(frontier_id, None)
         if frontier is not None:
             self.removed[reason] = self.removed.get(reason, 0) + 1
+            self.removed_log.append({"reason": reason, **frontier.as_dict()})
             if reason == "blacklisted":
                 self.tombstones.append((frontier.position.copy(), frontier.direction.copy()))
 

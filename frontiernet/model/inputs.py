@@ -103,8 +103,11 @@ def decode_distance(normalised, labels_conf):
     return (r * np.exp(-np.asarray(normalised, np.float32))).astype(np.float32)
 
 
-def resize_and_crop(rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndarray | None, size: int):
-    """Resize so the short side is `size`, centre-crop to ``size x size``, adjust intrinsics.
+def resize_and_crop(rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndarray | None, size: int,
+                    crop: bool = True, multiple: int = 1):
+    """Resize so the short side is `size`, centre-crop to ``size x size`` (unless not `crop`:
+    then the whole image is kept, its long side rounded to a multiple of `multiple` px, e.g. the
+    network's padding multiple, so no padded border looks like a depth edge), adjust intrinsics.
 
     The public demo code's preprocessing (resize + centre crop to 320 x 320). RGB is resized
     with area averaging, depth with nearest neighbour (no invented depths across edges).
@@ -112,18 +115,21 @@ def resize_and_crop(rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndar
     Args:
         rgb: (H, W, 3) uint8 or None; depth: (H, W) float32 metres or None; K: (3, 3) or None.
     Returns:
-        (rgb, depth, K) at ``size x size`` (None stays None).
+        (rgb, depth, K) at ``size x size`` (without `crop`: the resized size; None stays None).
     """
     height, width = (rgb if rgb is not None else depth).shape[:2]
     scale = size / min(height, width)
     new_w, new_h = max(size, round(width * scale)), max(size, round(height * scale))
-    left, top = (new_w - size) // 2, (new_h - size) // 2
+    if not crop and multiple > 1:
+        new_w, new_h = (max(multiple, int(round(side / multiple)) * multiple) for side in (new_w, new_h))
+    left, top = ((new_w - size) // 2, (new_h - size) // 2) if crop else (0, 0)
+    crop_w, crop_h = (size, size) if crop else (new_w, new_h)
     if rgb is not None:
         rgb = cv2.resize(np.ascontiguousarray(rgb), (new_w, new_h), interpolation=cv2.INTER_AREA)
-        rgb = np.ascontiguousarray(rgb[top:top + size, left:left + size])
+        rgb = np.ascontiguousarray(rgb[top:top + crop_h, left:left + crop_w])
     if depth is not None:
         depth = cv2.resize(np.ascontiguousarray(depth, np.float32), (new_w, new_h), interpolation=cv2.INTER_NEAREST)
-        depth = np.ascontiguousarray(depth[top:top + size, left:left + size])
+        depth = np.ascontiguousarray(depth[top:top + crop_h, left:left + crop_w])
     if K is not None:
         K = np.asarray(K, np.float64).copy()
         K[0, 0] *= new_w / width

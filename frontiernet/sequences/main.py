@@ -1,0 +1,181 @@
+"""``frontiernet sequence``: offline frontier proposals on a captured image sequence (hloc-style
+``main(conf, ...)``).
+
+1. Read the sequence (:func:`~frontiernet.sequences.open_sequence`: TUM, Redwood, COLMAP, or a
+   folder of images that pycolmap reconstructs), keep every ``frames.stride``-th frame.
+2. Pass 1 (:mod:`.perceive`): depth (the sensor's, or a monocular model's) and the network's 2D
+   outputs per frame, cached in ``<out>/cache`` (a re-run resumes).
+3. Metric scale for up-to-scale poses (COLMAP): the median ratio of the frames' metric depth to
+   the reconstruction's depths (:func:`~frontiernet.sequences.sfm.metric_scale`).
+4. A Z-up world (:mod:`.gravity`), then pass 2 (:mod:`.tracking`): 3D frontiers tracked over a
+   map fused from the frames.
+5. Outputs (:mod:`.outputs`): ``frontiers.json``, ``map.ply`` (fused coloured points),
+   ``frontiers.ply`` (arrows coloured by gain), ``poses.json``, ``occupancy.npz``,
+   ``overlay.mp4`` (per frame: frontier pixels and tracked frontiers | the map from above).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io import ensure_dir, write_json
+from .gravity import gravity_alignment
+from .outputs import PointCloudFusion, camera_picture, write_arrows, write_frontiers
+from .perceive import perceive_frames
+from .tracking import track_frontiers
+
+
+def select_frames(sequence, stride: int, max_frames: int | None):
+    """Every `stride`-th frame, at most `max_frames` of them (None: all)."""
+    if int(stride) < 1:
+        raise InputError(f"frames.stride must be >= 1, got {stride}")
+    indices = list(range(0, len(sequence), int(stride)))
+    if max_frames is not None:
+        if int(max_frames) < 1:
+            raise InputError(f"frames.max_frames must be >= 1 or null, got {max_frames}")
+        indices = indices[:int(max_frames)]
+    return sequence.subset(indices)
+
+
+def metric_poses(sequence, cache_paths, conf) -> tuple[np.ndarray, float, list[str]]:
+    """(N, 4, 4) metric ``T_world_cam`` of the frames, the scale applied, and notes."""
+    poses = sequence.poses()
+    if sequence.metric:
+        return poses, 1.0, []
+    from .perceive import load_cached
+    from .sfm import metric_scale
+
+    depths = {frame.index: load_cached(path)["full_depth"].astype(np.float32)
+              for frame, path in zip(sequence, cache_paths)}
+    scale, stats = metric_scale(sequence, depths)
+    poses = poses.copy()
+    poses[:, :3, 3] *= scale
+    return poses, scale, [f"poses were up to scale: scaled by {scale:.4f} to metres from {stats}"]
+
+
+class _Pictures:
+    """Per-frame video pictures and the fused point cloud (pass 2's ``on_frame``)."""
+
+    def __init__(self, sequence, conf, labels, writer) -> None:
+        from ..exploration.drawing import gain_colour_map
+
+        self.sequence, self.conf, self.labels, self.writer = sequence, conf, labels, writer
+        self.colour = gain_colour_map(labels["bin_edges"], float(labels["bin_unit_m3"]))
+        threshold = conf.anchoring.frontier_threshold_px
+        self.threshold = float(labels["frontier_threshold_px"] if threshold is None else threshold)
+        self.cloud = PointCloudFusion(conf.outputs.point_voxel_m, conf.map.max_range_m, conf.outputs.point_stride_px)
+        self.topdown = None
+
+    def __call__(self, index, arrays, tracked) -> None:
+        frame = self.sequence.frames[index]
+        T = tracked.poses[index]
+        full_depth = arrays["full_depth"].astype(np.float32)
+        self.cloud.add(full_depth, frame.rgb(), frame.camera.K, T)
+        if self.writer is not None:
+            self.writer.add(self.picture(index, arrays, tracked))
+
+    def picture(self, index, arrays, tracked) -> np.ndarray:
+        import cv2
+
+        from ..exploration.drawing import TopDown, label
+
+        frontiers = list(tracked.tracker)
+        camera = camera_picture(arrays, frontiers, tracked.poses[index], self.labels, self.threshold, self.colour)
+        height = camera.shape[0]
+        occupancy = tracked.map
+        size = occupancy.voxel_size
+        first = np.floor((tracked.seen_bounds[0, :2] - occupancy.origin[:2]) / size).astype(int) - 2  # what the
+        last = np.ceil((tracked.seen_bounds[1, :2] - occupancy.origin[:2]) / size).astype(int) + 2  # frames see
+        first, last = np.maximum(first, 0), np.minimum(last, occupancy.shape[:2])
+        if self.topdown is None:
+            self.topdown = TopDown(occupancy.origin[:2] + first * size, tuple(last - first), size, height_px=height)
+        low, high = (tracked.view_z + float(offset) for offset in self.conf.outputs.map_band_m)
+        free, occupied = (cells[first[0]:last[0], first[1]:last[1]] for cells in occupancy.slice_2d(low, high))
+        T = tracked.poses[index]
+        forward = T[:3, 2]
+        top = self.topdown.draw(self.topdown.background(free, occupied), tracked.poses[:index + 1, :2, 3], T[:2, 3],
+                                float(np.arctan2(forward[1], forward[0])), frontiers, None, self.colour)
+        name = self.sequence.frames[index].name
+        camera = label(camera, f"{name}: {len(frontiers)} frontiers")
+        return cv2.hconcat([camera, top])
+
+
+def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto", depth: str = "sensor",
+         model: str | Path | None = None, camera=None, video: bool = True, progress: bool = True) -> dict:
+    """Run the whole offline pipeline; returns the summary written to ``<out>/summary.json``.
+
+    Args:
+        conf: ``configs/sequence.yaml`` (with ``anchoring``, ``tracking`` and ``map`` from
+            ``configs/explore.yaml``; see :func:`load_sequence_config`).
+        format: a reader of :data:`~frontiernet.sequences.FORMATS` or ``auto``.
+        depth: ``sensor`` (the sequence's depth files) or a depth source of ``configs/depth.yaml``.
+        model: model file (None: the shipped model).
+        camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
+    """
+    from ..depth import make_depth_source
+    from ..model import open_runtime
+    from . import detect_format, open_sequence
+
+    started = time.perf_counter()
+    out = ensure_dir(out)
+    format = detect_format(input_path) if format == "auto" else format
+    options = {"work_dir": out / "colmap", "conf": conf.sfm, "progress": progress} if format == "images" else {}
+    sequence = open_sequence(input_path, format, camera=camera, **options)
+    sequence = select_frames(sequence, conf.frames.stride, conf.frames.max_frames)
+    if not sequence.has_poses:
+        raise InputError(f"{input_path}: the frames have no poses (use --format images to reconstruct them)")
+    runtime = open_runtime(model, threads=conf.network.threads)
+    depth_source = None if depth == "sensor" else make_depth_source(depth, conf.get("depth"))
+    cache_paths = perceive_frames(sequence, runtime, depth_source, out / "cache", str(model or "shipped"),
+                                  conf.network, progress)
+    perceived = time.perf_counter()
+    poses, scale, notes = metric_poses(sequence, cache_paths, conf)
+    T_aligned_input = gravity_alignment(poses, str(conf.gravity))
+    poses = T_aligned_input @ poses
+    labels = dict(runtime.labels)
+    writer = None
+    if video:
+        from ..exploration.outputs import VideoWriter
+
+        writer = VideoWriter(out / "overlay.mp4", float(conf.outputs.video_fps))
+    pictures = _Pictures(sequence, conf, labels, writer)
+    tracked = track_frontiers(sequence, poses, cache_paths, conf, labels, on_frame=pictures, progress=progress)
+    names = [frame.name for frame in sequence]
+    summary = {
+        "input": str(input_path), "format": sequence.format, "frames": len(sequence), "depth": depth,
+        "model": str(model or "shipped"), "world_frame": "gravity-aligned (+z up), metres, first camera at the origin",
+        "T_world_input": np.round(T_aligned_input, 6).tolist(), "scale_to_metres": scale,
+        "frontiers_alive": len(tracked.tracker), "frontiers_removed": dict(tracked.tracker.removed),
+        "notes": [*sequence.notes, *notes],
+        "seconds": {"perception": round(perceived - started, 2), "total": None},
+    }
+    write_frontiers(out / "frontiers.json", tracked, names, {key: summary[key] for key in
+                                                              ("world_frame", "T_world_input", "scale_to_metres")})
+    write_json(out / "poses.json", {"frames": names, "T_world_cam": np.round(poses, 6).tolist()})
+    pictures.cloud.write(out / "map.ply")
+    write_arrows(out / "frontiers.ply", list(tracked.tracker), pictures.colour)
+    tracked.map.save(out / "occupancy.npz")
+    if writer is not None:
+        writer.close()
+    summary["seconds"]["total"] = round(time.perf_counter() - started, 2)
+    write_json(out / "summary.json", summary)
+    return summary
+
+
+def load_sequence_config(user_file=None, overrides=()):
+    """``configs/sequence.yaml`` with the ``anchoring``, ``tracking`` and ``map`` sections of
+    ``configs/explore.yaml`` underneath (sequence.yaml's keys win), then a user file and overrides."""
+    from omegaconf import OmegaConf
+
+    from ..config import apply_overrides, load_config
+
+    explore = load_config("explore")
+    base = OmegaConf.create({key: explore[key] for key in ("anchoring", "tracking", "map")})
+    conf = OmegaConf.merge(base, load_config("sequence"))
+    if user_file is not None:
+        conf = OmegaConf.merge(conf, load_config("sequence", user_file))
+    return apply_overrides(conf, overrides)

@@ -1,0 +1,110 @@
+"""Pass 1 of ``frontiernet sequence``: per frame, depth and the network's 2D outputs, cached.
+
+Each frame's results go to ``<cache>/<index:05d>.npz`` (written atomically) holding
+
+* ``rgb`` (h, w, 3) uint8, ``depth`` (h, w) float32 metres (NaN invalid), ``K`` (3, 3): the
+  network's input at its working size (resize + centre crop, intrinsics adjusted; depth
+  beyond the model's ``input.max_depth_m`` made invalid, as the simulator's sensor range);
+* ``distance_field`` (h, w) float16 px and ``gain_class`` (h, w) uint8: its outputs;
+* ``full_depth`` (H, W) float16 metres (NaN invalid): the frame's depth at its own size, for
+  the map and the point cloud;
+* ``key``: what produced it (frame name, model, depth source, working size).
+
+A re-run with the same key reads the file instead of running the depth source and network
+again, so an interrupted run resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io import atomic_write, ensure_dir
+
+
+def frame_depth(frame, rgb: np.ndarray, depth_source) -> np.ndarray:
+    """(H, W) float32 metres, NaN invalid: the frame's sensor depth (`depth_source` None) or a
+    depth source's estimate (given the sensor depth as its ground truth when it needs one)."""
+    sensor = frame.depth()
+    if depth_source is None:
+        if sensor is None:
+            raise InputError(f"frame {frame.name} has no depth file: choose a depth model with --depth "
+                             f"(depth_anything_v2 or metric3d_v2)")
+        return sensor
+    if depth_source.requires_ground_truth and sensor is None:
+        raise InputError(f"depth source '{depth_source.name}' degrades a sensor depth, but frame {frame.name} "
+                         f"has none")
+    return depth_source.estimate(rgb, frame.camera.K, sensor)
+
+
+def cache_key(frame, model_name: str, depth_name: str, size: int, crop: bool) -> str:
+    return json.dumps({"frame": frame.name, "model": model_name, "depth": depth_name, "size": int(size),
+                       "crop": bool(crop)}, sort_keys=True)
+
+
+def load_cached(path: Path, key: str | None = None) -> dict | None:
+    """The arrays of a cache file made with `key` (None: any), or None (absent, unreadable or
+    another key)."""
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if key is not None and str(data["key"]) != key:
+                return None
+            return {name: data[name] for name in data.files if name != "key"}
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def perceive_frame(frame, runtime, depth_source, size: int, crop: bool) -> dict:
+    """Depth and network outputs of one frame (the arrays of a cache file, see the module doc).
+
+    The image is resized so its short side is `size` px and, with `crop`, centre-cropped to a
+    square as the public demo does (without: the network sees the whole frame)."""
+    from ..model import invalid_to_zero
+    from ..model.inputs import resize_and_crop
+
+    rgb = frame.rgb()
+    depth = frame_depth(frame, rgb, depth_source)
+    small_rgb, small_depth, K = resize_and_crop(rgb, depth, frame.camera.K, size, crop, int(runtime.conf["network"]["pad_multiple"]))
+    max_depth = float(runtime.conf["input"]["max_depth_m"])
+    small_depth = np.where(small_depth <= max_depth, small_depth, np.nan).astype(np.float32)
+    result = runtime.predict_at_size(small_rgb, invalid_to_zero(small_depth), None)
+    return {"rgb": small_rgb, "depth": small_depth, "K": K,
+            "distance_field": result["distance_field"].astype(np.float16),
+            "gain_class": result["gain_class"].astype(np.uint8), "full_depth": depth.astype(np.float16)}
+
+
+def perceive_frames(sequence, runtime, depth_source, cache_dir: Path, model_name: str, conf, progress: bool = True
+                    ) -> list[Path]:
+    """Run :func:`perceive_frame` on every frame not cached yet; returns the cache files in order.
+
+    Args:
+        conf: the ``network`` section of ``configs/sequence.yaml`` (``size``: null = the model's
+            inference size; ``crop``).
+    """
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    cache_dir = ensure_dir(cache_dir)
+    size = int(conf["size"] or runtime.conf["inference"]["size"])
+    crop = bool(conf["crop"])
+    depth_name = "sensor" if depth_source is None else depth_source.name
+    paths = []
+    columns = (TextColumn("perceiving"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, transient=True, disable=not progress) as bar:
+        task = bar.add_task("frames", total=len(sequence))
+        for frame in sequence:
+            path = cache_dir / f"{frame.index:05d}.npz"
+            key = cache_key(frame, model_name, depth_name, size, crop)
+            if load_cached(path, key) is None:
+                arrays = perceive_frame(frame, runtime, depth_source, size, crop)
+                buffer = io.BytesIO()
+                np.savez_compressed(buffer, key=np.array(key), **arrays)
+                atomic_write(path, lambda tmp: tmp.write_bytes(buffer.getvalue()))
+            paths.append(path)
+            bar.advance(task)
+    return paths
