@@ -167,7 +167,7 @@ def sequence_from_reconstruction(reconstruction: pycolmap.Reconstruction, image_
     registered = (f"{len(images)} of {reconstruction.num_images()} images in the model registered; "
                   f"{_count_image_files(image_dir)} image files in {image_dir}")
     notes = [registered, "poses are up to an unknown scale (COLMAP)"]
-    return Sequence(frames, format, Path(root), metric=False, notes=notes)
+    return Sequence(frames, format, Path(root), metric=False, notes=notes, reconstruction=reconstruction)
 
 
 def read_colmap(model_dir: str | Path, image_dir: str | Path | None = None,

@@ -111,6 +111,8 @@ class Sequence:
         metric: whether poses are in metres (False: up to one unknown scale, e.g. COLMAP
             without depth).
         notes: what the reader wants the user to know (registration rate, skipped frames).
+        reconstruction: the ``pycolmap.Reconstruction`` the poses came from (COLMAP models and
+            image folders), whose points give an up-to-scale sequence its metric scale; else None.
     """
 
     frames: list
@@ -118,6 +120,7 @@ class Sequence:
     root: Path
     metric: bool = True
     notes: list = field(default_factory=list)
+    reconstruction: object = None
 
     def __len__(self) -> int:
         return len(self.frames)
