@@ -4,6 +4,7 @@
 
   frontiernet export MODEL --format onnx|torchscript|safetensors --out FILE [--half]
   frontiernet predict --image RGB [--depth D] [--model M] --out DIR [--size PX] [--depth-scale S]
+                     [--depth-encoding scale|sun|nyu] [--intrinsics FX,FY,CX,CY]
 """
 
 from __future__ import annotations
@@ -35,6 +36,12 @@ def add_parser(subparsers) -> None:
                                                                 "320; 0 keeps the image as is)")
     predict.add_argument("--depth-scale", type=float, default=1000.0,
                          help="integer depth units per metre (default 1000: millimetres; TUM: 5000)")
+    predict.add_argument("--depth-encoding", default="scale", choices=("scale", "sun", "nyu"),
+                         help="depth file encoding: scale (integer units, see --depth-scale; float = metres), sun "
+                              "(SUN3D/SUN RGB-D bit-rotated mm), nyu (NYU Depth V2 raw Kinect PGM)")
+    predict.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
+                         help="pinhole intrinsics of the image in pixels: also write 3D frontiers (frontiers.json, "
+                              "in a level camera frame and the camera frame; needs --depth)")
     predict.add_argument("--threads", type=int, help="CPU threads for the network")
     predict.set_defaults(func=run_predict)
 
@@ -55,9 +62,17 @@ def run_predict(args) -> int:
     if args.size is not None and args.size < 0:
         raise InputError(f"--size must be >= 0, got {args.size}")
     positive_number(args.depth_scale, "--depth-scale")
+    intrinsics = None
+    if args.intrinsics:
+        from frontiernet.cli.sequence import parse_intrinsics
+
+        intrinsics = parse_intrinsics(args.intrinsics)
     result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
-                           depth_scale=args.depth_scale, threads=args.threads)
+                           depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
+                           depth_encoding=args.depth_encoding)
     frontier = result["frontier_mask"]
-    print(f"{int(frontier.sum())} frontier pixels ({100 * frontier.mean():.2f} % of the image); "
-          f"wrote {args.out}/overlay.png, distance.png, outputs.npz")
+    frontiers = result.get("frontiers")
+    print(f"{int(frontier.sum())} frontier pixels ({100 * frontier.mean():.2f} % of the image)"
+          + (f", {len(frontiers)} 3D frontiers" if frontiers is not None else "")
+          + f"; wrote {args.out}/overlay.png, distance.png, outputs.npz" + (", frontiers.json" if frontiers is not None else ""))
     return 0

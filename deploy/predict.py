@@ -13,22 +13,31 @@ from pathlib import Path
 
 import numpy as np
 
+from frontiernet.config import load_config
 from frontiernet.errors import InputError
-from frontiernet.io import atomic_write, ensure_dir, write_image
+from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
+from frontiernet.model.inputs import beyond_range_invalid, resize_and_crop
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 from frontiernet.sequences.images import read_depth, read_rgb
+from frontiernet.sequences.single import LEVEL_FRAME, frame_frontiers
 
 from .runtime import load_runtime
 
 
 def predict_files(image: str | Path | None, depth: str | Path | None, model: str | Path | None, out: str | Path,
-                  size: int | None = None, depth_scale: float = 1000.0, threads: int | None = None) -> dict:
+                  size: int | None = None, depth_scale: float = 1000.0, threads: int | None = None,
+                  intrinsics: tuple | None = None, depth_encoding: str = "scale") -> dict:
     """Run the model on image/depth files and write the pictures and arrays to `out`.
 
     Args:
         size: network input size (None: the model's inference size, 320; 0: the image's own size).
+        depth_scale, depth_encoding: how the depth file is decoded
+            (:func:`frontiernet.sequences.read_depth`).
+        intrinsics: (fx, fy, cx, cy) pixels of the image: also anchor the frontier pixels to 3D
+            frontiers and write ``frontiers.json`` (:mod:`frontiernet.sequences.single`; needs depth).
     Returns:
-        The arrays (see :meth:`frontiernet.model.Runtime.predict_at_size`).
+        The arrays (see :meth:`frontiernet.model.Runtime.predict_at_size`), with ``frontiers``
+        when `intrinsics` were given.
     """
     runtime = load_runtime(model, threads=threads)
     needs_rgb, needs_depth = runtime.inputs in ("rgbd", "rgb"), runtime.inputs in ("rgbd", "depth")
@@ -37,10 +46,22 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     if needs_depth and depth is None:
         raise InputError(f"this model takes {runtime.inputs} input: give --depth (a depth map in metres "
                          f"or millimetres; see --depth-scale)")
+    if intrinsics is not None and depth is None:
+        raise InputError("--intrinsics anchors frontiers in 3D, which needs --depth")
     rgb = read_rgb(image) if image is not None else None
-    depth_m = read_depth(depth, depth_scale) if depth is not None else None
+    depth_m = read_depth(depth, depth_scale, depth_encoding) if depth is not None else None
+    if depth_m is not None:  # as the simulated sensor the network learnt from: nothing beyond its range
+        depth_m = np.nan_to_num(beyond_range_invalid(depth_m, runtime.conf["input"]["max_depth_m"]), nan=0.0)
     size = runtime.conf["inference"]["size"] if size is None else size
-    result = runtime.predict_at_size(rgb, depth_m, size)  # the model ignores an input it does not take
+    K_image = None
+    if intrinsics is not None:
+        fx, fy, cx, cy = intrinsics
+        K_image = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    if rgb is not None and depth_m is not None and rgb.shape[:2] != depth_m.shape:
+        raise InputError(f"{depth}: depth map is {depth_m.shape[1]} x {depth_m.shape[0]} but the image is "
+                         f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
+    rgb_in, depth_in, K = resize_and_crop(rgb, depth_m, K_image, size) if size else (rgb, depth_m, K_image)
+    result = runtime.predict_at_size(rgb_in, depth_in, None)  # the model ignores an input it does not take
     out = ensure_dir(out)
     labels = runtime.labels
     shown = result["rgb"]
@@ -55,4 +76,10 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
     atomic_write(out / "outputs.npz", lambda temporary: temporary.write_bytes(buffer.getvalue()))
+    if intrinsics is not None:
+        result["frontiers"] = frame_frontiers(result["distance_field"], result["gain_class"],
+                                              np.where(depth_in > 0, depth_in, np.nan).astype(np.float32), K, K_image,
+                                              labels, load_config("explore").anchoring)
+        write_json(out / "frontiers.json", {"frame": LEVEL_FRAME, "image": str(image), "depth": str(depth),
+                                            "intrinsics": list(intrinsics), "frontiers": result["frontiers"]})
     return result

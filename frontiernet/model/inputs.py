@@ -26,6 +26,17 @@ def invalid_to_zero(depth: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(depth) & (depth > 0), depth, 0.0).astype(np.float32)
 
 
+def beyond_range_invalid(depth: np.ndarray, max_depth_m: float) -> np.ndarray:
+    """(H, W) float32 metres with depths beyond `max_depth_m` set to NaN (invalid).
+
+    The network is trained on simulated depth, which has no return beyond the sensor range
+    (3.5 m, ``input.max_depth_m``); real sensors and monocular models see further, so their
+    far depths are made invalid the same way before the network sees them."""
+    depth = np.asarray(depth, np.float32)
+    with np.errstate(invalid="ignore"):
+        return np.where(depth <= float(max_depth_m), depth, np.nan).astype(np.float32)
+
+
 def check_images(rgb: np.ndarray | None, depth: np.ndarray | None, inputs: str) -> tuple[int, int]:
     """Validate what a model with input kind `inputs` (rgbd | rgb | depth) is given.
 

@@ -66,13 +66,12 @@ def perceive_frame(frame, runtime, depth_source, size: int, crop: bool) -> dict:
     The image is resized so its short side is `size` px and, with `crop`, centre-cropped to a
     square as the public demo does (without: the network sees the whole frame)."""
     from ..model import invalid_to_zero
-    from ..model.inputs import resize_and_crop
+    from ..model.inputs import beyond_range_invalid, resize_and_crop
 
     rgb = frame.rgb()
     depth = frame_depth(frame, rgb, depth_source)
     small_rgb, small_depth, K = resize_and_crop(rgb, depth, frame.camera.K, size, crop, int(runtime.conf["network"]["pad_multiple"]))
-    max_depth = float(runtime.conf["input"]["max_depth_m"])
-    small_depth = np.where(small_depth <= max_depth, small_depth, np.nan).astype(np.float32)
+    small_depth = beyond_range_invalid(small_depth, runtime.conf["input"]["max_depth_m"])
     result = runtime.predict_at_size(small_rgb, invalid_to_zero(small_depth), None)
     return {"rgb": small_rgb, "depth": small_depth, "K": K,
             "distance_field": result["distance_field"].astype(np.float16),
