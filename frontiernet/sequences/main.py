@@ -154,7 +154,8 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         "T_world_input": np.round(T_aligned_input, 6).tolist(), "scale_to_metres": scale,
         "frontiers_alive": len(tracked.tracker), "frontiers_removed": dict(tracked.tracker.removed),
         "notes": [*sequence.notes, *notes],
-        "seconds": {"perception": round(perceived - started, 2), "total": None},
+        "seconds": {"reading_and_perception": round(perceived - started, 2),
+                    **{stage: round(value, 2) for stage, value in tracked.seconds.items()}, "total": None},
     }
     write_frontiers(out / "frontiers.json", tracked, names, {key: summary[key] for key in
                                                               ("world_frame", "T_world_input", "scale_to_metres")})

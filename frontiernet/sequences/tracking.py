@@ -11,6 +11,7 @@ metres first (:mod:`.gravity`). The tracker's gain views sit at the median camer
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +43,7 @@ class TrackedSequence:
     per_frame: list = field(default_factory=list)
     view_z: float = 0.0
     seen_bounds: np.ndarray | None = None
+    seconds: dict = field(default_factory=dict)  # per stage (anchoring, map, tracking, point_cloud_and_video), all frames
 
 
 def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, stride_px: int = 8) -> np.ndarray:
@@ -86,9 +88,12 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
         for index, (frame, path) in enumerate(zip(sequence, cache_paths)):
             arrays = load_cached(path)
             T = poses[index]
+            clock = _Clock(result.seconds)
             observations = anchor_prediction(arrays["distance_field"].astype(np.float32), arrays["gain_class"],
                                              arrays["depth"], arrays["K"], T, conf.anchoring, labels, rng)
+            clock("anchoring")
             occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T)
+            clock("map")
             ids = tracker.add(observations, index, index)
             tracker.update_gains(occupancy)
             removed_before = len(tracker.removed_log)
@@ -97,8 +102,22 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
                 record["removed_frame"] = index
             result.per_frame.append({"frame": frame.name, "observations": len(observations),
                                      "frontier_ids": [i for i in ids if i is not None], "alive": len(tracker)})
+            clock("tracking")
             if on_frame is not None:
                 on_frame(index, arrays, result)
+                clock("point_cloud_and_video")
             bar.advance(task)
     return result
 
+
+
+class _Clock:
+    """Adds the seconds since the last call to ``seconds[stage]``."""
+
+    def __init__(self, seconds: dict) -> None:
+        self.seconds, self.last = seconds, time.perf_counter()
+
+    def __call__(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self.last
+        self.last = now
