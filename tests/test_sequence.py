@@ -140,6 +140,9 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys)
     frame = renderer.render(T)
     write_redwood(tmp_path / "no_depth", [(frame.rgb, frame.depth, T)] * 2, renderer.camera.K, with_depth=False)
     (tmp_path / "empty").mkdir()
+    write_redwood(tmp_path / "metres", [(frame.rgb, frame.depth, T)] * 2, renderer.camera.K)
+    for png in (tmp_path / "metres" / "depth").iterdir():  # depth stored in whole metres, read as millimetres
+        cv2.imwrite(str(png), np.nan_to_num(np.round(frame.depth)).astype(np.uint16))
     cases = [
         ([str(tmp_path / "empty")], "empty"),
         ([str(tmp_path / "missing")], "missing"),
@@ -147,6 +150,7 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys)
         ([str(tmp_path / "no_depth"), "--depth", "depth_anything_v2"], "depth_anything_v2"),
         ([str(tmp_path / "no_depth"), "--intrinsics", "1,2,3"], "--intrinsics must be fx,fy,cx,cy"),
         ([str(tmp_path / "no_depth"), "frames.stride=0"], "frames.stride must be >= 1"),
+        ([str(tmp_path / "metres")], "is implausible (read with depth scale 1000"),
     ]
     for (folder, *extra), expected in cases:
         assert run_sequence(folder, tmp_path / "out", "--no-video", *extra) == 2, (folder, extra)

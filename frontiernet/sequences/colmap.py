@@ -176,7 +176,7 @@ def read_colmap(model_dir: str | Path, image_dir: str | Path | None = None,
     or a project folder with the model in ``sparse/0`` or ``sparse``.
 
     `image_dir` defaults to the project's ``images/`` (or the model folder's sibling ``images``);
-    `depth_dir`: see :func:`sequence_from_reconstruction`.
+    `depth_dir` (see :func:`sequence_from_reconstruction`) to a ``depth/`` folder beside it, if any.
     """
     path = Path(model_dir)
     if not path.is_dir():
@@ -188,6 +188,8 @@ def read_colmap(model_dir: str | Path, image_dir: str | Path | None = None,
     image_dir = Path(image_dir) if image_dir is not None else _default_image_dir(path, model)
     if not image_dir.is_dir():
         raise InputError(f"{image_dir}: image folder not found")
+    if depth_dir is None and (image_dir.parent / "depth").is_dir():
+        depth_dir = image_dir.parent / "depth"
     try:
         reconstruction = pycolmap.Reconstruction(model)
     except (ValueError, RuntimeError) as error:  # pycolmap's failed checks (ValueError in 4.2)

@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import InputError
 
 DEPTH_ENCODINGS = ("scale", "sun", "nyu")
+PLAUSIBLE_DEPTH_M = (0.05, 100.0)  # median depths outside this mean a wrong unit (indoor and outdoor sensors)
 _NYU_BASELINE, _NYU_OFFSET = 351.3, 1092.5  # Open3D RGBDImageFactory.cpp (NYU raw Kinect disparity)
 
 
@@ -106,4 +107,19 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     if np.isnan(depth).any():
         raise InputError(f"{path}: depth has {int(np.isnan(depth).sum())} NaN pixels; mark invalid pixels with 0")
     depth[~(depth > 0)] = 0.0
+    check_depth_unit(depth, path, f"depth scale {depth_scale:g} units per metre" if encoding == "scale" else
+                     f"the {encoding} encoding")
     return depth
+
+
+def check_depth_unit(depth: np.ndarray, path, decoding: str) -> None:
+    """InputError when the median valid depth (metres) is outside :data:`PLAUSIBLE_DEPTH_M`: a
+    depth map read in the wrong unit (millimetres as metres, metres as millimetres)."""
+    valid = depth[depth > 0]
+    if not len(valid):
+        return
+    median = float(np.median(valid))
+    low, high = PLAUSIBLE_DEPTH_M
+    if not low <= median <= high:
+        raise InputError(f"{path}: median depth {median:.4g} m is implausible (read with {decoding}); the depth "
+                         f"is in another unit: check the depth scale (1000 for millimetres, 5000 for TUM, 1 for metres)")
