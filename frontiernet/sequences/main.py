@@ -41,6 +41,16 @@ def select_frames(sequence, stride: int, max_frames: int | None):
     return sequence.subset(indices)
 
 
+def model_identity(model) -> str:
+    """What names a model file in the cache key: its path, size and modification time (a model
+    retrained into the same file must not reuse the old outputs)."""
+    from ..model import default_model_path
+
+    path = Path(model) if model is not None else default_model_path()
+    stat = path.stat() if path.is_file() else None
+    return f"{path.resolve()}:{stat.st_size}:{stat.st_mtime_ns}" if stat else str(path)
+
+
 def metric_poses(sequence, cache_paths, conf) -> tuple[np.ndarray, float, list[str]]:
     """(N, 4, 4) metric ``T_world_cam`` of the frames, the scale applied, and notes."""
     poses = sequence.poses()
@@ -133,7 +143,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         raise InputError(f"{input_path}: the frames have no poses (use --format images to reconstruct them)")
     runtime = open_runtime(model, threads=conf.network.threads)
     depth_source = None if depth == "sensor" else make_depth_source(depth, conf.get("depth"))
-    cache_paths = perceive_frames(sequence, runtime, depth_source, out / "cache", str(model or "shipped"),
+    cache_paths = perceive_frames(sequence, runtime, depth_source, out / "cache", model_identity(model),
                                   conf.network, progress)
     perceived = time.perf_counter()
     poses, scale, notes = metric_poses(sequence, cache_paths, conf)

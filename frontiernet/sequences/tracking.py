@@ -55,8 +55,7 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
     points = [np.asarray(poses)[:, :3, 3]]
     for frame, T, path in zip(sequence, poses, cache_paths):
         depth = np.minimum(load_cached(path)["full_depth"].astype(np.float32), max_range_m)
-        colourless = np.zeros(depth.shape + (3,), np.uint8)
-        points.append(back_projected_points(depth, colourless, frame.camera.K, T, max_range_m, stride_px)[0])
+        points.append(back_projected_points(depth, None, frame.camera.K, T, max_range_m, stride_px)[0])
     points = np.concatenate(points)
     return np.stack([points.min(0), points.max(0)])
 
