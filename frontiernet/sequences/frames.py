@@ -143,20 +143,6 @@ class Sequence:
             raise InputError(f"{self.root}: {len(missing)} frame(s) have no pose (first: {missing[0]})")
         return np.stack([frame.T_world_cam for frame in self.frames])
 
-    def transformed(self, T_new_world: np.ndarray, scale: float = 1.0) -> Sequence:
-        """The sequence with poses mapped into a new world frame: ``x_new = scale * R x + t`` for
-        ``T_new_world`` = [R | t] (a rigid (4, 4)), e.g. gravity alignment or a metric scale."""
-        T_new_world = np.asarray(T_new_world, np.float64)
-        frames = []
-        for frame in self.frames:
-            pose = None
-            if frame.T_world_cam is not None:
-                pose = frame.T_world_cam.copy()
-                pose[:3, 3] *= scale
-                pose = T_new_world @ pose
-            frames.append(replace(frame, T_world_cam=pose))
-        return replace(self, frames=frames, notes=list(self.notes))
-
     def subset(self, indices) -> Sequence:
         """The frames at `indices` (re-indexed from 0), e.g. every n-th frame."""
         frames = [replace(self.frames[i], index=k) for k, i in enumerate(indices)]

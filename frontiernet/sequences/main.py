@@ -141,6 +141,10 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     sequence = select_frames(sequence, conf.frames.stride, conf.frames.max_frames)
     if not sequence.has_poses:
         raise InputError(f"{input_path}: the frames have no poses (use --format images to reconstruct them)")
+    if depth == "sensor" and not sequence.has_depth:
+        missing = next(frame.name for frame in sequence if frame.depth_path is None)
+        raise InputError(f"{input_path}: frame {missing} has no depth file: choose a depth model with --depth "
+                         f"(depth_anything_v2 or metric3d_v2)")
     runtime = open_runtime(model, threads=conf.network.threads)
     depth_source = None if depth == "sensor" else make_depth_source(depth, conf.get("depth"))
     cache_paths = perceive_frames(sequence, runtime, depth_source, out / "cache", model_identity(model),

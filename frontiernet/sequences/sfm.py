@@ -326,7 +326,7 @@ def metric_scale(sequence: Sequence, depth_maps: dict, reconstruction: pycolmap.
     For every frame with a depth map, the z-depth of each triangulated point it sees
     (:func:`sparse_depths`) is compared with the depth map at the point's nearest pixel; the scale
     is the median of all ratios (metres / model units). Make the sequence from
-    :func:`reconstruct_image_folder` metric with ``sequence.transformed(np.eye(4), scale)``.
+    :func:`reconstruct_image_folder` metric by multiplying its camera positions by the scale.
 
     Args:
         sequence: frames (by image name) of `reconstruction`.
