@@ -39,6 +39,9 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--depth-encoding", default="scale", choices=("scale", "sun", "nyu"),
                          help="depth file encoding: scale (integer units, see --depth-scale; float = metres), sun "
                               "(SUN3D/SUN RGB-D bit-rotated mm), nyu (NYU Depth V2 raw Kinect PGM)")
+    predict.add_argument("--fill-invalid-depth", action="store_true",
+                         help="fill the depth's holes (a real sensor's 0) from the nearest valid pixel before the "
+                              "network, which reads missing depth as free space beyond range (use for real frames)")
     predict.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                          help="pinhole intrinsics of the image in pixels: also write 3D frontiers (frontiers.json, "
                               "in a level camera frame and the camera frame; needs --depth)")
@@ -69,7 +72,7 @@ def run_predict(args) -> int:
         intrinsics = parse_intrinsics(args.intrinsics)
     result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
                            depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
-                           depth_encoding=args.depth_encoding)
+                           depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth)
     frontier = result["frontier_mask"]
     frontiers = result.get("frontiers")
     print(f"{int(frontier.sum())} frontier pixels ({100 * frontier.mean():.2f} % of the image)"

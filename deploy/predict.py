@@ -16,7 +16,7 @@ import numpy as np
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
-from frontiernet.model.inputs import beyond_range_invalid, resize_and_crop
+from frontiernet.model.inputs import beyond_range_invalid, fill_invalid_nearest, resize_and_crop
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 from frontiernet.sequences.images import read_depth, read_rgb
 from frontiernet.sequences.single import LEVEL_FRAME, frame_frontiers
@@ -26,13 +26,16 @@ from .runtime import load_runtime
 
 def predict_files(image: str | Path | None, depth: str | Path | None, model: str | Path | None, out: str | Path,
                   size: int | None = None, depth_scale: float = 1000.0, threads: int | None = None,
-                  intrinsics: tuple | None = None, depth_encoding: str = "scale") -> dict:
+                  intrinsics: tuple | None = None, depth_encoding: str = "scale", fill_invalid: bool = False) -> dict:
     """Run the model on image/depth files and write the pictures and arrays to `out`.
 
     Args:
         size: network input size (None: the model's inference size, 320; 0: the image's own size).
         depth_scale, depth_encoding: how the depth file is decoded
             (:func:`frontiernet.sequences.read_depth`).
+        fill_invalid: fill the depth's holes from the nearest valid pixel (real sensors; see
+            :func:`frontiernet.model.inputs.fill_invalid_nearest`). Off for rendered depth, whose 0
+            means beyond range.
         intrinsics: (fx, fy, cx, cy) pixels of the image: also anchor the frontier pixels to 3D
             frontiers and write ``frontiers.json`` (:mod:`frontiernet.sequences.single`; needs depth).
     Returns:
@@ -51,6 +54,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     rgb = read_rgb(image) if image is not None else None
     depth_m = read_depth(depth, depth_scale, depth_encoding) if depth is not None else None
     if depth_m is not None:  # as the simulated sensor the network learnt from: nothing beyond its range
+        depth_m = fill_invalid_nearest(depth_m) if fill_invalid else depth_m
         depth_m = np.nan_to_num(beyond_range_invalid(depth_m, runtime.conf["input"]["max_depth_m"]), nan=0.0)
     size = runtime.conf["inference"]["size"] if size is None else size
     K_image = None

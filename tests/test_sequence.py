@@ -177,7 +177,8 @@ def test_predict_with_intrinsics_writes_3d_frontiers_of_a_real_frame(shared_data
     frames = shared_data / "images/rgbd_frames"
     out = tmp_path / "tum"
     assert main(["predict", "--image", str(frames / "TUM_color.png"), "--depth", str(frames / "TUM_depth.png"),
-                 "--depth-scale", "5000", "--intrinsics", "525,525,319.5,239.5", "--out", str(out)]) == 0
+                 "--depth-scale", "5000", "--intrinsics", "525,525,319.5,239.5", "--fill-invalid-depth",
+                 "--out", str(out)]) == 0
     assert "3D frontiers" in capsys.readouterr().out
     record = json.loads((out / "frontiers.json").read_text())
     assert record["frontiers"], "no 3D frontier on the TUM frame"
@@ -188,3 +189,17 @@ def test_predict_with_intrinsics_writes_3d_frontiers_of_a_real_frame(shared_data
         assert 0.3 <= z <= 3.6  # in front of the camera, within the depth the network saw
         assert abs(525 * x / z + 319.5 - u) < 1.0 and abs(525 * y / z + 239.5 - v) < 1.0  # on its pixel's ray
         assert np.allclose(frontier["position"], [z, -x, -y], atol=1e-3)  # the level camera frame
+
+
+def test_holes_in_real_depth_are_filled_from_the_nearest_valid_pixel():
+    from frontiernet.model.inputs import fill_invalid_nearest
+
+    depth = np.full((6, 8), 2.0, np.float32)
+    depth[:, 4:] = 3.0
+    holes = depth.copy()
+    holes[0, :] = 0.0  # a blind band at the top (a registered Kinect frame)
+    holes[3, 6] = np.nan  # a dropout on a surface
+    filled = fill_invalid_nearest(holes)
+    assert np.array_equal(filled, depth)  # each hole takes the depth of the surface next to it
+    nothing = np.full((3, 3), np.nan, np.float32)
+    assert np.isnan(fill_invalid_nearest(nothing)).all()

@@ -41,9 +41,9 @@ def frame_depth(frame, rgb: np.ndarray, depth_source) -> np.ndarray:
     return depth_source.estimate(rgb, frame.camera.K, sensor)
 
 
-def cache_key(frame, model_name: str, depth_name: str, size: int, crop: bool) -> str:
-    return json.dumps({"frame": frame.name, "model": model_name, "depth": depth_name, "size": int(size),
-                       "crop": bool(crop)}, sort_keys=True)
+def cache_key(frame, model_name: str, depth_name: str, conf) -> str:
+    return json.dumps({"frame": frame.name, "model": model_name, "depth": depth_name, "size": conf["size"],
+                       "crop": bool(conf["crop"]), "fill": bool(conf["fill_invalid_depth"])}, sort_keys=True)
 
 
 def load_cached(path: Path, key: str | None = None) -> dict | None:
@@ -60,17 +60,22 @@ def load_cached(path: Path, key: str | None = None) -> dict | None:
         return None
 
 
-def perceive_frame(frame, runtime, depth_source, size: int, crop: bool) -> dict:
+def perceive_frame(frame, runtime, depth_source, conf) -> dict:
     """Depth and network outputs of one frame (the arrays of a cache file, see the module doc).
 
-    The image is resized so its short side is `size` px and, with `crop`, centre-cropped to a
-    square as the public demo does (without: the network sees the whole frame)."""
+    The image is resized so its short side is ``conf.size`` px (null: the model's) and, with
+    ``conf.crop``, centre-cropped to a square as the public demo does (without: the network sees
+    the whole frame). With ``conf.fill_invalid_depth`` the network's depth has its holes filled
+    from the nearest valid pixel first (the map keeps them as no return)."""
     from ..model import invalid_to_zero
-    from ..model.inputs import beyond_range_invalid, resize_and_crop
+    from ..model.inputs import beyond_range_invalid, fill_invalid_nearest, resize_and_crop
 
     rgb = frame.rgb()
     depth = frame_depth(frame, rgb, depth_source)
-    small_rgb, small_depth, K = resize_and_crop(rgb, depth, frame.camera.K, size, crop, int(runtime.conf["network"]["pad_multiple"]))
+    network_depth = fill_invalid_nearest(depth) if conf["fill_invalid_depth"] else depth
+    size = int(conf["size"] or runtime.conf["inference"]["size"])
+    small_rgb, small_depth, K = resize_and_crop(rgb, network_depth, frame.camera.K, size, bool(conf["crop"]),
+                                                int(runtime.conf["network"]["pad_multiple"]))
     small_depth = beyond_range_invalid(small_depth, runtime.conf["input"]["max_depth_m"])
     result = runtime.predict_at_size(small_rgb, invalid_to_zero(small_depth), None)
     return {"rgb": small_rgb, "depth": small_depth, "K": K,
@@ -83,14 +88,12 @@ def perceive_frames(sequence, runtime, depth_source, cache_dir: Path, model_name
     """Run :func:`perceive_frame` on every frame not cached yet; returns the cache files in order.
 
     Args:
-        conf: the ``network`` section of ``configs/sequence.yaml`` (``size``: null = the model's
-            inference size; ``crop``).
+        conf: the ``network`` section of ``configs/sequence.yaml`` (``size``, ``crop``,
+            ``fill_invalid_depth``; see :func:`perceive_frame`).
     """
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     cache_dir = ensure_dir(cache_dir)
-    size = int(conf["size"] or runtime.conf["inference"]["size"])
-    crop = bool(conf["crop"])
     depth_name = "sensor" if depth_source is None else depth_source.name
     paths = []
     columns = (TextColumn("perceiving"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
@@ -98,9 +101,9 @@ def perceive_frames(sequence, runtime, depth_source, cache_dir: Path, model_name
         task = bar.add_task("frames", total=len(sequence))
         for frame in sequence:
             path = cache_dir / f"{frame.index:05d}.npz"
-            key = cache_key(frame, model_name, depth_name, size, crop)
+            key = cache_key(frame, model_name, depth_name, conf)
             if load_cached(path, key) is None:
-                arrays = perceive_frame(frame, runtime, depth_source, size, crop)
+                arrays = perceive_frame(frame, runtime, depth_source, conf)
                 buffer = io.BytesIO()
                 np.savez_compressed(buffer, key=np.array(key), **arrays)
                 atomic_write(path, lambda tmp: tmp.write_bytes(buffer.getvalue()))
