@@ -15,6 +15,7 @@ import numpy as np
 
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
+from frontiernet.geometry import intrinsics_matrix
 from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
 from frontiernet.model.inputs import beyond_range_invalid, fill_invalid_nearest, resize_and_crop
 from frontiernet.model.overlay import distance_picture, frontier_overlay
@@ -57,10 +58,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         depth_m = fill_invalid_nearest(depth_m) if fill_invalid else depth_m
         depth_m = np.nan_to_num(beyond_range_invalid(depth_m, runtime.conf["input"]["max_depth_m"]), nan=0.0)
     size = runtime.conf["inference"]["size"] if size is None else size
-    K_image = None
-    if intrinsics is not None:
-        fx, fy, cx, cy = intrinsics
-        K_image = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
     if rgb is not None and depth_m is not None and rgb.shape[:2] != depth_m.shape:
         raise InputError(f"{depth}: depth map is {depth_m.shape[1]} x {depth_m.shape[0]} but the image is "
                          f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")

@@ -77,6 +77,11 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
     return float(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
+def intrinsics_matrix(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+    """(3, 3) float64 pinhole K from focal lengths and principal point, pixels (OpenCV convention)."""
+    return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], np.float64)
+
+
 def pinhole_intrinsics(K, image_shape: tuple[int, int]) -> np.ndarray:
     """(3, 3) float64 pinhole K that fits an (H, W) image, or InputError naming `K`."""
     K = np.asarray(K, np.float64)

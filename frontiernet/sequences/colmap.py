@@ -26,6 +26,7 @@ import numpy as np
 import pycolmap
 
 from ..errors import InputError
+from ..geometry import intrinsics_matrix
 from .frames import Camera, Sequence, SequenceFrame
 from .readers import IMAGE_SUFFIXES, image_size
 
@@ -89,8 +90,8 @@ def colmap_camera(camera: pycolmap.Camera) -> Camera:
         K[:2, 2] -= COLMAP_PIXEL_CENTRE
         return Camera(camera.width, camera.height, K, model)
     focal = camera.mean_focal_length()
-    K = np.array([[focal, 0.0, camera.principal_point_x - COLMAP_PIXEL_CENTRE],
-                  [0.0, focal, camera.principal_point_y - COLMAP_PIXEL_CENTRE], [0.0, 0.0, 1.0]])
+    K = intrinsics_matrix(focal, focal, camera.principal_point_x - COLMAP_PIXEL_CENTRE,
+                          camera.principal_point_y - COLMAP_PIXEL_CENTRE)
     return Camera(camera.width, camera.height, K, model, remap=_undistortion_maps(camera, K))
 
 

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import intrinsics_matrix
 from .images import read_depth, read_rgb
 
 
@@ -43,8 +44,7 @@ class Camera:
 
     @classmethod
     def pinhole(cls, fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> Camera:
-        K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-        return cls(int(width), int(height), K)
+        return cls(int(width), int(height), intrinsics_matrix(fx, fy, cx, cy))
 
     def undistort(self, image: np.ndarray, nearest: bool = False) -> np.ndarray:
         """The raw `image` (any dtype, (H, W) or (H, W, C)) as seen by the pinhole camera ``K``."""

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import intrinsics_matrix
 from ..scenes import Scene
 from .raycast import INVALID_ID, cast_rays
 
@@ -57,7 +58,7 @@ class PinholeCamera:
     @property
     def K(self) -> np.ndarray:
         """(3, 3) float64 intrinsic matrix."""
-        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+        return intrinsics_matrix(self.fx, self.fy, self.cx, self.cy)
 
     @property
     def horizontal_fov_deg(self) -> float:
