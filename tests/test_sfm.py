@@ -16,7 +16,6 @@ from frontiernet.sequences.frames import Camera
 from frontiernet.sequences.sfm import (
     metric_scale,
     read_image_folder,
-    reconstruct_image_folder,
     sfm_config,
 )
 
@@ -67,11 +66,11 @@ def rendered(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def reconstructed(rendered, tmp_path_factory):
-    """(sequence, reconstruction, work folder) of the rendered walk, intrinsics given."""
+    """(sequence, work folder) of the rendered walk, intrinsics given."""
     folder = rendered[0]
     work = tmp_path_factory.mktemp("colmap")
-    sequence, model = reconstruct_image_folder(folder, _camera(), work_dir=work, progress=False)
-    return sequence, model, work
+    sequence = read_image_folder(folder, _camera(), work_dir=work, progress=False)
+    return sequence, work
 
 
 def umeyama(source: np.ndarray, target: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -94,7 +93,7 @@ def mean_rotation(rotations: np.ndarray) -> np.ndarray:
 @pytest.mark.slow
 def test_walk_is_recovered_up_to_a_similarity_and_depth_gives_its_scale(rendered, reconstructed):
     _, true_poses, depths = rendered
-    sequence, model, _ = reconstructed
+    sequence, _ = reconstructed
     assert not sequence.metric and sequence.format == "images"
     assert len(sequence) >= 0.8 * FRAMES
     assert any(note.startswith(f"pycolmap registered {len(sequence)} of {FRAMES} images") for note in sequence.notes)
@@ -110,7 +109,7 @@ def test_walk_is_recovered_up_to_a_similarity_and_depth_gives_its_scale(rendered
     R_align = mean_rotation(truth[:, :3, :3] @ estimate[:, :3, :3].transpose(0, 2, 1))
     rotation_errors = [np.degrees(rotation_angle(R_align @ e[:3, :3], g[:3, :3])) for e, g in zip(estimate, truth)]
     assert max(rotation_errors) < 2.0, rotation_errors
-    scale, stats = metric_scale(sequence, {frame.index: depths[frame.name] for frame in sequence}, model)
+    scale, stats = metric_scale(sequence, {frame.index: depths[frame.name] for frame in sequence})
     assert scale == pytest.approx(s, rel=0.03)
     assert stats["points"] >= 20 and stats["images"] >= 0.8 * len(sequence) and stats["spread"] < 0.05
     print(f"registered {len(sequence)}/{FRAMES}, centre RMSE {rmse:.4f} m of {extent:.2f} m, "
@@ -119,7 +118,7 @@ def test_walk_is_recovered_up_to_a_similarity_and_depth_gives_its_scale(rendered
 
 @pytest.mark.slow
 def test_a_second_run_reuses_the_saved_model(rendered, reconstructed, monkeypatch, tmp_path):
-    sequence, _, work = reconstructed
+    sequence, work = reconstructed
     assert (work / "database.db").is_file() and (work / "sparse" / "0").is_dir()
 
     def must_not_run(*args, **kwargs):
@@ -141,7 +140,7 @@ def test_a_second_run_reuses_the_saved_model(rendered, reconstructed, monkeypatc
 @pytest.mark.slow
 def test_without_intrinsics_colmap_estimates_them(rendered):
     true_poses = rendered[1]
-    sequence, _ = reconstruct_image_folder(rendered[0], progress=False)  # temporary work folder
+    sequence = read_image_folder(rendered[0], progress=False)  # temporary work folder
     assert len(sequence) >= 0.8 * FRAMES
     camera = sequence.frames[0].camera
     assert camera.model == "SIMPLE_RADIAL" and camera.remap is not None  # frames come out undistorted
@@ -155,12 +154,12 @@ def test_without_intrinsics_colmap_estimates_them(rendered):
 
 @pytest.mark.slow
 def test_metric_scale_needs_points_on_valid_depth(rendered, reconstructed):
-    sequence, model, _ = reconstructed
+    sequence, _ = reconstructed
     blank = {frame.index: np.full((480, 640), np.nan, np.float32) for frame in sequence}
     with pytest.raises(InputError, match="valid depth"):
-        metric_scale(sequence, blank, model)
+        metric_scale(sequence, blank)
     with pytest.raises(InputError, match="640 x 480"):
-        metric_scale(sequence, {sequence.frames[0].index: np.ones((10, 10), np.float32)}, model)
+        metric_scale(sequence, {sequence.frames[0].index: np.ones((10, 10), np.float32)})
 
 
 def test_empty_folder_is_refused(tmp_path):
@@ -222,7 +221,7 @@ def test_sequence_command_poses_an_image_folder_in_metres(rendered, reconstructe
 
     folder, true_poses, depths = rendered
     out = tmp_path / "out"
-    shutil.copytree(reconstructed[2], out / "colmap")
+    shutil.copytree(reconstructed[1], out / "colmap")
     monkeypatch.setattr(frontiernet.depth, "make_depth_source", lambda name, conf=None: RenderedDepth(folder, depths))
     assert main(["sequence", "--input", str(folder), "--format", "images", "--depth", "rendered", "--out", str(out),
                  "--no-video"]) == 0

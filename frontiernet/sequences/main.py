@@ -61,9 +61,7 @@ def metric_poses(sequence, cache_paths, conf) -> tuple[np.ndarray, float, list[s
 
     depths = {frame.index: load_cached(path)["full_depth"].astype(np.float32)
               for frame, path in zip(sequence, cache_paths)}
-    if sequence.reconstruction is None:
-        raise InputError(f"{sequence.root}: the poses are up to scale and there is no reconstruction to scale them")
-    scale, stats = metric_scale(sequence, depths, sequence.reconstruction)
+    scale, stats = metric_scale(sequence, depths)
     poses = poses.copy()
     poses[:, :3, 3] *= scale
     return poses, scale, [f"poses were up to scale: x {scale:.4f} to metres (median depth ratio of {stats['points']} "

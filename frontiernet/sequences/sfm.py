@@ -1,11 +1,10 @@
 """Posing a plain folder of images with structure from motion (pycolmap on the CPU).
 
-* :func:`reconstruct_image_folder`: SIFT features (one camera for the whole folder), sequential
-  or exhaustive matching, incremental mapping; returns the :class:`~.frames.Sequence` of the
-  registered images (up to scale, ``metric=False``) and the largest ``pycolmap.Reconstruction``.
-  :func:`read_image_folder` returns just the sequence.
+* :func:`read_image_folder`: SIFT features (one camera for the whole folder), sequential or
+  exhaustive matching, incremental mapping; returns the :class:`~.frames.Sequence` of the
+  registered images (up to scale, ``metric=False``) holding the largest ``pycolmap.Reconstruction``.
 * :func:`sparse_depths` and :func:`metric_scale`: the factor that makes such poses metric, from
-  the reconstruction's triangulated points and metric depth maps of the same frames.
+  the sequence's reconstruction (its triangulated points) and metric depth maps of its frames.
 
 The work folder holds COLMAP's ``database.db`` and the chosen model in ``sparse/0``. A run that
 finds ``sparse/0`` loads it instead of reconstructing again (delete the folder to start over);
@@ -223,8 +222,8 @@ def _work_folder(work_dir):
         yield Path(path)
 
 
-def reconstruct_image_folder(root, camera: Camera | None = None, work_dir=None, conf=None, progress: bool = True
-                             ) -> tuple[Sequence, pycolmap.Reconstruction]:
+def read_image_folder(root, camera: Camera | None = None, work_dir=None, conf=None, progress: bool = True
+                      ) -> Sequence:
     """Poses of a folder of images from pycolmap's incremental structure from motion (CPU).
 
     Args:
@@ -237,10 +236,10 @@ def reconstruct_image_folder(root, camera: Camera | None = None, work_dir=None, 
         conf: mapping of ``sfm`` options replacing ``configs/sequence.yaml``'s.
         progress: show a rich progress line (and keep COLMAP's log to errors); Ctrl-C cancels.
     Returns:
-        (sequence, reconstruction): one frame per registered image, sorted by name, with
-        ``T_world_cam`` (4, 4) float64 in COLMAP's world frame and units (``metric=False``), the
-        registration rate in ``notes``; and the largest reconstruction (its points are in the
-        same world frame, see :func:`sparse_depths`).
+        One frame per registered image, sorted by name, with ``T_world_cam`` (4, 4) float64 in
+        COLMAP's world frame and units (``metric=False``), the registration rate in ``notes``, and
+        the largest reconstruction as ``reconstruction`` (its points are in the same world frame,
+        see :func:`sparse_depths`).
     Raises:
         InputError: no images, mixed sizes, a camera that does not fit, fewer than 2 images registered.
     """
@@ -271,26 +270,26 @@ def reconstruct_image_folder(root, camera: Camera | None = None, work_dir=None, 
     sequence.notes.append(f"pycolmap registered {count} of {len(names)} images ({100.0 * count / len(names):.0f}%)")
     if reused:
         sequence.notes.append(f"reused the COLMAP model in {Path(work_dir) / 'sparse' / '0'}")
-    return sequence, model
-
-
-def read_image_folder(root, camera: Camera | None = None, work_dir=None, conf=None, progress: bool = True
-                      ) -> Sequence:
-    """The posed :class:`Sequence` of a folder of images; see :func:`reconstruct_image_folder`."""
-    return reconstruct_image_folder(root, camera, work_dir, conf, progress)[0]
+    return sequence
 
 
 # ----------------------------------------------------------------------------- metric scale
 
-def sparse_depths(reconstruction: pycolmap.Reconstruction, sequence: Sequence) -> dict[int, np.ndarray]:
-    """The triangulated points each frame of `sequence` observes, matched by image name.
+def sparse_depths(sequence: Sequence) -> dict[int, np.ndarray]:
+    """The triangulated points of the sequence's reconstruction each of its frames observes,
+    matched by image name.
 
     Returns:
         frame index -> (N, 3) float64 rows (u, v, z): the point in the frame's undistorted image
         (OpenCV pixels, centres at integers, through the frame's ``K``) and its z-depth in the
         reconstruction's units (its own pose, so a transformed sequence gives the same); points in
         front of the camera only.
+    Raises:
+        InputError: the sequence has no reconstruction (it did not come from COLMAP or pycolmap).
     """
+    reconstruction = sequence.reconstruction
+    if reconstruction is None:
+        raise InputError(f"{sequence.root}: the sequence has no COLMAP reconstruction whose points give the scale")
     points = {}
     for frame in sequence:
         image = reconstruction.find_image_with_name(frame.name)
@@ -319,26 +318,24 @@ def _log_ratios(frame, points: np.ndarray, depth) -> np.ndarray:
     return np.log(metres[valid] / z[valid])
 
 
-def metric_scale(sequence: Sequence, depth_maps: dict, reconstruction: pycolmap.Reconstruction
-                 ) -> tuple[float, dict]:
+def metric_scale(sequence: Sequence, depth_maps: dict) -> tuple[float, dict]:
     """The factor from the reconstruction's units to metres.
 
     For every frame with a depth map, the z-depth of each triangulated point it sees
     (:func:`sparse_depths`) is compared with the depth map at the point's nearest pixel; the scale
     is the median of all ratios (metres / model units). Make the sequence from
-    :func:`reconstruct_image_folder` metric by multiplying its camera positions by the scale.
+    :func:`read_image_folder` metric by multiplying its camera positions by the scale.
 
     Args:
-        sequence: frames (by image name) of `reconstruction`.
+        sequence: a sequence with its ``reconstruction`` (COLMAP model or image folder).
         depth_maps: frame index -> (H, W) float32 metres, NaN invalid, at the frame's undistorted size.
-        reconstruction: the reconstruction the sequence came from.
     Returns:
         (scale, stats): stats ``points`` (ratios used), ``images`` (frames contributing) and
         ``spread`` (median absolute deviation of the log ratios: 0.05 is about 5%).
     Raises:
-        InputError: a depth map of the wrong size, or fewer than 20 points on valid depth.
+        InputError: no reconstruction, a depth map of the wrong size, or fewer than 20 points on valid depth.
     """
-    sparse = sparse_depths(reconstruction, sequence)
+    sparse = sparse_depths(sequence)
     ratios = [_log_ratios(frame, sparse[frame.index], depth_maps[frame.index])
               for frame in sequence if frame.index in depth_maps and frame.index in sparse]
     images = sum(1 for r in ratios if len(r))
