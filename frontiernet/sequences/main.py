@@ -56,11 +56,10 @@ def metric_poses(sequence, cache_paths, conf) -> tuple[np.ndarray, float, list[s
     poses = sequence.poses()
     if sequence.metric:
         return poses, 1.0, []
-    from .perceive import load_cached
+    from .perceive import cached_full_depth
     from .sfm import metric_scale
 
-    depths = {frame.index: load_cached(path)["full_depth"].astype(np.float32)
-              for frame, path in zip(sequence, cache_paths)}
+    depths = {frame.index: cached_full_depth(path) for frame, path in zip(sequence, cache_paths)}
     scale, stats = metric_scale(sequence, depths)
     poses = poses.copy()
     poses[:, :3, 3] *= scale
@@ -79,7 +78,7 @@ class _Pictures:
         threshold = conf.anchoring.frontier_threshold_px
         self.threshold = float(labels["frontier_threshold_px"] if threshold is None else threshold)
         self.cloud = PointCloudFusion(conf.outputs.point_voxel_m, conf.map.max_range_m, conf.outputs.point_stride_px)
-        self.topdown = None
+        self.topdown = self.cells = None
 
     def __call__(self, index, arrays, tracked) -> None:
         frame = self.sequence.frames[index]
@@ -98,14 +97,15 @@ class _Pictures:
         camera = camera_picture(arrays, frontiers, tracked.poses[index], self.labels, self.threshold, self.colour)
         height = camera.shape[0]
         occupancy = tracked.map
-        size = occupancy.voxel_size
-        first = np.floor((tracked.seen_bounds[0, :2] - occupancy.origin[:2]) / size).astype(int) - 2  # what the
-        last = np.ceil((tracked.seen_bounds[1, :2] - occupancy.origin[:2]) / size).astype(int) + 2  # frames see
-        first, last = np.maximum(first, 0), np.minimum(last, occupancy.shape[:2])
-        if self.topdown is None:
+        if self.topdown is None:  # the part of the map the frames see, in map cells
+            size = occupancy.voxel_size
+            first = np.floor((tracked.seen_bounds[0, :2] - occupancy.origin[:2]) / size).astype(int) - 2
+            last = np.ceil((tracked.seen_bounds[1, :2] - occupancy.origin[:2]) / size).astype(int) + 2
+            first, last = np.maximum(first, 0), np.minimum(last, occupancy.shape[:2])
+            self.cells = (slice(first[0], last[0]), slice(first[1], last[1]))
             self.topdown = TopDown(occupancy.origin[:2] + first * size, tuple(last - first), size, height_px=height)
         low, high = (tracked.view_z + float(offset) for offset in self.conf.outputs.map_band_m)
-        free, occupied = (cells[first[0]:last[0], first[1]:last[1]] for cells in occupancy.slice_2d(low, high))
+        free, occupied = (cells[self.cells] for cells in occupancy.slice_2d(low, high))
         T = tracked.poses[index]
         forward = T[:3, 2]
         top = self.topdown.draw(self.topdown.background(free, occupied), tracked.poses[:index + 1, :2, 3], T[:2, 3],

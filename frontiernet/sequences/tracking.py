@@ -19,7 +19,7 @@ import numpy as np
 from ..frontiers import FrontierTracker
 from ..frontiers.anchoring import anchor_prediction
 from ..mapping import OccupancyMap
-from .perceive import load_cached
+from .perceive import cached_full_depth, load_cached
 
 
 @dataclass
@@ -54,7 +54,7 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
 
     points = [np.asarray(poses)[:, :3, 3]]
     for frame, T, path in zip(sequence, poses, cache_paths):
-        depth = np.minimum(load_cached(path)["full_depth"].astype(np.float32), max_range_m)
+        depth = np.minimum(cached_full_depth(path), max_range_m)
         points.append(back_projected_points(depth, None, frame.camera.K, T, max_range_m, stride_px)[0])
     points = np.concatenate(points)
     return np.stack([points.min(0), points.max(0)])
