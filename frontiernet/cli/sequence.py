@@ -51,19 +51,15 @@ def camera_from_intrinsics(text: str, input_path):
     """A :class:`~frontiernet.sequences.Camera` of the given intrinsics at the size of the first image."""
     from pathlib import Path
 
-    from PIL import Image
-
     from ..sequences import Camera
-    from ..sequences.readers import IMAGE_SUFFIXES
+    from ..sequences.readers import IMAGE_SUFFIXES, image_size
 
     fx, fy, cx, cy = parse_intrinsics(text)
     images = sorted(path for path in Path(input_path).rglob("*") if path.suffix.lower() in IMAGE_SUFFIXES
                     and "depth" not in path.parts)
     if not images:
         raise InputError(f"{input_path}: no images found to size the camera of --intrinsics")
-    with Image.open(images[0]) as image:
-        width, height = image.size
-    return Camera.pinhole(fx, fy, cx, cy, width, height)
+    return Camera.pinhole(fx, fy, cx, cy, *image_size(images[0]))
 
 
 def run(args) -> int:
