@@ -30,7 +30,7 @@ from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
 from frontiernet.io import write_json
-from frontiernet.model import load_model, save_model
+from frontiernet.model import FrontierNet, load_model, save_model
 
 from .config import plain
 from .data import FrontierDataModule
@@ -63,6 +63,18 @@ def _trainer_args(trainer_conf) -> dict:
     return {key: trainer_conf[key] for key in keys}
 
 
+def _initial_weights(conf) -> FrontierNet | None:
+    """The model of ``conf.init_weights`` (None when unset); its network config replaces
+    ``conf.model.network`` in place, so the run trains (and records) that architecture."""
+    source = conf.get("init_weights")
+    if not source:
+        return None
+    model, file_conf = load_model(None if str(source) == "default" else source)
+    conf.model.network = OmegaConf.create({**file_conf["network"], "pretrained": None})
+    log.info("starting from the weights of %s (%s/%s)", source, model.config.encoder, model.config.inputs)
+    return model
+
+
 def run_dir(conf) -> Path:
     return Path(conf.out) / str(conf.name)
 
@@ -89,6 +101,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
         part = 1 + len(list(out.glob("metrics-part*.csv")))
         (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
+    init = _initial_weights(conf) if resume is None else None
     datamodule = FrontierDataModule(conf)
     datamodule.setup()
     out.mkdir(parents=True, exist_ok=True)
@@ -100,6 +113,8 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     train_part = {key: plain(conf[key]) for key in ("loss", "optim")}
     train_part["val_scenes"] = list(datamodule.val_scenes)  # evaluate reads them from the checkpoint
     module = FrontierNetModule(model=plain(conf.model), train=train_part)
+    if init is not None:
+        module.net.load_state_dict(init.state_dict())
     checkpoints = out / "checkpoints"
     best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
                            enable_version_counter=False)
@@ -137,7 +152,8 @@ def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapse
                "val_scenes": datamodule.val_scenes, "train_samples": len(datamodule.train_set),
                "val_samples": len(datamodule.val_set),
                "epochs": round(trainer.global_step * int(conf.data.batch_size) / max(len(datamodule.train_set), 1), 3),
-               "steps": trainer.global_step, "seconds_this_session": round(elapsed, 1), "resumed_from": resume,
+               "steps": trainer.global_step, "init_weights": conf.get("init_weights"),
+               "seconds_this_session": round(elapsed, 1), "resumed_from": resume,
                "hardware": hardware, "checkpoint": Path(checkpoint).name, "last_metrics": metrics,
                "encoder": conf.model.network.encoder, "inputs": conf.model.network.inputs}
     model, model_conf = load_model(checkpoint)
