@@ -2,7 +2,7 @@
 ``frontiernet.commands`` entry point), and ``frontiernet bench inference`` (through
 ``frontiernet.bench``).
 
-  frontiernet export MODEL --format onnx|torchscript|safetensors --out FILE [--half]
+  frontiernet export MODEL --format onnx|torchscript|safetensors --out FILE [--half] [--frontier-threshold PX]
   frontiernet predict --image RGB [--depth D] [--model M] --out DIR [--size PX] [--depth-scale S]
                      [--depth-encoding scale|sun|nyu] [--intrinsics FX,FY,CX,CY]
 """
@@ -19,6 +19,9 @@ def add_parser(subparsers) -> None:
     export.add_argument("--format", required=True, choices=("onnx", "torchscript", "safetensors"))
     export.add_argument("--out", required=True, metavar="FILE", help="output file")
     export.add_argument("--half", action="store_true", help="safetensors: float16 weights (half the size)")
+    export.add_argument("--frontier-threshold", type=float, metavar="PX",
+                        help="threshold l (px) the exported file's runtimes use for D < l, e.g. the best-F1 l "
+                             "of frontiernet evaluate (default: keep the model's)")
     export.set_defaults(func=run_export)
 
     predict = subparsers.add_parser(
@@ -52,7 +55,8 @@ def add_parser(subparsers) -> None:
 def run_export(args) -> int:
     from .export import export
 
-    path = export(args.model, args.format, args.out, half=args.half)
+    path = export(args.model, args.format, args.out, half=args.half,
+                  frontier_threshold_px=args.frontier_threshold)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
     return 0
 

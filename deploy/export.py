@@ -29,12 +29,16 @@ def _config_json(conf: dict) -> str:
     return json.dumps({key: conf[key] for key in ("network", "input", "labels", "inference", "info") if key in conf})
 
 
-def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool = False) -> Path:
+def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool = False,
+           frontier_threshold_px: float | None = None) -> Path:
     """Write the model (a model file or training checkpoint; None: the shipped one) as `fmt`.
 
     Args:
         fmt: ``onnx`` | ``torchscript`` | ``safetensors``.
         half: safetensors only: store float16 weights (half the size).
+        frontier_threshold_px: the threshold l (pixels, D < l is a frontier) that runtimes of the
+            written file use, e.g. the best-F1 l that ``frontiernet evaluate`` reports; None
+            keeps the model's.
     Returns:
         The written path (written atomically: a failed export leaves nothing behind).
     """
@@ -44,6 +48,10 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: output folder does not exist")
     model, conf = load_model(model_path)
+    if frontier_threshold_px is not None:
+        if not frontier_threshold_px > 0:
+            raise InputError(f"--frontier-threshold must be > 0 pixels, got {frontier_threshold_px}")
+        conf["labels"]["frontier_threshold_px"] = float(frontier_threshold_px)
     if fmt == "safetensors":
         return save_model(out, model, conf, info=conf.get("info"), half=half)
     channels = model.config.in_channels

@@ -146,3 +146,19 @@ def test_exported_files_carry_the_model_config(exported):
     conf = json.loads(meta["frontiernet_model"])
     assert conf["labels"]["num_classes"] == 11 and conf["network"]["inputs"] == "rgbd"
     assert load_runtime(exported["torchscript"]).conf["input"] == MODEL_CONF["input"]
+
+
+def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_path, capsys):
+    """`export --frontier-threshold` (the best-F1 l of evaluate) travels in every format."""
+    for fmt, name in (("safetensors", "m.safetensors"), ("onnx", "m.onnx")):
+        assert main(["export", str(model_file), "--format", fmt, "--out", str(tmp_path / name),
+                     "--frontier-threshold", "2.5"]) == 0
+        assert load_runtime(tmp_path / name).conf["labels"]["frontier_threshold_px"] == 2.5
+    # without the option the model's own threshold is kept
+    kept = export(model_file, "safetensors", tmp_path / "kept.safetensors")
+    assert load_runtime(kept).conf["labels"] == load_runtime(model_file).conf["labels"]
+    capsys.readouterr()
+    assert main(["export", str(model_file), "--format", "onnx", "--out", str(tmp_path / "bad.onnx"),
+                 "--frontier-threshold", "0"]) == 2
+    assert "--frontier-threshold must be > 0" in one_line_error(capsys)
+    assert not (tmp_path / "bad.onnx").exists()
