@@ -123,3 +123,13 @@ def plan_spec(tmp_path_factory) -> str:
     plan[10:90, 77:83] = 0
     plan[40:60, 77:83] = 254  # the door
     return floorplan_spec(tmp_path_factory.mktemp("plan"), "plan", plan)
+
+
+@pytest.fixture
+def one_line_error(capsys):
+    """Reads what a command printed to stderr and checks it is one line, no traceback."""
+    def read() -> str:
+        err = capsys.readouterr().err.strip()
+        assert err and "\n" not in err and "Traceback" not in err, err
+        return err
+    return read

@@ -50,11 +50,6 @@ def snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-def one_line_error(capsys) -> str:
-    err = capsys.readouterr().err.strip()
-    assert err and "\n" not in err and "Traceback" not in err, err
-    return err
-
 
 def datagen_command(out: Path, *extra: str) -> list[str]:
     return [sys.executable, "-m", "frontiernet.cli.main", "datagen", "--scenes", *BIG_SCENES,
@@ -278,25 +273,25 @@ def small_args(out: Path, *extra: str) -> list[str]:
             str(SMALL_SEED), "--out", str(out), "--no-progress", *extra, "--set", *SMALL_SET]
 
 
-def test_existing_dataset_is_refused_without_resume_and_on_a_mismatched_resume(small_dataset, tmp_path, capsys):
+def test_existing_dataset_is_refused_without_resume_and_on_a_mismatched_resume(small_dataset, tmp_path, capsys, one_line_error):
     out = tmp_path / "ds"
     shutil.copytree(small_dataset[0], out)
     before = snapshot(out)
 
     assert main(small_args(out)) == 2
-    err = one_line_error(capsys)
+    err = one_line_error()
     assert str(out) in err and "--resume" in err
 
     args = small_args(out, "--resume")
     args[args.index("--seed") + 1] = str(SMALL_SEED + 1)
     assert main(args) == 2
-    err = one_line_error(capsys)
+    err = one_line_error()
     assert str(out) in err and "seed" in err
 
     args = small_args(out, "--resume")
     args[args.index("--views-per-scene") + 1] = str(SMALL_VIEWS + 1)
     assert main(args) == 2
-    err = one_line_error(capsys)
+    err = one_line_error()
     assert str(out) in err and "views_per_scene" in err
 
     assert snapshot(out) == before  # nothing in the dataset was touched
@@ -317,7 +312,7 @@ def test_resume_of_a_finished_dataset_changes_no_shard(small_dataset, tmp_path, 
     (("--workers", "0"), "--workers"),
     (("--scenes", "procedural:5-2"), "procedural:5-2"),
 ])
-def test_bad_arguments_are_one_line_exit_2_before_any_output(tmp_path, capsys, change, message):
+def test_bad_arguments_are_one_line_exit_2_before_any_output(tmp_path, capsys, change, message, one_line_error):
     out = tmp_path / "ds"
     args = small_args(out)
     flag, value = change
@@ -327,39 +322,39 @@ def test_bad_arguments_are_one_line_exit_2_before_any_output(tmp_path, capsys, c
     else:
         args[1:1] = [flag, value]
     assert main(args) == 2
-    assert message in one_line_error(capsys)
+    assert message in one_line_error()
     assert not out.exists()
 
 
-def test_unknown_backend_and_missing_out_exit_2(tmp_path, capsys):
+def test_unknown_backend_and_missing_out_exit_2(tmp_path, capsys, one_line_error):
     with pytest.raises(SystemExit) as exit_info:
         main(small_args(tmp_path / "ds", "--backend", "nosuch"))
     assert exit_info.value.code == 2
-    assert "nosuch" in one_line_error(capsys)
+    assert "nosuch" in one_line_error()
 
     args = small_args(tmp_path / "ds")
     del args[args.index("--out"):args.index("--out") + 2]
     assert main(args) == 2
-    assert "--out" in one_line_error(capsys)
+    assert "--out" in one_line_error()
     assert not (tmp_path / "ds").exists()
 
 
-def test_output_under_a_file_is_refused_naming_the_path(tmp_path, capsys):
+def test_output_under_a_file_is_refused_naming_the_path(tmp_path, capsys, one_line_error):
     (tmp_path / "file.txt").write_text("not a folder")
     out = tmp_path / "file.txt" / "ds"
     assert main(small_args(out)) == 2
-    assert str(out) in one_line_error(capsys)
+    assert str(out) in one_line_error()
 
 
 @pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root ignores file permissions")
-def test_unwritable_output_is_refused_naming_the_path(tmp_path, capsys):
+def test_unwritable_output_is_refused_naming_the_path(tmp_path, capsys, one_line_error):
     locked = tmp_path / "locked"
     locked.mkdir()
     locked.chmod(0o500)
     try:
         out = locked / "ds"
         assert main(small_args(out)) == 2
-        assert str(out) in one_line_error(capsys)
+        assert str(out) in one_line_error()
         assert not out.exists()
     finally:
         locked.chmod(0o700)

@@ -95,13 +95,8 @@ def test_predict_command_writes_overlay_and_arrays(model_file, tmp_path, capsys)
     assert cv2.imread(str(tmp_path / "native" / "overlay.png")).shape == (120, 160, 3)
 
 
-def one_line_error(capsys) -> str:
-    err = capsys.readouterr().err.strip()
-    assert err and "\n" not in err and "Traceback" not in err, err
-    return err
 
-
-def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, capsys):
+def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, capsys, one_line_error):
     grey = tmp_path / "grey.png"
     cv2.imwrite(str(grey), np.zeros((40, 50), np.uint8))
     rgb = tmp_path / "rgb.png"
@@ -134,7 +129,7 @@ def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, c
     ]
     for argv, expected in cases:
         assert main(argv) == 2, argv
-        assert expected in one_line_error(capsys)
+        assert expected in one_line_error()
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
@@ -148,7 +143,7 @@ def test_exported_files_carry_the_model_config(exported):
     assert load_runtime(exported["torchscript"]).conf["input"] == MODEL_CONF["input"]
 
 
-def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_path, capsys):
+def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_path, capsys, one_line_error):
     """`export --frontier-threshold` (the best-F1 l of evaluate) travels in every format."""
     for fmt, name in (("safetensors", "m.safetensors"), ("onnx", "m.onnx")):
         assert main(["export", str(model_file), "--format", fmt, "--out", str(tmp_path / name),
@@ -160,5 +155,5 @@ def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_pat
     capsys.readouterr()
     assert main(["export", str(model_file), "--format", "onnx", "--out", str(tmp_path / "bad.onnx"),
                  "--frontier-threshold", "0"]) == 2
-    assert "--frontier-threshold must be > 0" in one_line_error(capsys)
+    assert "--frontier-threshold must be > 0" in one_line_error()
     assert not (tmp_path / "bad.onnx").exists()

@@ -23,11 +23,6 @@ from frontiernet.sequences.main import select_frames
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
 
-def one_line_error(capsys) -> str:
-    err = capsys.readouterr().err.strip()
-    assert err and "\n" not in err and "Traceback" not in err, err
-    return err
-
 
 def write_redwood(folder, frames, K, with_depth: bool = True) -> None:
     """Frames (rgb, depth metres, T_world_cam) as a Redwood folder: color/, depth/ (mm), trajectory.log,
@@ -134,7 +129,7 @@ def test_gravity_alignment_levels_a_tilted_world():
     assert np.allclose(aligned[0, :3, 3], 0.0)
 
 
-def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys):
+def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys, one_line_error):
     renderer = Renderer(two_room_scene, PinholeCamera(64, 48, 40.0, 40.0, 31.5, 23.5, 3.5))
     T = pose_from_heading(1.5, 2.0, 1.2, 0.0)
     frame = renderer.render(T)
@@ -154,7 +149,7 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys)
     ]
     for (folder, *extra), expected in cases:
         assert run_sequence(folder, tmp_path / "out", "--no-video", *extra) == 2, (folder, extra)
-        assert expected in one_line_error(capsys)
+        assert expected in one_line_error()
 
 
 def test_livingroom1_frontiers_persist_across_frames(shared_data, tmp_path):

@@ -143,11 +143,6 @@ def test_metrics_of_a_perfect_and_a_shifted_prediction():
     assert depth_jump_score(depth)[0, 10, 16] > 0.1 > depth_jump_score(depth)[0, 5, 5]
 
 
-def one_line_error(capsys) -> str:
-    err = capsys.readouterr().err.strip()
-    assert err and "\n" not in err and "Traceback" not in err, err
-    return err
-
 
 def train_losses(run: Path) -> list[float]:
     with open(run / "metrics.csv") as handle:
@@ -155,7 +150,7 @@ def train_losses(run: Path) -> list[float]:
 
 
 @pytest.mark.slow
-def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp_path, capsys):
+def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp_path, capsys, one_line_error):
     args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
             f"data.path={tiny_dataset}", f"out={tmp_path}", "name=tiny", "trainer.max_epochs=6"]
     assert main(args) == 0
@@ -176,7 +171,7 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
     assert "held-out scene" in report and "DF error (px)" in report and "gain Dice" in report
     # the same run is refused without --resume, and continued with it
     assert main(args) == 2
-    assert "--resume" in one_line_error(capsys)
+    assert "--resume" in one_line_error()
     steps = load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"]
     assert main(args[:-1] + ["trainer.max_epochs=7", "--resume"]) == 0
     assert load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"] > steps
@@ -217,16 +212,16 @@ def test_ctrl_c_leaves_a_resumable_checkpoint(tiny_dataset, tmp_path):
     assert load_model(last)[1]["info"]["steps"] == steps + 4
 
 
-def test_bad_training_input_is_one_line_exit_2(tmp_path, capsys):
+def test_bad_training_input_is_one_line_exit_2(tmp_path, capsys, one_line_error):
     assert main(["train", f"out={tmp_path}"]) == 2
-    assert "data.path is not set" in one_line_error(capsys)
+    assert "data.path is not set" in one_line_error()
     empty = tmp_path / "empty"
     empty.mkdir()
     assert main(["train", f"data.path={empty}", f"out={tmp_path}"]) == 2
-    assert str(empty) in one_line_error(capsys)
+    assert str(empty) in one_line_error()
     assert main(["train", f"data.path={tmp_path / 'missing'}", f"out={tmp_path}"]) == 2
-    assert "dataset folder not found" in one_line_error(capsys)
+    assert "dataset folder not found" in one_line_error()
     assert main(["evaluate", str(tmp_path / "none.ckpt"), "--data", str(empty)]) == 2
-    assert "none.ckpt: model file not found" in one_line_error(capsys)
+    assert "none.ckpt: model file not found" in one_line_error()
     assert main(["train", "--config", str(tmp_path / "nope.yaml"), f"data.path={empty}"]) == 2
-    assert "nope.yaml: config file not found" in one_line_error(capsys)
+    assert "nope.yaml: config file not found" in one_line_error()
