@@ -163,6 +163,10 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
         assert (run / name).is_file(), name
     model, conf = load_model(run / "model.safetensors")
     assert conf["info"]["val_scenes"] and conf["info"]["train_scenes"] == 2
+    # the final weights are validated too (epoch 6 is not a validation epoch of the tiny config)
+    with open(run / "metrics.csv") as handle:
+        validated = [int(row["step"]) for row in csv.DictReader(handle) if row.get("val/loss")]
+    assert len(validated) == 2 and validated[-1] >= conf["info"]["steps"] - 1, validated
     capsys.readouterr()
     # evaluate picks the held-out scene recorded in the model file
     assert main(["evaluate", str(run / "model.safetensors"), "--data", str(tiny_dataset),

@@ -8,7 +8,8 @@ Outputs in ``<out>/<name>/``:
   ``--resume``;
 - ``metrics.csv``: losses per logging step, validation metrics per validation (a resumed run
   moves the earlier rows to ``metrics-part1.csv``, ``metrics-part2.csv`` ...);
-- ``model.safetensors``: the best weights as a model file (``frontiernet predict --model``);
+- ``model.safetensors``: the best weights as a model file (``frontiernet predict --model``): the
+  validated state with the lowest validation loss, the final weights always among them;
 - ``summary.json``: data, scenes, steps, time, hardware and the last validation metrics.
 """
 
@@ -136,9 +137,16 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         raise
     if trainer.interrupted:
         raise KeyboardInterrupt
+    checkpoint = best.best_model_path or str(last)
+    if trainer.global_step > module.validated_at_step:
+        # Lightning skips the validation due at the last step when max_steps ends the run, so the
+        # final weights (often the best: the learning rate has decayed) would never be judged
+        final = trainer.validate(module, datamodule=datamodule, verbose=False)[0]
+        if best.best_model_score is None or final["val/loss"] < float(best.best_model_score):
+            checkpoint = str(last)
     elapsed = time.time() - started
     if trainer.is_global_zero:
-        _write_results(out, conf, trainer, datamodule, best.best_model_path or str(last), elapsed, resume)
+        _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
     return out
 
 

@@ -33,6 +33,7 @@ class FrontierNetModule(L.LightningModule):
         if pretrained:
             load_imagenet_encoder(self.net, pretrained)
         self.metrics = FrontierMetrics(model["labels"])
+        self.validated_at_step = -1  # global step of the newest validation (not the sanity check)
 
     def forward(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return self.net(image)
@@ -63,6 +64,8 @@ class FrontierNetModule(L.LightningModule):
         self.log("val_df_error_px", metrics["df_error_px"], prog_bar=True, logger=False)
         self.log("val_gain_dice", metrics["gain_dice"], prog_bar=True, logger=False)
         self.metrics.reset()
+        if not self.trainer.sanity_checking:
+            self.validated_at_step = self.global_step
 
     def configure_optimizers(self):
         optim = self.hparams.train["optim"]
