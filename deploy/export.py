@@ -15,7 +15,7 @@ from pathlib import Path
 
 import torch
 
-from frontiernet.errors import InputError
+from frontiernet.errors import InputError, positive_number
 from frontiernet.io import atomic_write
 from frontiernet.model import load_model, save_model
 from frontiernet.model.checkpoint import CONFIG_KEY
@@ -49,9 +49,8 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
         raise InputError(f"{out.parent}: output folder does not exist")
     model, conf = load_model(model_path)
     if frontier_threshold_px is not None:
-        if not frontier_threshold_px > 0:
-            raise InputError(f"--frontier-threshold must be > 0 pixels, got {frontier_threshold_px}")
-        conf["labels"]["frontier_threshold_px"] = float(frontier_threshold_px)
+        conf["labels"]["frontier_threshold_px"] = positive_number(frontier_threshold_px, "--frontier-threshold",
+                                                                  "pixels")
     if fmt == "safetensors":
         return save_model(out, model, conf, info=conf.get("info"), half=half)
     channels = model.config.in_channels

@@ -50,7 +50,6 @@ def snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-
 def datagen_command(out: Path, *extra: str) -> list[str]:
     return [sys.executable, "-m", "frontiernet.cli.main", "datagen", "--scenes", *BIG_SCENES,
             "--views-per-scene", str(BIG_VIEWS), "--seed", str(BIG_SEED), "--out", str(out), "--no-progress",

@@ -95,7 +95,6 @@ def test_predict_command_writes_overlay_and_arrays(model_file, tmp_path, capsys)
     assert cv2.imread(str(tmp_path / "native" / "overlay.png")).shape == (120, 160, 3)
 
 
-
 def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, capsys, one_line_error):
     grey = tmp_path / "grey.png"
     cv2.imwrite(str(grey), np.zeros((40, 50), np.uint8))
@@ -155,5 +154,5 @@ def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_pat
     capsys.readouterr()
     assert main(["export", str(model_file), "--format", "onnx", "--out", str(tmp_path / "bad.onnx"),
                  "--frontier-threshold", "0"]) == 2
-    assert "--frontier-threshold must be > 0" in one_line_error()
+    assert "--frontier-threshold must be a positive number of pixels" in one_line_error()
     assert not (tmp_path / "bad.onnx").exists()

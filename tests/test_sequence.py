@@ -23,7 +23,6 @@ from frontiernet.sequences.main import select_frames
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
 
-
 def write_redwood(folder, frames, K, with_depth: bool = True) -> None:
     """Frames (rgb, depth metres, T_world_cam) as a Redwood folder: color/, depth/ (mm), trajectory.log,
     camera_intrinsic.json."""

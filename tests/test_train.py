@@ -143,7 +143,6 @@ def test_metrics_of_a_perfect_and_a_shifted_prediction():
     assert depth_jump_score(depth)[0, 10, 16] > 0.1 > depth_jump_score(depth)[0, 5, 5]
 
 
-
 def train_losses(run: Path) -> list[float]:
     with open(run / "metrics.csv") as handle:
         return [float(row["train/loss"]) for row in csv.DictReader(handle) if row.get("train/loss")]
