@@ -266,6 +266,25 @@ def test_with_view_z_only_frontiers_in_the_height_window_are_kept():
     assert FrontierTracker(tracking_conf()).add([observation((0.0, 0.0, CAMERA_Z + high + 1.0))], 0, 0) == [0]
 
 
+def test_floor_frontiers_are_kept_only_at_the_end_of_the_sensor_range():
+    """A large room's far part shows up as frontiers on the floor where the depth range (3.5 m)
+    ends: they are kept although below the height window; floor frontiers nearer the camera
+    (behind a sofa) are not."""
+    conf = tracking_conf()
+    low = conf["height_window_m"][0]
+    camera = level_pose(0.0, 0.0, 0.0)
+    floor_z = CAMERA_Z + low - 0.3
+    far = SimpleNamespace(**vars(observation((3.3, 0.0, floor_z))), T_world_cam=camera)
+    near = SimpleNamespace(**vars(observation((1.5, 0.5, floor_z))), T_world_cam=camera)
+    assert np.linalg.norm(far.position - camera[:3, 3]) >= conf["floor_range_end_m"]
+    assert FrontierTracker(conf, view_z=CAMERA_Z).add([far, near], 0, 0) == [0, None]
+    assert FrontierTracker(tracking_conf(floor_range_end_m=None), view_z=CAMERA_Z).add([far], 0, 0) == [None]
+    # above the window (the ceiling where the range ends, wall tops against the sky) nothing is kept
+    high = SimpleNamespace(**vars(observation((3.3, 0.0, CAMERA_Z + conf["height_window_m"][1] + 1.0))),
+                           T_world_cam=camera)
+    assert FrontierTracker(conf, view_z=CAMERA_Z).add([high], 0, 0) == [None]
+
+
 def test_a_blacklisted_frontier_leaves_a_tombstone_that_discards_its_reobservations():
     tracker = FrontierTracker(tracking_conf())
     given_up, dropped = tracker.add([observation((1.0, 1.0, 1.2), 0.0), observation((4.0, 1.0, 1.2), 0.0)], 0, 0)

@@ -121,8 +121,9 @@ class FrontierTracker:
 
     def add(self, observations, parent_pose: int, step: int, average: bool = True) -> list[int]:
         """Fold one frame's observations in; returns the id each observation went to (None: it
-        matched a blacklisted frontier, or lay outside ``height_window_m`` around `view_z`, and
-        was discarded).
+        matched a blacklisted frontier, or lay outside ``height_window_m`` around `view_z` (and
+        was no floor frontier at the end of the sensor's range, ``floor_range_end_m``), and was
+        discarded).
 
         Args:
             observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``).
@@ -138,7 +139,7 @@ class FrontierTracker:
         for observation in observations:
             position = np.asarray(observation.position, np.float64)
             direction = _unit(np.asarray(observation.direction, np.float64))
-            if not self._in_height_window(position):
+            if not self._in_height_window(position, getattr(observation, "T_world_cam", None)):
                 ids.append(None)
                 continue
             if self._buried(position, direction, max_distance, min_cos):
@@ -164,11 +165,20 @@ class FrontierTracker:
             ids.append(frontier.id)
         return ids
 
-    def _in_height_window(self, position: np.ndarray) -> bool:
+    def _in_height_window(self, position: np.ndarray, T_world_cam: np.ndarray | None) -> bool:
+        """Whether a frontier at `position` is kept by ``height_window_m`` around `view_z`: inside
+        it, or below it (on the floor) at least ``floor_range_end_m`` from the camera that saw it
+        (`T_world_cam`, None: unknown), where the end of the sensor's range, not an occluder, made it."""
         if self.view_z is None or self.conf.get("height_window_m") is None:
             return True
         low, high = (float(v) for v in self.conf["height_window_m"])
-        return low <= float(position[2]) - self.view_z <= high
+        height = float(position[2]) - self.view_z
+        if low <= height <= high:
+            return True
+        range_end = self.conf.get("floor_range_end_m")
+        if height > high or range_end is None or T_world_cam is None:
+            return False
+        return float(np.linalg.norm(position - np.asarray(T_world_cam)[:3, 3])) >= float(range_end)
 
     def _buried(self, position, direction, max_distance, min_cos) -> bool:
         return any(float(np.linalg.norm(p - position)) < max_distance and float(d @ direction) > min_cos
