@@ -189,7 +189,8 @@ class Explorer:
             self.tracker.remove(frontier_id, "blacklisted")
         if route is not None:
             route = resample_route(route, xy, self.motion.max_translation)
-        if route is not None and (self.route is None or route.frontier_id != self.route.frontier_id):
+        last = self.result.goals[-1]["frontier"] if self.result.goals else None
+        if route is not None and route.frontier_id != last:  # a new goal (not the same one replanned)
             self.result.goals.append({"step": self.agent.steps, "frontier": route.frontier_id,
                                       "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
         self.route, self.waypoint, self.steps_since_plan = route, 0, 0
