@@ -126,7 +126,8 @@ class FrontierTracker:
         discarded).
 
         Args:
-            observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``).
+            observations: FrontierObservation-like records (``position``, ``direction``, ``gain_m3``;
+                optionally ``T_world_cam``, the camera that saw it, for ``floor_range_end_m``).
             parent_pose: index of the pose that saw them (their parent in the frontier tree).
             step: the current step count.
             average: a merged observation updates running means (image frontiers, seen again
