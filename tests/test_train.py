@@ -202,7 +202,12 @@ def test_ctrl_c_leaves_a_resumable_checkpoint(tiny_dataset, tmp_path):
     while time.time() < deadline and not (metrics.is_file() and len(train_losses(tmp_path / "stop")) >= 3):
         time.sleep(0.5)
     process.send_signal(signal.SIGINT)
-    _, err = process.communicate(timeout=300)  # a hang guard: a loaded machine may take a while
+    try:
+        _, err = process.communicate(timeout=300)  # a hang guard: a loaded machine may take a while
+    finally:
+        if process.poll() is None:  # never leave a training run behind
+            process.kill()
+            process.wait()
     assert process.returncode == 130, err[-2000:]
     assert "interrupted" in err
     last = tmp_path / "stop" / "checkpoints" / "last.ckpt"
