@@ -241,22 +241,28 @@ def test_clear_sphere_frees_the_robot_footprint():
     assert occupancy.known_volume_m3 == pytest.approx(occupancy.observed.sum() * 1e-3)
 
 
-def test_sphere_touches_an_occupied_voxel_exactly_when_it_overlaps_its_cube():
+def test_cylinder_touches_an_occupied_column_exactly_when_it_overlaps_its_square():
     occupancy = OccupancyMap.from_bounds(np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]), map_conf())
     depth = np.full((9, 9), 1.0, np.float32)  # a frame looking along +x from x = 0.05 hits the voxel layer [1.0, 1.1)
     T = np.array([[0, 0, 1, 0.05], [-1, 0, 0, 1.05], [0, -1, 0, 1.05], [0, 0, 0, 1]], np.float64)
     occupancy.integrate(depth, np.array([[4.0, 0, 4], [0, 4.0, 4], [0, 0, 1]]), T)
     assert occupancy.state_at(np.array([[1.05, 1.05, 1.05]]))[0] == OCCUPIED
-    # the occupied cube's face is at x = 1.0: a sphere at x = 0.75 reaches it with r > 0.25 only
-    assert not occupancy.sphere_touches_occupied(np.array([0.75, 1.05, 1.05]), 0.24)
-    assert occupancy.sphere_touches_occupied(np.array([0.75, 1.05, 1.05]), 0.26)
-    # diagonally off the lit patch's corner edge the distance is to that edge, not to a centre
+    band = (0.95, 1.15)
+    # the occupied column's face is at x = 1.0: a cylinder at x = 0.75 reaches it with r > 0.25 only
+    assert not occupancy.cylinder_touches_occupied(np.array([0.75, 1.05]), 0.24, *band)
+    assert occupancy.cylinder_touches_occupied(np.array([0.75, 1.05]), 0.26, *band)
+    # diagonally off the lit patch's corner the distance is to that corner, not to a centre
     i, k = 10, 10  # the voxel column x in [1.0, 1.1), z in [1.0, 1.1)
     j_last = int(np.flatnonzero(occupancy.occupied_mask()[i, :, k]).max())
     corner = np.array([1.0, occupancy.origin[1] + (j_last + 1) * 0.1])
-    centre = np.array([corner[0] - 0.1, corner[1] + 0.1, 1.05])
-    assert not occupancy.sphere_touches_occupied(centre, 0.14)  # sqrt(0.1^2 + 0.1^2) = 0.1414
-    assert occupancy.sphere_touches_occupied(centre, 0.15)
+    centre = np.array([corner[0] - 0.1, corner[1] + 0.1])
+    assert not occupancy.cylinder_touches_occupied(centre, 0.14, *band)  # sqrt(0.1^2 + 0.1^2) = 0.1414
+    assert occupancy.cylinder_touches_occupied(centre, 0.15, *band)
+    # an obstacle anywhere in the band counts (a counter top below the camera), one outside it does not
+    assert occupancy.cylinder_touches_occupied(np.array([0.75, 1.05]), 0.26, 1.15, 1.5) is False
+    assert occupancy.cylinder_touches_occupied(np.array([0.75, 1.05]), 0.26, 0.7, 1.02)
+    with pytest.raises(InputError, match="finite"):
+        occupancy.cylinder_touches_occupied(np.array([np.nan, 1.0]), 0.2, *band)
 
 
 def test_bad_inputs_raise_input_errors(two_room_voxels):

@@ -69,7 +69,7 @@ class OccupancyMap:
         self._observed = np.zeros(dims, bool)
         self._known_voxels = 0
         self._latest_frame: tuple[np.ndarray, np.ndarray] | None = None  # (box lo, voxels seen)
-        self._slice: tuple | None = None  # (k0, k1, free, occupied) of the latest slice_2d, until an update
+        self._slices: dict = {}  # (k0, k1) -> (free, occupied) of slice_2d's bands, until an update
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
@@ -134,12 +134,23 @@ class OccupancyMap:
         """Volume of the observed (free or occupied) voxels, cubic metres."""
         return self._known_voxels * self.voxel_size ** 3
 
-    def sphere_touches_occupied(self, centre: np.ndarray, radius_m: float) -> bool:
-        """Whether a ball of `radius_m` around `centre` ((3,) world metres) overlaps an occupied
-        voxel (exact sphere-box test: a body there would touch what the map holds)."""
-        box, inside = self._sphere(centre, radius_m, "sphere_touches_occupied", touching=True)
-        occupied = self._observed[box] & (self._log_odds[box] > self.settings.occupied_threshold)
-        return bool((occupied & inside).any())
+    def cylinder_touches_occupied(self, xy: np.ndarray, radius_m: float, z_min: float, z_max: float) -> bool:
+        """Whether an upright cylinder of `radius_m` around world point `xy` ((2,) metres) over the
+        height band [z_min, z_max] (the voxel layers :meth:`slice_2d` takes) overlaps an occupied
+        voxel (exact disk-square test on the band's occupied columns): the planning grid's view
+        of a body there, so a move it allows is one the grid could have planned."""
+        xy = np.asarray(xy, np.float64).reshape(-1)[:2]
+        if xy.shape != (2,) or not np.all(np.isfinite(xy)):
+            raise InputError(f"cylinder_touches_occupied needs a finite (2,) world point, got {xy!r}")
+        radius = positive_number(scalar(radius_m), "cylinder_touches_occupied radius_m", "metres", allow_zero=True)
+        _, occupied = self.slice_2d(z_min, z_max)
+        size, origin = self.voxel_size, self.origin[:2]
+        lo = np.clip(np.floor((xy - radius - origin) / size).astype(np.int64), 0, occupied.shape)
+        hi = np.clip(np.floor((xy + radius - origin) / size).astype(np.int64) + 1, 0, occupied.shape)
+        gaps = [np.maximum(np.abs(origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * size - xy[a]) - size / 2, 0.0)
+                for a in range(2)]  # per axis, from the point to each column's square
+        inside = gaps[0][:, None] ** 2 + gaps[1][None, :] ** 2 < radius ** 2
+        return bool((occupied[lo[0]:hi[0], lo[1]:hi[1]] & inside).any())
 
     def state_at(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points (metres) -> (N,) int8 :data:`UNKNOWN` / :data:`FREE` / :data:`OCCUPIED`
@@ -184,7 +195,7 @@ class OccupancyMap:
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
                         self.origin + lo * self.voxel_size, self.voxel_size, passed, hit)
-        self._latest_frame, self._slice = (lo, passed | hit), None
+        self._latest_frame, self._slices = (lo, passed | hit), {}
         self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                            np.float32(s.log_odds_hit), np.float32(s.log_odds_miss),
                                            np.float32(s.log_odds_min), np.float32(s.log_odds_max))
@@ -193,7 +204,7 @@ class OccupancyMap:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
         as free (observed, log-odds at most ``log_odds_miss``): where the robot stands is free."""
         box, inside = self._sphere(centre, radius_m, "clear_sphere")
-        self._slice = None
+        self._slices = {}
         self._known_voxels += int(np.count_nonzero(inside & ~self._observed[box]))
         self._observed[box] |= inside
         miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
@@ -264,8 +275,8 @@ class OccupancyMap:
         The band holds the voxel layers overlapping it (at least the one holding z_min).
         Returns (free, occupied), both (X, Y) bool: a column is occupied when any of its
         band voxels is occupied, free when all of them are free; a band off the grid
-        gives all False (unknown). The arrays are read-only: the latest slice is kept until the
-        map changes (map frontiers, the planner and the video take the same band each step).
+        gives all False (unknown). The arrays are read-only: each band's slice is kept until the
+        map changes (map frontiers, the planner and the video take the same bands each step).
         """
         z_min, z_max = finite_number(z_min, "z_min"), finite_number(z_max, "z_max")
         if z_max < z_min:
@@ -276,13 +287,13 @@ class OccupancyMap:
         if k1 <= k0:
             empty = np.zeros(self.shape[:2], bool)
             return empty, empty.copy()
-        if self._slice is None or self._slice[:2] != (k0, k1):
+        if (k0, k1) not in self._slices:
             band = slice(k0, k1)
             observed = self._observed[:, :, band]
             occupied = self._log_odds[:, :, band] > self.settings.occupied_threshold
-            self._slice = (k0, k1, _read_only(np.all(observed & ~occupied, axis=2)),
-                           _read_only(np.any(observed & occupied, axis=2)))
-        return self._slice[2], self._slice[3]
+            self._slices[k0, k1] = (_read_only(np.all(observed & ~occupied, axis=2)),
+                                    _read_only(np.any(observed & occupied, axis=2)))
+        return self._slices[k0, k1]
 
     # -- files -----------------------------------------------------------------------------------
 
