@@ -3,6 +3,8 @@ goal keeping, blacklisting, map and map-free routes, route resampling."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -265,6 +267,56 @@ def test_planning_grid_blocks_unknown_and_obstacles_and_keeps_the_robot_cell_ope
     assert outside == np.inf
     # the cost grows towards walls: paths keep to the middle
     assert grid.lookup(grid.cost, np.array([[1.0, 0.5]]))[0] > grid.lookup(grid.cost, np.array([[1.0, 1.5]]))[0]
+
+
+def corridor_stub_map():
+    """A 4 m x 1 m corridor along x (0.1 m cells, 40 x 10 free; the same in every band and layer) whose upper wall (y = 1.0) is mapped
+    and whose lower wall (y < 0) the camera never faced: unknown, like a wall beside a route taken
+    after a turn on the spot (KTH 50052750, the collision at step 3,788)."""
+    free = np.zeros((40, 14), bool)
+    free[:, 2:12] = True  # y in [0.2, 1.2): the corridor's cells, 0.2 m from the unknown side
+    occupied = np.zeros_like(free)
+    occupied[:, 12] = True  # the mapped wall
+    return SimpleNamespace(slice_2d=lambda z0, z1: (free, occupied), voxel_size=0.1, origin=np.zeros(3))  # every band
+
+
+@pytest.mark.parametrize("unknown_is_obstacle", [True, False])
+def test_routes_keep_the_clearance_to_unknown_cells_beside_them(unknown_is_obstacle):
+    conf = planner_conf(unknown_is_obstacle=unknown_is_obstacle)
+    occupancy = corridor_stub_map()
+    robot, goal = np.array([0.55, 0.75]), frontier(0, (3.55, 0.75), 10.0, 0)
+    grid = PlanningGrid.from_map(occupancy, Z, conf, robot)
+    beside_unknown = grid.lookup(grid.cost, np.array([[2.05, 0.25], [2.05, 0.35]]))
+    # the old rule (occupied only) plans 0.1-0.2 m from the unknown wall: a 0.2 m body there touches it
+    assert np.isfinite(beside_unknown).all() != unknown_is_obstacle
+    route = FrontierPlanner(conf).best_route([goal], robot, parents(robot), grid=grid)
+    assert route is not None and route.mapped_until == len(route.waypoints)  # all on the map
+    free, _ = occupancy.slice_2d(0, 0)
+    to_not_free = ndimage.distance_transform_edt(free) * 0.1
+    clearance = float(conf["clearance_m"])
+    if unknown_is_obstacle:
+        assert grid.lookup(to_not_free, route.waypoints, outside=0).min() >= clearance - 1e-9
+
+
+def test_boxed_in_only_beside_obstacles_with_no_way_out():
+    conf = planner_conf()
+    free = np.zeros((30, 30), bool)
+    free[5:25, 5:25] = True
+    occupied = np.zeros_like(free)
+    occupied[12:18, 12:18] = True  # a counter top in the band, free above the camera's layer
+    free[occupied] = False
+    occupancy = SimpleNamespace(slice_2d=lambda z0, z1: (free, occupied), voxel_size=0.1, origin=np.zeros(3))
+    on_counter = np.array([1.45, 1.45])
+    grid = PlanningGrid.from_map(occupancy, Z, conf, on_counter)
+    assert grid.boxed_in(on_counter, conf["clearance_m"])
+    # beside the counter, closer than the clearance, but with a free neighbour further away: not boxed in
+    beside = np.array([1.05, 1.45])
+    assert not PlanningGrid.from_map(occupancy, Z, conf, beside).boxed_in(beside, conf["clearance_m"])
+    # at the start the neighbours are unknown, not obstacles: the routes leave along the tree edges
+    unknown = np.zeros_like(free)
+    start = np.array([1.45, 1.45])
+    empty = SimpleNamespace(slice_2d=lambda z0, z1: (unknown, unknown), voxel_size=0.1, origin=np.zeros(3))
+    assert not PlanningGrid.from_map(empty, Z, conf, start).boxed_in(start, conf["clearance_m"])
 
 
 # -- map-free mode: the tree and the trajectory -----------------------------------------------------

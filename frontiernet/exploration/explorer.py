@@ -116,7 +116,8 @@ class Explorer:
         self.rng = np.random.default_rng(int(conf.run.seed))
         self.on_step = on_step
         self.route = None
-        self.backoff = None  # (2,) xy to step back to after a collision (map-free mode)
+        self.backoff = None  # (2,) xy to step back to: after a collision (map-free mode), or boxed in
+        self.retreat_index = None  # while boxed in on the planning grid: the trajectory index stepped back to
         self.vacuum_yaw = None  # the vacuum method's heading
         self.waypoint = 0
         self.steps_since_plan = 0
@@ -183,6 +184,10 @@ class Explorer:
                                             keep_margin=float(self.conf.planner.goal_switch_margin))
         else:
             grid = PlanningGrid.from_map(self.map, self.motion.z, self.conf.planner, xy)
+            if grid.boxed_in(xy, float(self.conf.planner.clearance_m)):  # no goal is to blame: step back along the trajectory first
+                self.route, self.backoff = None, self._retreat_point(xy)
+                return
+            self.retreat_index = None
             route = self.planner.best_route(self.tracker, xy, self._parent_xy, grid=grid, keep=keep,
                                             keep_margin=float(self.conf.planner.goal_switch_margin))
         for frontier_id in self.planner.blacklist:
@@ -194,6 +199,20 @@ class Explorer:
             self.result.goals.append({"step": self.agent.steps, "frontier": route.frontier_id,
                                       "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
         self.route, self.waypoint, self.steps_since_plan = route, 0, 0
+
+    def _retreat_point(self, xy: np.ndarray) -> np.ndarray | None:
+        """The next earlier trajectory position (xy) to step back to while the robot is boxed in
+        on the planning grid: it stands where the map allows no step (a counter top under the
+        camera in the grid's height band: the body passed over it, the band does not), and every
+        route would fail there and blacklist its goal. None when the trajectory is used up."""
+        if self.retreat_index is None:
+            self.retreat_index = len(self.poses) - 1
+        while self.retreat_index > 0:
+            self.retreat_index -= 1
+            point = self.poses[self.retreat_index][:2, 3]
+            if np.linalg.norm(point - xy) > 0.5 * self.motion.max_translation:
+                return point.copy()
+        return None
 
     def _route_failed(self) -> None:
         """The next increment of the route is not allowed by the map. A route planned on an
@@ -269,7 +288,8 @@ class Explorer:
 
     def _check_move(self, T: np.ndarray, target: np.ndarray) -> str:
         """Whether the map allows the increment to `target`: ``ok`` (a turn, or a move into known
-        free space where a sphere of `body_radius` touches no occupied voxel), ``look`` (the
+        free space where an upright cylinder of `body_radius` over the planning band, the
+        planning grid's view of the body, touches no occupied voxel), ``look`` (the
         target is unknown and the camera does not face it yet) or ``fail`` (occupied, or still
         unknown when faced). `body_radius` is ``planner.clearance_m`` (kept between route cell
         centres and occupied voxel centres) less a voxel's half diagonal and a slack for route
@@ -279,7 +299,9 @@ class Explorer:
 
         if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
             return "ok"
-        if self.map.sphere_touches_occupied(target[:3, 3], self.body_radius):
+        band = float(self.conf.planner.height_band_m)
+        z_min, z_max = self.motion.z - band, self.motion.z + band
+        if self.map.cylinder_touches_occupied(target[:2, 3], self.body_radius, z_min, z_max):
             return "fail"
         if self.map.state_at(target[None, :3, 3])[0] == FREE:
             return "ok"
@@ -291,10 +313,14 @@ class Explorer:
         return abs(wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw_of(T))) < np.radians(20.0)
 
     def _blocked(self, xy: np.ndarray) -> bool:
-        from ..mapping import OCCUPIED
-
-        point = np.array([[xy[0], xy[1], self.motion.z]])
-        return bool(self.map.state_at(point)[0] == OCCUPIED)
+        """Whether the map has an occupied voxel in the planning band (``planner.height_band_m``
+        around the camera) over world point `xy` (2,): the planning grid's obstacle test, so the
+        robot never walks (along a tree edge) onto cells it cannot plan from, such as a counter
+        top below its body."""
+        band = float(self.conf.planner.height_band_m)
+        _, occupied = self.map.slice_2d(self.motion.z - band, self.motion.z + band)
+        i, j = np.floor((np.asarray(xy[:2], np.float64) - self.map.origin[:2]) / self.map.voxel_size).astype(int)
+        return bool(0 <= i < occupied.shape[0] and 0 <= j < occupied.shape[1] and occupied[i, j])
 
     def move(self, T_target: np.ndarray) -> bool:
         """One increment with the collision check; returns whether it collided."""

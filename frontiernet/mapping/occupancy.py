@@ -328,20 +328,18 @@ class OccupancyMap:
 
     # -- pieces ----------------------------------------------------------------------------------
 
-    def _sphere(self, centre, radius_m, what: str, touching: bool = False) -> tuple[tuple, np.ndarray]:
+    def _sphere(self, centre, radius_m, what: str) -> tuple[tuple, np.ndarray]:
         """The index box (a tuple of slices) around a ball and the (bool) mask of the box's voxels
-        whose centres lie within it (`touching`: whose cubes overlap it)."""
+        whose centres lie within it."""
         centre = np.asarray(centre, np.float64)
         if centre.shape != (3,) or not np.all(np.isfinite(centre)):
             raise InputError(f"{what} centre must be a finite (3,) world point, got {centre!r}")
         radius = positive_number(scalar(radius_m), f"{what} radius_m", "metres", allow_zero=True)
-        lo, hi = self._index_box(np.stack([centre - radius, centre + radius]), margin=int(touching))
+        lo, hi = self._index_box(np.stack([centre - radius, centre + radius]), margin=0)
         box = tuple(slice(a, b) for a, b in zip(lo, hi))
         axes = [self.origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * self.voxel_size - centre[a] for a in range(3)]
-        if touching:  # per-axis distance from the centre to the cube, not to its centre
-            axes = [np.maximum(np.abs(axis) - self.voxel_size / 2, 0.0) for axis in axes]
         squared = axes[0][:, None, None] ** 2 + axes[1][None, :, None] ** 2 + axes[2][None, None, :] ** 2
-        return box, (squared < radius ** 2) if touching else (squared <= radius ** 2)
+        return box, squared <= radius ** 2
 
     def _latest_frame_mask(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """(hi - lo) bool: the voxels of the index box [lo, hi) that the latest frame observed."""

@@ -36,32 +36,55 @@ class PlanningGrid:
         cell_m: cell size, metres.
         cost: (X, Y) float64 traversal cost per cell (inf = blocked), indexed [i, j] for
             ``x = origin_x + (i + 0.5) * cell_m`` and likewise y.
+        clearance: (X, Y) float64 metres from each cell centre to the nearest occupied cell's
+            (None when the grid was not made from a map).
     """
 
     origin_xy: np.ndarray
     cell_m: float
     cost: np.ndarray
+    clearance: np.ndarray | None = None
 
     @classmethod
     def from_map(cls, occupancy, z: float, conf, start_xy: np.ndarray | None = None) -> "PlanningGrid":
         """Grid over the band ``z +- planner.height_band_m`` of an OccupancyMap.
 
         A cell is traversable when it is free over the band and at least ``clearance_m``
-        from occupied cells; its cost is ``1 + centre_weight / clearance``. The cell under
-        `start_xy` (the robot, which stands in free space whatever the map says) is kept open.
+        from the obstacle cells; its cost is ``1 + centre_weight / clearance``. Obstacle cells
+        are those occupied in the band and, with ``unknown_is_obstacle``, those unknown in the
+        voxel layer at height `z`: a wall the camera never faced is unknown, and a route beside
+        it would touch it. (The layer at the camera's height is what the camera sees at every
+        range; the band's top and bottom are unseen within ~0.45 m of it, so counting those
+        would wall the robot in wherever it turned.) The cell under `start_xy` (the robot,
+        which stands in free space whatever the map says) is kept open.
         """
         band = float(conf["height_band_m"])
         free, occupied = occupancy.slice_2d(z - band, z + band)
         cell = float(occupancy.voxel_size)
         clearance = ndimage.distance_transform_edt(~occupied) * cell
-        cost = clearance_cost(clearance, float(conf["clearance_m"]), float(conf["centre_weight"]))
+        to_obstacle = clearance
+        if bool(conf.get("unknown_is_obstacle", False)):
+            layer_free, layer_occupied = occupancy.slice_2d(z, z)
+            to_obstacle = np.minimum(clearance, ndimage.distance_transform_edt(layer_free | layer_occupied) * cell)
+        cost = clearance_cost(to_obstacle, float(conf["clearance_m"]), float(conf["centre_weight"]))
         cost[~free] = np.inf
-        grid = cls(np.asarray(occupancy.origin[:2], np.float64), cell, cost)
+        grid = cls(np.asarray(occupancy.origin[:2], np.float64), cell, cost, clearance)
         if start_xy is not None:
             i, j = grid.cell(start_xy)
             if grid.inside(i, j) and not np.isfinite(grid.cost[i, j]):
-                grid.cost[i, j] = 1.0 + float(conf["centre_weight"]) / max(float(clearance[i, j]), 1e-3)
+                grid.cost[i, j] = 1.0 + float(conf["centre_weight"]) / max(float(to_obstacle[i, j]), 1e-3)
         return grid
+
+    def boxed_in(self, xy: np.ndarray, clearance_m: float) -> bool:
+        """Whether the cell under world point `xy` (2,) lies closer than `clearance_m` to an occupied
+        cell and none of its 8 neighbours is traversable: a robot there (on a counter top under
+        the band, say) can plan no route at all. (At the start the neighbours are unknown, not
+        occupied: routes leave along the frontier-tree edges.)"""
+        i, j = self.cell(xy)
+        if not self.inside(i, j) or self.clearance is None or self.clearance[i, j] >= clearance_m:
+            return False
+        block = self.cost[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+        return int(np.isfinite(block).sum()) - int(np.isfinite(self.cost[i, j])) == 0
 
     def cells(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) world points -> (N, 2) int64 cell indices (may lie outside the grid)."""
