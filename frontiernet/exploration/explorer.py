@@ -184,7 +184,7 @@ class Explorer:
                                             keep_margin=float(self.conf.planner.goal_switch_margin))
         else:
             grid = PlanningGrid.from_map(self.map, self.motion.z, self.conf.planner, xy)
-            if grid.boxed_in(xy, float(self.conf.planner.clearance_m)):  # no goal is to blame: step back along the trajectory first
+            if grid.boxed_in(xy, float(self.conf.planner.clearance_m)):  # no goal is to blame: step back first
                 self.route, self.backoff = None, self._retreat_point(xy)
                 return
             self.retreat_index = None
@@ -299,9 +299,7 @@ class Explorer:
 
         if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
             return "ok"
-        band = float(self.conf.planner.height_band_m)
-        z_min, z_max = self.motion.z - band, self.motion.z + band
-        if self.map.cylinder_touches_occupied(target[:2, 3], self.body_radius, z_min, z_max):
+        if self.map.cylinder_touches_occupied(target[:2, 3], self.body_radius, *self._band()):
             return "fail"
         if self.map.state_at(target[None, :3, 3])[0] == FREE:
             return "ok"
@@ -317,10 +315,12 @@ class Explorer:
         around the camera) over world point `xy` (2,): the planning grid's obstacle test, so the
         robot never walks (along a tree edge) onto cells it cannot plan from, such as a counter
         top below its body."""
+        return self.map.cylinder_touches_occupied(xy, 1e-6, *self._band())
+
+    def _band(self) -> tuple[float, float]:
+        """The planning grid's height band (``planner.height_band_m`` around the camera), metres."""
         band = float(self.conf.planner.height_band_m)
-        _, occupied = self.map.slice_2d(self.motion.z - band, self.motion.z + band)
-        i, j = np.floor((np.asarray(xy[:2], np.float64) - self.map.origin[:2]) / self.map.voxel_size).astype(int)
-        return bool(0 <= i < occupied.shape[0] and 0 <= j < occupied.shape[1] and occupied[i, j])
+        return self.motion.z - band, self.motion.z + band
 
     def move(self, T_target: np.ndarray) -> bool:
         """One increment with the collision check; returns whether it collided."""
