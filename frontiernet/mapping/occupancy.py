@@ -137,20 +137,25 @@ class OccupancyMap:
     def cylinder_touches_occupied(self, xy: np.ndarray, radius_m: float, z_min: float, z_max: float) -> bool:
         """Whether an upright cylinder of `radius_m` around world point `xy` ((2,) metres) over the
         height band [z_min, z_max] (the voxel layers :meth:`slice_2d` takes) overlaps an occupied
-        voxel (exact disk-square test on the band's occupied columns): the planning grid's view
+        voxel (exact disk-square test on the band's occupied columns, over the cylinder's
+        footprint only): the planning grid's view
         of a body there, so a move it allows is one the grid could have planned."""
         xy = np.asarray(xy, np.float64).reshape(-1)[:2]
         if xy.shape != (2,) or not np.all(np.isfinite(xy)):
             raise InputError(f"cylinder_touches_occupied needs a finite (2,) world point, got {xy!r}")
         radius = positive_number(scalar(radius_m), "cylinder_touches_occupied radius_m", "metres", allow_zero=True)
-        _, occupied = self.slice_2d(z_min, z_max)
+        k0, k1 = self._band_layers(z_min, z_max, "cylinder_touches_occupied")
+        if k1 <= k0:
+            return False
         size, origin = self.voxel_size, self.origin[:2]
-        lo = np.clip(np.floor((xy - radius - origin) / size).astype(np.int64), 0, occupied.shape)
-        hi = np.clip(np.floor((xy + radius - origin) / size).astype(np.int64) + 1, 0, occupied.shape)
+        lo = np.clip(np.floor((xy - radius - origin) / size).astype(np.int64), 0, self.shape[:2])
+        hi = np.clip(np.floor((xy + radius - origin) / size).astype(np.int64) + 1, 0, self.shape[:2])
+        window = (slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(k0, k1))  # local: no whole-map slice per move
+        occupied = np.any(self._observed[window] & (self._log_odds[window] > self.settings.occupied_threshold), axis=2)
         gaps = [np.maximum(np.abs(origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * size - xy[a]) - size / 2, 0.0)
                 for a in range(2)]  # per axis, from the point to each column's square
         inside = gaps[0][:, None] ** 2 + gaps[1][None, :] ** 2 < radius ** 2
-        return bool((occupied[lo[0]:hi[0], lo[1]:hi[1]] & inside).any())
+        return bool((occupied & inside).any())
 
     def state_at(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points (metres) -> (N,) int8 :data:`UNKNOWN` / :data:`FREE` / :data:`OCCUPIED`
@@ -278,12 +283,7 @@ class OccupancyMap:
         gives all False (unknown). The arrays are read-only: each band's slice is kept until the
         map changes (map frontiers, the planner and the video take the same bands each step).
         """
-        z_min, z_max = finite_number(z_min, "z_min"), finite_number(z_max, "z_max")
-        if z_max < z_min:
-            raise InputError(f"slice_2d needs z_min <= z_max, got {z_min}, {z_max}")
-        k0 = int(np.floor((z_min - self.origin[2]) / self.voxel_size))
-        k1 = max(int(np.ceil((z_max - self.origin[2]) / self.voxel_size)), k0 + 1)
-        k0, k1 = max(k0, 0), min(k1, self.shape[2])
+        k0, k1 = self._band_layers(z_min, z_max, "slice_2d")
         if k1 <= k0:
             empty = np.zeros(self.shape[:2], bool)
             return empty, empty.copy()
@@ -340,6 +340,16 @@ class OccupancyMap:
         axes = [self.origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * self.voxel_size - centre[a] for a in range(3)]
         squared = axes[0][:, None, None] ** 2 + axes[1][None, :, None] ** 2 + axes[2][None, None, :] ** 2
         return box, squared <= radius ** 2
+
+    def _band_layers(self, z_min: float, z_max: float, what: str) -> tuple[int, int]:
+        """Voxel layer range [k0, k1) of the height band [z_min, z_max] (world metres): the layers
+        overlapping it, at least the one holding z_min, clipped to the grid (empty: k1 <= k0)."""
+        z_min, z_max = finite_number(z_min, "z_min"), finite_number(z_max, "z_max")
+        if z_max < z_min:
+            raise InputError(f"{what} needs z_min <= z_max, got {z_min}, {z_max}")
+        k0 = int(np.floor((z_min - self.origin[2]) / self.voxel_size))
+        k1 = max(int(np.ceil((z_max - self.origin[2]) / self.voxel_size)), k0 + 1)
+        return max(k0, 0), min(k1, self.shape[2])
 
     def _latest_frame_mask(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """(hi - lo) bool: the voxels of the index box [lo, hi) that the latest frame observed."""
