@@ -197,6 +197,19 @@ def test_oracle_exploration_writes_consistent_metrics_and_outputs(oracle_run):
 
 
 @pytest.mark.slow
+def test_the_run_starts_with_one_turn_on_the_spot(oracle_run):
+    """motion.start_turn_deg (360): the first goal is chosen from what was seen all around."""
+    _, _, out = oracle_run
+    poses = np.array(load(out, "trajectory.json")["T_world_cam"])
+    turn_steps = int(np.ceil(360.0 / load_config("explore").motion.rotation_deg))
+    np.testing.assert_allclose(poses[:turn_steps + 1, :3, 3], np.repeat(poses[:1, :3, 3], turn_steps + 1, 0))
+    yaws = np.unwrap([yaw_of(T) for T in poses[:turn_steps + 1]])
+    assert yaws[-1] - yaws[0] == pytest.approx(2 * np.pi, abs=1e-6)
+    assert np.all(np.diff(yaws) > 0)  # one way round
+    assert np.linalg.norm(poses[-1, :2, 3] - poses[0, :2, 3]) > 0.5  # and then it goes somewhere
+
+
+@pytest.mark.slow
 def test_the_robot_stays_clear_of_walls_and_moves_in_single_steps(oracle_run, plan_spec):
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.raycast import distance_to_surface
@@ -265,7 +278,8 @@ def test_a_closed_room_stops_when_no_frontier_is_left(closet_spec, tmp_path):
 @pytest.mark.slow
 def test_map_free_mode_explores(plan_spec, tmp_path):
     out = tmp_path / "free"
-    code, _, _ = run_cli(explore_args(plan_spec, out, 40, "--no-video", "--map-free", "--seed", 2))
+    code, _, _ = run_cli(explore_args(plan_spec, out, 40, "--no-video", "--map-free", "--seed", 2,
+                                      "motion.start_turn_deg=0"))  # 40 steps: all for the map-free planner
     assert code == 0
     metrics = load(out)
     assert metrics["planner_mode"] == "map_free" and metrics["seed"] == 2

@@ -122,6 +122,7 @@ class Explorer:
         self.waypoint = 0
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
+        self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
         self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
         self._timings: dict = {}
 
@@ -266,6 +267,17 @@ class Explorer:
             self.planner.fail(frontier.id)
         return pose
 
+    def _start_turn(self) -> np.ndarray | None:
+        """The next increment of the turn on the spot at the start (``motion.start_turn_deg``), or
+        None once it is done: the first goal is chosen from what the camera saw all around, not
+        from the first frame's field of view only. Every method turns alike."""
+        if self.start_turn_left <= 0:
+            return None
+        turn = min(self.motion.max_rotation, self.start_turn_left)
+        self.start_turn_left -= turn
+        T = self.agent.pose
+        return self.motion.pose(T[:2, 3], yaw_of(T) + turn)
+
     def vacuum_pose(self) -> np.ndarray:
         """GLEAM's "vacuum" baseline: straight on while the map allows it, else (or after a
         collision) turn to a random new heading 90-270 deg away, like a robot vacuum."""
@@ -352,11 +364,13 @@ class Explorer:
                 break
             self._timings = {}
             start = time.perf_counter()
-            if self.route is None or self.steps_since_plan >= int(self.conf.motion.replan_every_steps):
-                if len(self.tracker) or self.route is not None:
-                    self.plan()
-            self._timings["planning"] = time.perf_counter() - start
-            target = self.vacuum_pose() if self.method.goal == "vacuum" else self.next_pose()
+            target = self._start_turn()
+            if target is None:
+                if self.route is None or self.steps_since_plan >= int(self.conf.motion.replan_every_steps):
+                    if len(self.tracker) or self.route is not None:
+                        self.plan()
+                self._timings["planning"] = time.perf_counter() - start
+                target = self.vacuum_pose() if self.method.goal == "vacuum" else self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
                     self.result.stop_reason = "no frontiers left"
