@@ -154,9 +154,9 @@ def test_unreachable_frontier_is_blacklisted_after_max_failures_and_never_return
     reachable = frontier(4, (2.05, 1.05), 1.0, 0)
     where = parents(robot, (5.05, 1.05))
     planner = FrontierPlanner(planner_conf(max_failures=3))
-    for attempt in range(3):  # from three places (a failure suspends the goal where it happened)
+    for _ in range(3):
         assert 3 not in planner.blacklist
-        route = planner.best_route([unreachable, reachable], robot + [0.0, 0.6 * attempt], where, grid=walled)
+        route = planner.best_route([unreachable, reachable], robot, where, grid=walled)
         assert route.frontier_id == 4  # the valuable one cannot be reached
     assert planner.failures[3] == 3 and planner.blacklist == {3}
     assert 4 not in planner.failures
@@ -179,7 +179,7 @@ def test_a_blacklisted_frontier_seen_again_does_not_become_the_goal_again():
     tracker.add([seen], parent_pose=0, step=0)
     assert planner.best_route(tracker, robot, parents(robot), grid=open_grid()).frontier_id == 0
     for _ in range(3):
-        planner.fail(0, robot)
+        planner.fail(0)
     assert 0 in planner.blacklist
     tracker.remove(0, "blacklisted")
     assert tracker.add([seen], parent_pose=0, step=1) == [None]  # the same frontier, from the same pose
@@ -189,24 +189,8 @@ def test_a_blacklisted_frontier_seen_again_does_not_become_the_goal_again():
 
 def test_fail_reports_the_blacklisting_call():
     planner = FrontierPlanner(planner_conf(max_failures=2))
-    assert planner.fail(5, np.zeros(2)) is False
-    assert planner.fail(5, np.zeros(2)) is True and 5 in planner.blacklist
-
-
-def test_a_failed_goal_waits_until_the_robot_has_moved_away():
-    """A failure suspends the goal where it happened: the planner picks the next best one there, and
-    the failed goal again once the robot is retry_distance_m away (not three failures in one place)."""
-    conf = planner_conf(retry_distance_m=0.5)
-    planner = FrontierPlanner(conf)
-    robot = np.array([1.05, 1.05])
-    best, second = frontier(0, (3.05, 1.05), 20.0, 0), frontier(1, (1.05, 3.05), 5.0, 0)
-    assert planner.best_route([best, second], robot, parents(robot), grid=open_grid()).frontier_id == 0
-    assert planner.fail(0, robot) is False
-    assert planner.best_route([best, second], robot + 0.3, parents(robot), grid=open_grid()).frontier_id == 1
-    assert planner.best_route([best], robot, parents(robot), grid=open_grid()) is None
-    moved = robot + np.array([0.0, 0.6])
-    assert planner.best_route([best, second], moved, parents(robot), grid=open_grid()).frontier_id == 0
-    assert planner.failures[0] == 1 and 0 not in planner.blacklist
+    assert planner.fail(5) is False
+    assert planner.fail(5) is True and 5 in planner.blacklist
 
 
 def test_robot_off_the_grid_gets_no_route():

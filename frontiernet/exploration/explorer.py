@@ -226,7 +226,7 @@ class Explorer:
 
     def _goal_failed(self) -> None:
         if self.route is not None:
-            if self.planner.fail(self.route.frontier_id, self.agent.position[:2]):
+            if self.planner.fail(self.route.frontier_id):
                 self.tracker.remove(self.route.frontier_id, "blacklisted")
         self.route = None
 
@@ -264,7 +264,7 @@ class Explorer:
         pose, aligned = self.motion.turn_to(T, frontier.yaw)
         if aligned:
             self.route = None  # arrived; if the frontier survives the next prune it is not explained
-            self.planner.fail(frontier.id, self.agent.position[:2])
+            self.planner.fail(frontier.id)
         return pose
 
     def _start_turn(self) -> np.ndarray | None:
@@ -372,11 +372,9 @@ class Explorer:
                 self._timings["planning"] = time.perf_counter() - start
                 target = self.vacuum_pose() if self.method.goal == "vacuum" else self.next_pose()
             if target is None:
-                if self.route is None and self.look_around_left <= 0:
-                    if not len(self.tracker):
-                        self.result.stop_reason = "no frontiers left"
-                        break
-                    self.planner.suspended.clear()  # looked around, nothing else to do: retry them here
+                if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
+                    self.result.stop_reason = "no frontiers left"
+                    break
                 continue  # a goal was dropped or failed: plan again (failures blacklist frontiers)
             if self.route is not None:
                 self.look_around_left = np.radians(float(self.conf.motion.look_around_deg))

@@ -12,9 +12,7 @@ DESIGN.md item 6, paper III-F. Each planning round:
 3. the best frontier that is not blacklisted is the goal.
 
 A frontier whose route fails (no reachable ``c*``, or the motion along it is blocked) gets a
-failure and is not tried again until the robot is ``retry_distance_m`` from where it failed
-(the same attempt from the same place fails the same way); after ``max_failures`` it is
-blacklisted and never chosen again.
+failure; after ``max_failures`` it is blacklisted and never chosen again.
 """
 
 from __future__ import annotations
@@ -143,19 +141,14 @@ class FrontierPlanner:
     seed: int = 0
     failures: dict = field(default_factory=dict)
     blacklist: set = field(default_factory=set)
-    suspended: dict = field(default_factory=dict)  # frontier id -> (2,) xy of the robot when it last failed
     _random_scores: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng(self.seed)
 
-    def fail(self, frontier_id: int, robot_xy: np.ndarray) -> bool:
-        """Count a failure of `frontier_id` with the robot at `robot_xy` (2,); returns True when it
-        is now blacklisted. Until the robot is ``retry_distance_m`` from there the frontier is
-        suspended (not a goal): retried at once, the same route failed the same way, and a
-        good goal (a doorway) was blacklisted by three failures within one step."""
+    def fail(self, frontier_id: int) -> bool:
+        """Count a failure of `frontier_id`; returns True when it is now blacklisted."""
         self.failures[frontier_id] = self.failures.get(frontier_id, 0) + 1
-        self.suspended[frontier_id] = np.array(robot_xy[:2], np.float64)
         if self.failures[frontier_id] >= int(self.conf["max_failures"]):
             self.blacklist.add(frontier_id)
             return True
@@ -189,13 +182,13 @@ class FrontierPlanner:
             keep: id of the current goal; it stays the goal unless another frontier's utility
                 beats it by more than the fraction `keep_margin` (avoids back-and-forth).
         """
-        candidates = [f for f in frontiers if f.id not in self.blacklist and not self._suspended(f.id, robot_xy)]
+        candidates = [f for f in frontiers if f.id not in self.blacklist]
         if not candidates:
             return None
         if grid is not None:
             scored, trace = self._map_candidates(candidates, robot_xy, parent_xy, grid)
         else:
-            scored, trace = self._tree_candidates(candidates, robot_xy, parent_xy, graph, robot_index)
+            scored, trace = self._tree_candidates(candidates, parent_xy, graph, robot_index)
         scored.sort(key=lambda c: c[2], reverse=True)
         current = [c for c in scored if c[0].id == keep]
         if current and scored[0][2] <= current[0][2] * (1.0 + keep_margin):
@@ -203,7 +196,7 @@ class FrontierPlanner:
         for frontier, distance, utility, detail in scored:
             route = trace(frontier, detail)
             if route is None:
-                self.fail(frontier.id, robot_xy)
+                self.fail(frontier.id)
                 continue
             waypoints, mapped_until = route
             return Route(frontier.id, waypoints, mapped_until, distance, utility)
@@ -225,7 +218,7 @@ class FrontierPlanner:
             parent = parent_xy(frontier.parent_pose)
             at = walk_back(frontier.position[:2], parent, lambda p: grid.lookup(reachable, p, outside=0) > 0, spacing)
             if at is None:
-                self.fail(frontier.id, robot_xy)
+                self.fail(frontier.id)
                 continue
             c_star = edge_points(frontier.position[:2], parent, spacing)[at]
             if str(self.conf["distance"]) == "path":
@@ -245,18 +238,7 @@ class FrontierPlanner:
 
         return scored, trace
 
-    def _suspended(self, frontier_id: int, robot_xy: np.ndarray) -> bool:
-        """Whether `frontier_id` failed within ``retry_distance_m`` of `robot_xy` (it is released
-        once the robot is farther)."""
-        at = self.suspended.get(frontier_id)
-        if at is None:
-            return False
-        if float(np.linalg.norm(np.asarray(robot_xy)[:2] - at)) >= float(self.conf["retry_distance_m"]):
-            del self.suspended[frontier_id]
-            return False
-        return True
-
-    def _tree_candidates(self, frontiers, robot_xy, parent_xy, graph: PoseGraph, robot_index: int):
+    def _tree_candidates(self, frontiers, parent_xy, graph: PoseGraph, robot_index: int):
         """(frontier, distance, utility, None) along the pose graph, and the tracer (map-free mode)."""
         distances, predecessors = graph.distances_from(robot_index)
         spacing = float(self.conf["edge_spacing_m"])
@@ -264,7 +246,7 @@ class FrontierPlanner:
         for frontier in frontiers:
             parent = frontier.parent_pose
             if parent >= len(distances) or not np.isfinite(distances[parent]):
-                self.fail(frontier.id, robot_xy)
+                self.fail(frontier.id)
                 continue
             distance = float(distances[parent]) + float(np.linalg.norm(parent_xy(parent) - frontier.position[:2]))
             scored.append((frontier, distance, self.score(frontier, distance), None))
