@@ -218,6 +218,26 @@ def two_room_map(two_room_scene, two_room_voxels):
     return occupancy
 
 
+def test_a_robot_standing_at_c_star_follows_the_edge_without_a_detour():
+    """The robot stands next to c* (the mapped grid ends one cell on): the route is the tree edge
+    from c* on, not a sub-step hop to c*'s cell centre first. Off the edge's line, that hop made
+    the robot turn on the spot towards it and back, and every replanning started it again."""
+    grid = open_grid()
+    grid.cost[12:, :] = np.inf  # unknown beyond x = 1.2
+    grid.cost[:, 12:] = np.inf  # ... and beyond y = 1.2
+    parent, goal_xy = np.array([0.5, 0.52]), np.array([3.05, 3.1])  # an edge slightly off the diagonal
+    robot = np.array([1.08, 1.12])
+    route = FrontierPlanner(planner_conf()).best_route([frontier(0, goal_xy, 10.0, 0)], robot, parents(parent),
+                                                        grid=grid)
+    assert route is not None and route.mapped_until == 0
+    direction = (goal_xy - parent) / np.linalg.norm(goal_xy - parent)
+    offsets = route.waypoints - parent
+    off_line = np.abs(offsets[:, 0] * direction[1] - offsets[:, 1] * direction[0])
+    assert np.all(off_line < 1e-9)  # every waypoint on the edge ...
+    assert np.all(np.diff(offsets @ direction) > 0)  # ... towards the frontier
+    assert np.linalg.norm(route.waypoints[0] - robot) < 0.2
+
+
 def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):
     conf = planner_conf()
     robot = np.array([1.0, 0.8])  # the left room's lower corner: the door is up and to the right

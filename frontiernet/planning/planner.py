@@ -234,6 +234,8 @@ class FrontierPlanner:
                 return None
             path = grid.centres(cells[1:]) if len(cells) > 1 else edge[at:at + 1]
             beyond = edge[:at][::-1]  # from c* towards the frontier, followed while mapping
+            if len(cells) <= 2 and len(beyond):  # the robot stands at c* (its cell or the next): follow
+                return beyond, 0  # the edge from here, not a sub-step detour to c*'s cell centre first
             return (np.concatenate([path, beyond]) if len(beyond) else path), len(path)
 
         return scored, trace
