@@ -275,6 +275,7 @@ class Explorer:
             return None
         turn = min(self.motion.max_rotation, self.start_turn_left)
         self.start_turn_left -= turn
+        self.look_around_left -= turn  # it is a look around: no second one if it finds no frontier
         T = self.agent.pose
         return self.motion.pose(T[:2, 3], yaw_of(T) + turn)
 
