@@ -240,7 +240,7 @@ class Explorer:
             if self.look_around_left <= 0:
                 return None
             self.look_around_left -= self.motion.max_rotation
-            return self.motion.pose(T[:2, 3], yaw_of(T) + self.motion.max_rotation)
+            return self.motion.turn_by(T, self.motion.max_rotation)
         waypoints = self.route.waypoints
         while self.waypoint < len(waypoints) and self.motion.reached(T[:2, 3], waypoints[self.waypoint]):
             self.waypoint += 1
@@ -276,8 +276,7 @@ class Explorer:
         turn = min(self.motion.max_rotation, self.start_turn_left)
         self.start_turn_left -= turn
         self.look_around_left -= turn  # it is a look around: no second one if it finds no frontier
-        T = self.agent.pose
-        return self.motion.pose(T[:2, 3], yaw_of(T) + turn)
+        return self.motion.turn_by(self.agent.pose, turn)
 
     def vacuum_pose(self) -> np.ndarray:
         """GLEAM's "vacuum" baseline: straight on while the map allows it, else (or after a

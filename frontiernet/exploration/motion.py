@@ -62,8 +62,13 @@ class Motion:
             return self.pose(xy, new_yaw)
         return self.pose(xy + offset * min(1.0, self.max_translation / distance), new_yaw)
 
+    def turn_by(self, T_world_cam: np.ndarray, angle: float) -> np.ndarray:
+        """The next pose turning on the spot by `angle` radians (counter-clockwise), at most one
+        increment's ``rotation_deg``."""
+        step = float(np.clip(angle, -self.max_rotation, self.max_rotation))
+        return self.pose(T_world_cam[:2, 3], yaw_of(T_world_cam) + step)
+
     def turn_to(self, T_world_cam: np.ndarray, yaw: float) -> tuple[np.ndarray, bool]:
         """The next pose turning on the spot towards heading `yaw`; and whether it gets there."""
         error = wrap_angle(float(yaw) - yaw_of(T_world_cam))
-        step = float(np.clip(error, -self.max_rotation, self.max_rotation))
-        return self.pose(T_world_cam[:2, 3], yaw_of(T_world_cam) + step), abs(error) <= self.max_rotation
+        return self.turn_by(T_world_cam, error), abs(error) <= self.max_rotation
