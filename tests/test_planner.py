@@ -238,6 +238,34 @@ def test_a_robot_standing_at_c_star_follows_the_edge_without_a_detour():
     assert np.linalg.norm(route.waypoints[0] - robot) < 0.2
 
 
+def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_is_failed_without_the_trip():
+    """The camera saw a frontier over a counter: its tree edge beyond c* crosses the counter's
+    occupied cells, so following it would fail at the counter. The planner fails it at once
+    and takes the next frontier, instead of walking to c* first (house, oracle: a row of such
+    frontiers cost a trip each; Vox@100 45 % -> 82 % on one start)."""
+    def grid_with(counter: bool) -> PlanningGrid:
+        grid = open_grid()
+        grid.clearance = np.full(grid.cost.shape, 5.0)
+        grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5 (not an obstacle)
+        if counter:
+            grid.cost[20:22, :] = np.inf  # the counter at x in [2.0, 2.2): occupied
+            grid.clearance[20:22, :] = 0.0
+        return grid
+
+    over_counter = frontier(0, (3.5, 1.0), 20.0, 0)  # seen from (1, 1) over the counter
+    beside = frontier(1, (1.0, 4.0), 5.0, 0)  # reachable, less utility
+    robot, parent = np.array([1.0, 1.0]), parents((1.0, 1.0))
+    planner = FrontierPlanner(planner_conf())
+    route = planner.best_route([over_counter, beside], robot, parent, grid=grid_with(counter=True))
+    assert route is not None and route.frontier_id == 1
+    assert planner.failures == {0: 1}
+    # without the counter the same edge only runs into unknown space: it is followed while mapping
+    planner = FrontierPlanner(planner_conf())
+    route = planner.best_route([over_counter, beside], robot, parent, grid=grid_with(counter=False))
+    assert route is not None and route.frontier_id == 0 and route.mapped_until < len(route.waypoints)
+    assert planner.failures == {}
+
+
 def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):
     conf = planner_conf()
     robot = np.array([1.0, 0.8])  # the left room's lower corner: the door is up and to the right

@@ -11,8 +11,9 @@ DESIGN.md item 6, paper III-F. Each planning round:
 2. its utility is ``gain^e / max(distance, min_distance_m)`` with the route's length;
 3. the best frontier that is not blacklisted is the goal.
 
-A frontier whose route fails (no reachable ``c*``, or the motion along it is blocked) gets a
-failure; after ``max_failures`` it is blacklisted and never chosen again.
+A frontier whose route fails (no reachable ``c*``, an edge beyond ``c*`` that crosses a mapped
+obstacle, or the motion along it is blocked) gets a failure; after ``max_failures`` it is
+blacklisted and never chosen again.
 """
 
 from __future__ import annotations
@@ -85,6 +86,13 @@ class PlanningGrid:
             return False
         block = self.cost[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
         return int(np.isfinite(block).sum()) - int(np.isfinite(self.cost[i, j])) == 0
+
+    def crosses_obstacle(self, xy: np.ndarray) -> bool:
+        """Whether any of the (N, 2) world points lies in an occupied cell (zero clearance): the
+        explorer's test for a tree-edge point it may not walk onto (``Explorer._blocked``)."""
+        if self.clearance is None or not len(xy):
+            return False
+        return bool((self.lookup(self.clearance, xy, outside=np.inf) <= 0).any())
 
     def cells(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) world points -> (N, 2) int64 cell indices (may lie outside the grid)."""
@@ -220,7 +228,11 @@ class FrontierPlanner:
             if at is None:
                 self.fail(frontier.id)
                 continue
-            c_star = edge_points(frontier.position[:2], parent, spacing)[at]
+            edge = edge_points(frontier.position[:2], parent, spacing)
+            if at and grid.crosses_obstacle(edge[:at]):  # the edge beyond c* runs into a mapped obstacle:
+                self.fail(frontier.id)  # following it would fail there (a counter the camera saw over),
+                continue  # so the trip to c* would be wasted
+            c_star = edge[at]
             if str(self.conf["distance"]) == "path":
                 distance = float(grid.lookup(length, c_star[None])[0]) + spacing * at
             else:
