@@ -104,3 +104,28 @@ def rigid_pose(T_world_cam) -> np.ndarray:
             or np.linalg.det(R) < 0:
         raise InputError(f"T_world_cam must be a rigid transform (rotation + translation), got {T.tolist()}")
     return T
+
+
+def disks_touch_cells(mask: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy: np.ndarray,
+                      radius_m: float) -> np.ndarray:
+    """Whether a disk of `radius_m` around each world point overlaps a set cell of a 2D grid.
+
+    Args:
+        mask: (X, Y) bool, cell ``[i, j]`` is the square ``origin + [i, i + 1) x [j, j + 1)`` cells.
+        origin_xy: (2,) world corner of cell (0, 0), metres; cell_m: cell size, metres.
+        xy: (N, 2) world points, metres.
+        radius_m: disk radius, metres (an exact disk-square test; cells off the grid are unset).
+
+    Returns:
+        (N,) bool.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    reach = int(np.ceil(radius_m / cell_m))
+    steps = np.arange(-reach, reach + 1)
+    offsets = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)
+    cells = np.floor((xy - origin_xy) / cell_m).astype(np.int64)[:, None, :] + offsets[None]  # (N, K, 2)
+    inside = (cells >= 0).all(-1) & (cells[..., 0] < mask.shape[0]) & (cells[..., 1] < mask.shape[1])
+    hit = np.zeros(inside.shape, bool)
+    hit[inside] = mask[cells[inside][:, 0], cells[inside][:, 1]]
+    gaps = np.maximum(np.abs(origin_xy + (cells + 0.5) * cell_m - xy[:, None, :]) - cell_m / 2, 0.0)  # to each square
+    return (hit & ((gaps ** 2).sum(-1) < radius_m ** 2)).any(axis=1)

@@ -245,11 +245,11 @@ def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_is_failed_without_the_t
     frontiers cost a trip each; Vox@100 45 % -> 82 % on one start)."""
     def grid_with(counter: bool) -> PlanningGrid:
         grid = open_grid()
-        grid.clearance = np.full(grid.cost.shape, 5.0)
+        grid.occupied = np.zeros(grid.cost.shape, bool)
         grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5 (not an obstacle)
         if counter:
             grid.cost[20:22, :] = np.inf  # the counter at x in [2.0, 2.2): occupied
-            grid.clearance[20:22, :] = 0.0
+            grid.occupied[20:22, :] = True
         return grid
 
     over_counter = frontier(0, (3.5, 1.0), 20.0, 0)  # seen from (1, 1) over the counter
@@ -264,6 +264,21 @@ def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_is_failed_without_the_t
     route = planner.best_route([over_counter, beside], robot, parent, grid=grid_with(counter=False))
     assert route is not None and route.frontier_id == 0 and route.mapped_until < len(route.waypoints)
     assert planner.failures == {}
+
+
+def test_an_edge_passing_closer_to_an_obstacle_than_the_body_radius_fails_at_planning():
+    """The move check refuses a body (``Explorer.body_radius``) that touches an occupied cell, so an
+    edge beyond c* passing 0.15 m beside a post fails for a 0.22 m body, not for a point."""
+    grid = open_grid()
+    grid.occupied = np.zeros(grid.cost.shape, bool)
+    grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5
+    grid.occupied[30, 11] = True  # a post: the cell [3.0, 3.1) x [1.1, 1.2), 0.15 m from the edge y = 0.95
+    goal = [frontier(0, (4.0, 0.95), 20.0, 0)]
+    robot, parent = np.array([1.0, 0.95]), parents((1.0, 0.95))
+    assert FrontierPlanner(planner_conf()).best_route(goal, robot, parent, grid=grid).frontier_id == 0
+    body = FrontierPlanner(planner_conf(), body_radius_m=0.22)
+    assert body.best_route(goal, robot, parent, grid=grid) is None and body.failures == {0: 1}
+    assert FrontierPlanner(planner_conf(), body_radius_m=0.14).best_route(goal, robot, parent, grid=grid) is not None
 
 
 def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):

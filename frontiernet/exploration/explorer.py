@@ -110,7 +110,8 @@ class Explorer:
         self.surface_seen = np.zeros(self.surface.num_samples, bool)  # once seen, a surface point stays seen
         self.surface_coverage = 0.0
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
-        self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed))
+        self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed),
+                                       body_radius_m=self.body_radius)
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
         self.poses: list[np.ndarray] = []
         self.rng = np.random.default_rng(int(conf.run.seed))

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import InputError, positive_number
 from ..io import atomic_write
 from ..simulator.voxels import VoxelGrid
-from ..geometry import pinhole_intrinsics, rigid_pose
+from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose
 from .checks import MapSettings, depth_image, finite_number, scalar
 from .traversal import frustum_volume, mark_depth_rays
 
@@ -152,10 +152,7 @@ class OccupancyMap:
         hi = np.clip(np.floor((xy + radius - origin) / size).astype(np.int64) + 1, 0, self.shape[:2])
         window = (slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(k0, k1))  # local: no whole-map slice per move
         occupied = np.any(self._observed[window] & (self._log_odds[window] > self.settings.occupied_threshold), axis=2)
-        gaps = [np.maximum(np.abs(origin[a] + (np.arange(lo[a], hi[a]) + 0.5) * size - xy[a]) - size / 2, 0.0)
-                for a in range(2)]  # per axis, from the point to each column's square
-        inside = gaps[0][:, None] ** 2 + gaps[1][None, :] ** 2 < radius ** 2
-        return bool((occupied & inside).any())
+        return bool(disks_touch_cells(occupied, origin + lo * size, size, xy[None], radius)[0])
 
     def state_at(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points (metres) -> (N,) int8 :data:`UNKNOWN` / :data:`FREE` / :data:`OCCUPIED`

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import ndimage
 
-from ..geometry import arc_lengths, points_at_arc
+from ..geometry import arc_lengths, disks_touch_cells, points_at_arc
 from .grid import clearance_cost, geodesic_paths
 from .tree import PoseGraph, edge_points, walk_back
 
@@ -39,12 +39,14 @@ class PlanningGrid:
             ``x = origin_x + (i + 0.5) * cell_m`` and likewise y.
         clearance: (X, Y) float64 metres from each cell centre to the nearest occupied cell's
             (None when the grid was not made from a map).
+        occupied: (X, Y) bool, cells occupied somewhere in the band (None: no map).
     """
 
     origin_xy: np.ndarray
     cell_m: float
     cost: np.ndarray
     clearance: np.ndarray | None = None
+    occupied: np.ndarray | None = None
 
     @classmethod
     def from_map(cls, occupancy, z: float, conf, start_xy: np.ndarray | None = None) -> "PlanningGrid":
@@ -69,7 +71,7 @@ class PlanningGrid:
             to_obstacle = np.minimum(clearance, ndimage.distance_transform_edt(layer_free | layer_occupied) * cell)
         cost = clearance_cost(to_obstacle, float(conf["clearance_m"]), float(conf["centre_weight"]))
         cost[~free] = np.inf
-        grid = cls(np.asarray(occupancy.origin[:2], np.float64), cell, cost, clearance)
+        grid = cls(np.asarray(occupancy.origin[:2], np.float64), cell, cost, clearance, occupied)
         if start_xy is not None:
             i, j = grid.cell(start_xy)
             if grid.inside(i, j) and not np.isfinite(grid.cost[i, j]):
@@ -87,12 +89,13 @@ class PlanningGrid:
         block = self.cost[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
         return int(np.isfinite(block).sum()) - int(np.isfinite(self.cost[i, j])) == 0
 
-    def crosses_obstacle(self, xy: np.ndarray) -> bool:
-        """Whether any of the (N, 2) world points lies in an occupied cell (zero clearance): the
-        explorer's test for a tree-edge point it may not walk onto (``Explorer._blocked``)."""
-        if self.clearance is None or not len(xy):
+    def touches_occupied(self, xy: np.ndarray, radius_m: float) -> bool:
+        """Whether a disk of `radius_m` around any of the (N, 2) world points overlaps an occupied
+        cell (exact disk-square test): the explorer's move check of a body there
+        (``OccupancyMap.cylinder_touches_occupied`` over the same band). False without a map."""
+        if self.occupied is None or not len(xy):
             return False
-        return bool((self.lookup(self.clearance, xy, outside=np.inf) <= 0).any())
+        return bool(disks_touch_cells(self.occupied, self.origin_xy, self.cell_m, xy, radius_m).any())
 
     def cells(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) world points -> (N, 2) int64 cell indices (may lie outside the grid)."""
@@ -142,11 +145,15 @@ class Route:
 class FrontierPlanner:
     """Chooses goals and routes; configured by the ``planner`` section of ``configs/explore.yaml``.
 
-    `goal` is the method's goal rule (:meth:`score`); `seed` seeds the ``random`` rule."""
+    `goal` is the method's goal rule (:meth:`score`); `seed` seeds the ``random`` rule.
+    `body_radius_m`: the radius the explorer's move check keeps from occupied cells
+    (``Explorer.body_radius``); a frontier whose tree edge beyond ``c*`` comes closer to one
+    fails at planning time, as following it would fail there."""
 
     conf: dict
     goal: str = "utility"
     seed: int = 0
+    body_radius_m: float = 0.0
     failures: dict = field(default_factory=dict)
     blacklist: set = field(default_factory=set)
     _random_scores: dict = field(default_factory=dict)
@@ -221,6 +228,7 @@ class FrontierPlanner:
             length, _ = geodesic_paths(np.where(reachable, 1.0, np.inf), start)
             length = length * grid.cell_m
         spacing = float(self.conf["edge_spacing_m"])
+        radius = max(self.body_radius_m, 1e-6)  # 0: the edge point's own cell
         scored = []
         for frontier in frontiers:
             parent = parent_xy(frontier.parent_pose)
@@ -229,9 +237,9 @@ class FrontierPlanner:
                 self.fail(frontier.id)
                 continue
             edge = edge_points(frontier.position[:2], parent, spacing)
-            if at and grid.crosses_obstacle(edge[:at]):  # the edge beyond c* runs into a mapped obstacle:
-                self.fail(frontier.id)  # following it would fail there (a counter the camera saw over),
-                continue  # so the trip to c* would be wasted
+            if at and grid.touches_occupied(edge[:at], radius):  # the edge beyond c* runs into (or too
+                self.fail(frontier.id)  # near) a mapped obstacle, a counter the camera saw over: following
+                continue  # it would fail there, so the trip to c* would be wasted
             c_star = edge[at]
             if str(self.conf["distance"]) == "path":
                 distance = float(grid.lookup(length, c_star[None])[0]) + spacing * at
