@@ -268,7 +268,8 @@ def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_is_failed_without_the_t
 
 def test_an_edge_passing_closer_to_an_obstacle_than_the_body_radius_fails_at_planning():
     """The move check refuses a body (``Explorer.body_radius``) that touches an occupied cell, so an
-    edge beyond c* passing 0.15 m beside a post fails for a 0.22 m body, not for a point."""
+    edge beyond c* passing 0.15 m beside a post (1 m before the frontier) fails for a 0.22 m body,
+    not for a point."""
     grid = open_grid()
     grid.occupied = np.zeros(grid.cost.shape, bool)
     grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5
@@ -279,6 +280,20 @@ def test_an_edge_passing_closer_to_an_obstacle_than_the_body_radius_fails_at_pla
     body = FrontierPlanner(planner_conf(), body_radius_m=0.22)
     assert body.best_route(goal, robot, parent, grid=grid) is None and body.failures == {0: 1}
     assert FrontierPlanner(planner_conf(), body_radius_m=0.14).best_route(goal, robot, parent, grid=grid) is not None
+
+
+def test_a_frontier_against_a_wall_is_still_approached():
+    """A frontier whose own end touches an obstacle (an occluding edge on a wall, often depth
+    noise) is not failed at planning: the robot goes along the edge as near as it can and looks."""
+    grid = open_grid()
+    grid.occupied = np.zeros(grid.cost.shape, bool)
+    grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5
+    grid.occupied[41, :] = True  # a wall at x in [4.1, 4.2), 0.15 m beyond the frontier
+    goal = [frontier(0, (3.95, 1.0), 20.0, 0)]
+    planner = FrontierPlanner(planner_conf(), body_radius_m=0.22)
+    route = planner.best_route(goal, np.array([1.0, 1.0]), parents((1.0, 1.0)), grid=grid)
+    assert route is not None and route.frontier_id == 0 and planner.failures == {}
+    np.testing.assert_allclose(route.waypoints[-1], [3.95, 1.0])
 
 
 def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):

@@ -89,13 +89,13 @@ class PlanningGrid:
         block = self.cost[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
         return int(np.isfinite(block).sum()) - int(np.isfinite(self.cost[i, j])) == 0
 
-    def touches_occupied(self, xy: np.ndarray, radius_m: float) -> bool:
-        """Whether a disk of `radius_m` around any of the (N, 2) world points overlaps an occupied
-        cell (exact disk-square test): the explorer's move check of a body there
-        (``OccupancyMap.cylinder_touches_occupied`` over the same band). False without a map."""
-        if self.occupied is None or not len(xy):
-            return False
-        return bool(disks_touch_cells(self.occupied, self.origin_xy, self.cell_m, xy, radius_m).any())
+    def touches_occupied(self, xy: np.ndarray, radius_m: float) -> np.ndarray:
+        """(N,) bool: whether a disk of `radius_m` around each of the (N, 2) world points overlaps an
+        occupied cell (exact disk-square test): the explorer's move check of a body there
+        (``OccupancyMap.cylinder_touches_occupied`` over the same band). All False without a map."""
+        if self.occupied is None:
+            return np.zeros(len(xy), bool)
+        return disks_touch_cells(self.occupied, self.origin_xy, self.cell_m, xy, radius_m)
 
     def cells(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) world points -> (N, 2) int64 cell indices (may lie outside the grid)."""
@@ -237,10 +237,10 @@ class FrontierPlanner:
                 self.fail(frontier.id)
                 continue
             edge = edge_points(frontier.position[:2], parent, spacing)
-            if at and grid.touches_occupied(edge[:at], radius):  # the edge beyond c* runs into (or too
-                self.fail(frontier.id)  # near) a mapped obstacle, a counter the camera saw over: following
-                continue  # it would fail there, so the trip to c* would be wasted
             c_star = edge[at]
+            if self._edge_blocked(grid, edge[:at], radius):
+                self.fail(frontier.id)
+                continue
             if str(self.conf["distance"]) == "path":
                 distance = float(grid.lookup(length, c_star[None])[0]) + spacing * at
             else:
@@ -259,6 +259,17 @@ class FrontierPlanner:
             return (np.concatenate([path, beyond]) if len(beyond) else path), len(path)
 
         return scored, trace
+
+    def _edge_blocked(self, grid: PlanningGrid, beyond: np.ndarray, radius: float) -> bool:
+        """Whether a frontier's tree edge beyond ``c*`` (`beyond`, (N, 2), from the frontier back to
+        ``c*``) brings the body (`radius`) into a mapped obstacle on the way, while the frontier's
+        own end (its last ``edge_end_m``) is clear: the edge runs through the obstacle (a counter
+        the camera saw over), following it fails there, and the trip to ``c*`` is wasted. A
+        frontier whose end touches an obstacle lies against it (an occluding edge on a wall, often
+        depth noise): the robot goes as near as it can and looks, as before."""
+        hits = grid.touches_occupied(beyond, radius)
+        end = int(round(float(self.conf["edge_end_m"]) / float(self.conf["edge_spacing_m"]))) + 1
+        return bool(hits.any()) and not bool(hits[:end].any())
 
     def _tree_candidates(self, frontiers, parent_xy, graph: PoseGraph, robot_index: int):
         """(frontier, distance, utility, None) along the pose graph, and the tracer (map-free mode)."""
