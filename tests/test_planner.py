@@ -238,11 +238,11 @@ def test_a_robot_standing_at_c_star_follows_the_edge_without_a_detour():
     assert np.linalg.norm(route.waypoints[0] - robot) < 0.2
 
 
-def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_is_failed_without_the_trip():
+def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_ranks_after_clear_ones():
     """The camera saw a frontier over a counter: its tree edge beyond c* crosses the counter's
-    occupied cells, so following it would fail at the counter. The planner fails it at once
-    and takes the next frontier, instead of walking to c* first (house, oracle: a row of such
-    frontiers cost a trip each; Vox@100 45 % -> 82 % on one start)."""
+    occupied cells, so following it would fail at the counter. The planner takes the next
+    frontier with a clear edge instead of walking to c* first (house, oracle: a row of such
+    frontiers along a counter cost a trip each; Vox@100 45 % -> 78 % on one start)."""
     def grid_with(counter: bool) -> PlanningGrid:
         grid = open_grid()
         grid.occupied = np.zeros(grid.cost.shape, bool)
@@ -256,44 +256,30 @@ def test_a_frontier_whose_edge_crosses_a_mapped_obstacle_is_failed_without_the_t
     beside = frontier(1, (1.0, 4.0), 5.0, 0)  # reachable, less utility
     robot, parent = np.array([1.0, 1.0]), parents((1.0, 1.0))
     planner = FrontierPlanner(planner_conf())
-    route = planner.best_route([over_counter, beside], robot, parent, grid=grid_with(counter=True))
-    assert route is not None and route.frontier_id == 1
-    assert planner.failures == {0: 1}
+    route = planner.best_route([over_counter, beside], robot, parent, grid=grid_with(counter=True), keep=0,
+                               keep_margin=0.25)
+    assert route is not None and route.frontier_id == 1  # not kept as the goal either
     # without the counter the same edge only runs into unknown space: it is followed while mapping
-    planner = FrontierPlanner(planner_conf())
     route = planner.best_route([over_counter, beside], robot, parent, grid=grid_with(counter=False))
     assert route is not None and route.frontier_id == 0 and route.mapped_until < len(route.waypoints)
-    assert planner.failures == {}
+    # with no clear edge left, the blocked one is the goal: the robot goes as near as it can and looks
+    route = planner.best_route([over_counter], robot, parent, grid=grid_with(counter=True))
+    assert route is not None and route.frontier_id == 0
+    assert planner.failures == {}  # ranking is no failure: a noisy map's wall may turn out free
 
 
-def test_an_edge_passing_closer_to_an_obstacle_than_the_body_radius_fails_at_planning():
+def test_an_edge_passing_closer_to_an_obstacle_than_the_body_radius_counts_as_blocked():
     """The move check refuses a body (``Explorer.body_radius``) that touches an occupied cell, so an
-    edge beyond c* passing 0.15 m beside a post (1 m before the frontier) fails for a 0.22 m body,
-    not for a point."""
+    edge beyond c* passing 0.15 m beside a post is blocked for a 0.22 m body, not for a point."""
     grid = open_grid()
     grid.occupied = np.zeros(grid.cost.shape, bool)
     grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5
     grid.occupied[30, 11] = True  # a post: the cell [3.0, 3.1) x [1.1, 1.2), 0.15 m from the edge y = 0.95
-    goal = [frontier(0, (4.0, 0.95), 20.0, 0)]
+    goals = [frontier(0, (4.0, 0.95), 20.0, 0), frontier(1, (1.0, 4.0), 5.0, 0)]
     robot, parent = np.array([1.0, 0.95]), parents((1.0, 0.95))
-    assert FrontierPlanner(planner_conf()).best_route(goal, robot, parent, grid=grid).frontier_id == 0
-    body = FrontierPlanner(planner_conf(), body_radius_m=0.22)
-    assert body.best_route(goal, robot, parent, grid=grid) is None and body.failures == {0: 1}
-    assert FrontierPlanner(planner_conf(), body_radius_m=0.14).best_route(goal, robot, parent, grid=grid) is not None
-
-
-def test_a_frontier_against_a_wall_is_still_approached():
-    """A frontier whose own end touches an obstacle (an occluding edge on a wall, often depth
-    noise) is not failed at planning: the robot goes along the edge as near as it can and looks."""
-    grid = open_grid()
-    grid.occupied = np.zeros(grid.cost.shape, bool)
-    grid.cost[25:, :] = np.inf  # unknown beyond x = 2.5
-    grid.occupied[41, :] = True  # a wall at x in [4.1, 4.2), 0.15 m beyond the frontier
-    goal = [frontier(0, (3.95, 1.0), 20.0, 0)]
-    planner = FrontierPlanner(planner_conf(), body_radius_m=0.22)
-    route = planner.best_route(goal, np.array([1.0, 1.0]), parents((1.0, 1.0)), grid=grid)
-    assert route is not None and route.frontier_id == 0 and planner.failures == {}
-    np.testing.assert_allclose(route.waypoints[-1], [3.95, 1.0])
+    for radius, goal in ((0.0, 0), (0.14, 0), (0.22, 1)):
+        route = FrontierPlanner(planner_conf(), body_radius_m=radius).best_route(goals, robot, parent, grid=grid)
+        assert route.frontier_id == goal, radius
 
 
 def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):

@@ -11,9 +11,12 @@ DESIGN.md item 6, paper III-F. Each planning round:
 2. its utility is ``gain^e / max(distance, min_distance_m)`` with the route's length;
 3. the best frontier that is not blacklisted is the goal.
 
-A frontier whose route fails (no reachable ``c*``, an edge beyond ``c*`` that crosses a mapped
-obstacle, or the motion along it is blocked) gets a failure; after ``max_failures`` it is
-blacklisted and never chosen again.
+A frontier whose route fails (no reachable ``c*``, or the motion along it is blocked) gets a
+failure; after ``max_failures`` it is blacklisted and never chosen again. A frontier whose tree
+edge beyond ``c*`` already brings the body (the explorer's move check) into a mapped obstacle,
+such as a counter the camera saw over, would fail there: it ranks after every frontier with a
+clear edge, and is chosen only when none is left (the robot then goes as near as it can and
+looks, where a noisy depth prior's walls may turn out free).
 """
 
 from __future__ import annotations
@@ -148,7 +151,7 @@ class FrontierPlanner:
     `goal` is the method's goal rule (:meth:`score`); `seed` seeds the ``random`` rule.
     `body_radius_m`: the radius the explorer's move check keeps from occupied cells
     (``Explorer.body_radius``); a frontier whose tree edge beyond ``c*`` comes closer to one
-    fails at planning time, as following it would fail there."""
+    ranks after those whose edges are clear, as following it would fail there."""
 
     conf: dict
     goal: str = "utility"
@@ -204,11 +207,11 @@ class FrontierPlanner:
             scored, trace = self._map_candidates(candidates, robot_xy, parent_xy, grid)
         else:
             scored, trace = self._tree_candidates(candidates, parent_xy, graph, robot_index)
-        scored.sort(key=lambda c: c[2], reverse=True)
+        scored.sort(key=lambda c: (c[4], -c[2]))  # clear edges first, then by utility
         current = [c for c in scored if c[0].id == keep]
-        if current and scored[0][2] <= current[0][2] * (1.0 + keep_margin):
+        if current and current[0][4] == scored[0][4] and scored[0][2] <= current[0][2] * (1.0 + keep_margin):
             scored = current + [c for c in scored if c[0].id != keep]
-        for frontier, distance, utility, detail in scored:
+        for frontier, distance, utility, detail, _ in scored:
             route = trace(frontier, detail)
             if route is None:
                 self.fail(frontier.id)
@@ -218,7 +221,8 @@ class FrontierPlanner:
         return None
 
     def _map_candidates(self, frontiers, robot_xy, parent_xy, grid: PlanningGrid):
-        """(frontier, distance, utility, c* index) for frontiers with a reachable ``c*``, and the tracer."""
+        """(frontier, distance, utility, c* index, edge blocked) for frontiers with a reachable ``c*``,
+        and the tracer."""
         start = grid.cell(robot_xy)
         if not grid.inside(*start):
             return [], None
@@ -238,14 +242,12 @@ class FrontierPlanner:
                 continue
             edge = edge_points(frontier.position[:2], parent, spacing)
             c_star = edge[at]
-            if self._edge_blocked(grid, edge[:at], radius):
-                self.fail(frontier.id)
-                continue
             if str(self.conf["distance"]) == "path":
                 distance = float(grid.lookup(length, c_star[None])[0]) + spacing * at
             else:
                 distance = float(np.linalg.norm(frontier.position[:2] - np.asarray(robot_xy)[:2]))
-            scored.append((frontier, distance, self.score(frontier, distance), at))
+            blocked = bool(at and grid.touches_occupied(edge[:at], radius).any())
+            scored.append((frontier, distance, self.score(frontier, distance), at, blocked))
 
         def trace(frontier, at):
             edge = edge_points(frontier.position[:2], parent_xy(frontier.parent_pose), spacing)
@@ -260,19 +262,8 @@ class FrontierPlanner:
 
         return scored, trace
 
-    def _edge_blocked(self, grid: PlanningGrid, beyond: np.ndarray, radius: float) -> bool:
-        """Whether a frontier's tree edge beyond ``c*`` (`beyond`, (N, 2), from the frontier back to
-        ``c*``) brings the body (`radius`) into a mapped obstacle on the way, while the frontier's
-        own end (its last ``edge_end_m``) is clear: the edge runs through the obstacle (a counter
-        the camera saw over), following it fails there, and the trip to ``c*`` is wasted. A
-        frontier whose end touches an obstacle lies against it (an occluding edge on a wall, often
-        depth noise): the robot goes as near as it can and looks, as before."""
-        hits = grid.touches_occupied(beyond, radius)
-        end = int(round(float(self.conf["edge_end_m"]) / float(self.conf["edge_spacing_m"]))) + 1
-        return bool(hits.any()) and not bool(hits[:end].any())
-
     def _tree_candidates(self, frontiers, parent_xy, graph: PoseGraph, robot_index: int):
-        """(frontier, distance, utility, None) along the pose graph, and the tracer (map-free mode)."""
+        """(frontier, distance, utility, None, False) along the pose graph, and the tracer (map-free mode)."""
         distances, predecessors = graph.distances_from(robot_index)
         spacing = float(self.conf["edge_spacing_m"])
         scored = []
@@ -282,7 +273,7 @@ class FrontierPlanner:
                 self.fail(frontier.id)
                 continue
             distance = float(distances[parent]) + float(np.linalg.norm(parent_xy(parent) - frontier.position[:2]))
-            scored.append((frontier, distance, self.score(frontier, distance), None))
+            scored.append((frontier, distance, self.score(frontier, distance), None, False))
 
         def trace(frontier, _):
             back = graph.path(predecessors, frontier.parent_pose)
