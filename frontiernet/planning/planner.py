@@ -22,6 +22,7 @@ looks, where a noisy depth prior's walls may turn out free).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy import ndimage
@@ -144,6 +145,16 @@ class Route:
     utility: float
 
 
+class _Candidate(NamedTuple):
+    """One frontier scored in a planning round."""
+
+    frontier: object
+    distance_m: float  # route length used in the utility
+    utility: float  # the goal rule's score
+    detail: object  # what the tracer needs (map mode: the c* index along the edge)
+    blocked: bool = False  # the tree edge beyond c* brings the body into a mapped obstacle
+
+
 @dataclass
 class FrontierPlanner:
     """Chooses goals and routes; configured by the ``planner`` section of ``configs/explore.yaml``.
@@ -207,22 +218,23 @@ class FrontierPlanner:
             scored, trace = self._map_candidates(candidates, robot_xy, parent_xy, grid)
         else:
             scored, trace = self._tree_candidates(candidates, parent_xy, graph, robot_index)
-        scored.sort(key=lambda c: (c[4], -c[2]))  # clear edges first, then by utility
-        current = [c for c in scored if c[0].id == keep]
-        if current and current[0][4] == scored[0][4] and scored[0][2] <= current[0][2] * (1.0 + keep_margin):
-            scored = current + [c for c in scored if c[0].id != keep]
-        for frontier, distance, utility, detail, _ in scored:
-            route = trace(frontier, detail)
+        scored.sort(key=lambda c: (c.blocked, -c.utility))  # clear edges first, then by utility
+        current = [c for c in scored if c.frontier.id == keep]
+        if current and current[0].blocked == scored[0].blocked \
+                and scored[0].utility <= current[0].utility * (1.0 + keep_margin):
+            scored = current + [c for c in scored if c.frontier.id != keep]
+        for candidate in scored:
+            route = trace(candidate.frontier, candidate.detail)
             if route is None:
-                self.fail(frontier.id)
+                self.fail(candidate.frontier.id)
                 continue
             waypoints, mapped_until = route
-            return Route(frontier.id, waypoints, mapped_until, distance, utility)
+            return Route(candidate.frontier.id, waypoints, mapped_until, candidate.distance_m, candidate.utility)
         return None
 
     def _map_candidates(self, frontiers, robot_xy, parent_xy, grid: PlanningGrid):
-        """(frontier, distance, utility, c* index, edge blocked) for frontiers with a reachable ``c*``,
-        and the tracer."""
+        """:class:`_Candidate` records (detail: the c* index) for frontiers with a reachable ``c*``, and
+        the tracer."""
         start = grid.cell(robot_xy)
         if not grid.inside(*start):
             return [], None
@@ -247,7 +259,7 @@ class FrontierPlanner:
             else:
                 distance = float(np.linalg.norm(frontier.position[:2] - np.asarray(robot_xy)[:2]))
             blocked = bool(at and grid.touches_occupied(edge[:at], radius).any())
-            scored.append((frontier, distance, self.score(frontier, distance), at, blocked))
+            scored.append(_Candidate(frontier, distance, self.score(frontier, distance), at, blocked))
 
         def trace(frontier, at):
             edge = edge_points(frontier.position[:2], parent_xy(frontier.parent_pose), spacing)
@@ -263,7 +275,7 @@ class FrontierPlanner:
         return scored, trace
 
     def _tree_candidates(self, frontiers, parent_xy, graph: PoseGraph, robot_index: int):
-        """(frontier, distance, utility, None, False) along the pose graph, and the tracer (map-free mode)."""
+        """:class:`_Candidate` records along the pose graph (never blocked), and the tracer (map-free mode)."""
         distances, predecessors = graph.distances_from(robot_index)
         spacing = float(self.conf["edge_spacing_m"])
         scored = []
@@ -273,7 +285,7 @@ class FrontierPlanner:
                 self.fail(frontier.id)
                 continue
             distance = float(distances[parent]) + float(np.linalg.norm(parent_xy(parent) - frontier.position[:2]))
-            scored.append((frontier, distance, self.score(frontier, distance), None, False))
+            scored.append(_Candidate(frontier, distance, self.score(frontier, distance), None))
 
         def trace(frontier, _):
             back = graph.path(predecessors, frontier.parent_pose)
