@@ -197,6 +197,29 @@ def test_gain_is_capped_by_the_unknown_volume_the_frontier_can_still_see():
     assert facing_wall.get(0).gain_m3 >= alone.get(0).gain_m3
 
 
+def test_the_cap_is_the_minimum_of_gain_and_the_best_heading_over_every_heading():
+    """The cap stops viewing a frontier once one heading sees its gain: same gains as viewing all."""
+    conf = tracking_conf(gain_reduction="none")
+    tracker = FrontierTracker(conf, view_z=CAMERA_Z)
+    spots = [((2.0, 1.5, 1.2), 0.0), ((1.0, 0.5, 1.0), -90.0), ((3.0, 2.5, 1.2), 135.0), ((0.6, 2.6, 1.4), 90.0)]
+    tracker.add([observation(xyz, yaw, gain) for (xyz, yaw) in spots for gain in (0.5, 4.0, 30.0)], 0, 0)
+    occupancy = room_map(0.0, 45.0)
+    tracker.update_gains(occupancy)
+    view = conf["gain_view"]
+    settings = (int(view["width_px"]), float(view["focal_px"]), float(view["max_depth_m"]))
+    capped = 0
+    for frontier in tracker:
+        poses = []
+        for turn in np.radians(conf["unknown_cap_yaw_offsets_deg"]):
+            T = frontier.camera_pose(yaw_offset=turn)
+            T[2, 3] = CAMERA_Z
+            poses.append(T)
+        best = float(occupancy.visible_unknown_volume(np.stack(poses), *settings).max())
+        assert frontier.gain_m3 == pytest.approx(min(frontier.predicted_gain_m3, best), rel=1e-9, abs=1e-9)
+        capped += best < frontier.predicted_gain_m3
+    assert 0 < capped < len(tracker)  # both cases are exercised
+
+
 def test_unknown_gain_reduction_mode_is_an_input_error(mapped_room):
     tracker = FrontierTracker(tracking_conf(gain_reduction="since_forever"))
     tracker.add([observation((1.0, 1.5, 1.2))], 0, 0)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import rotation_from_yaw_pitch
+from ..geometry import poses_from_headings, rotation_from_yaw_pitch
 
 
 @dataclass
@@ -217,28 +217,49 @@ class FrontierTracker:
             return
         frontiers = list(self.frontiers.values())
         view = self.conf["gain_view"]
-        poses = np.stack([f.camera_pose() for f in frontiers])
-        if self.view_z is not None:
-            poses[:, 2, 3] = self.view_z
         settings = (int(view["width_px"]), float(view["focal_px"]), float(view["max_depth_m"]))
+        positions = np.stack([f.position for f in frontiers])
+        if self.view_z is not None:
+            positions[:, 2] = self.view_z
+        yaws = np.array([f.yaw for f in frontiers])
+        poses = poses_from_headings(positions, yaws)
         known = occupancy.visible_known_volume(poses, *settings) if mode != "none" else np.zeros(len(frontiers))
         fresh = [i for i, f in enumerate(frontiers) if f.known_baseline_m3 is None]
         if mode == "beyond_frame" and fresh:
             seen = occupancy.visible_known_volume(poses[fresh], *settings, latest_frame_only=True)
             for i, volume in zip(fresh, seen):
                 frontiers[i].known_baseline_m3 = float(volume)
-        for frontier, volume in zip(frontiers, known):
+        gains = np.empty(len(frontiers))
+        for i, (frontier, volume) in enumerate(zip(frontiers, known)):
             baseline = frontier.known_baseline_m3 if mode == "beyond_frame" else 0.0  # (none: known = 0)
-            frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - max(0.0, float(volume) - baseline))
+            gains[i] = frontier.gain_m3 = max(0.0, frontier.predicted_gain_m3 - max(0.0, float(volume) - baseline))
         offsets = self.conf.get("unknown_cap_yaw_offsets_deg")
         if offsets:  # no frontier gains more than the unknown volume it can still see
-            turns = np.radians(np.asarray(list(offsets), np.float64))
-            views = np.stack([f.camera_pose(yaw_offset=turn) for f in frontiers for turn in turns])
-            if self.view_z is not None:
-                views[:, 2, 3] = self.view_z
-            unknown = occupancy.visible_unknown_volume(views, *settings).reshape(len(frontiers), len(turns))
-            for frontier, cap in zip(frontiers, unknown.max(axis=1)):
-                frontier.gain_m3 = min(frontier.gain_m3, float(cap))
+            cap = self._unknown_cap(occupancy, positions, yaws, gains, np.radians(np.asarray(list(offsets), np.float64)),
+                                    settings)
+            for frontier, limit in zip(frontiers, cap):
+                frontier.gain_m3 = min(frontier.gain_m3, float(limit))
+
+    @staticmethod
+    def _unknown_cap(occupancy, positions: np.ndarray, yaws: np.ndarray, gains: np.ndarray, turns: np.ndarray,
+                     settings: tuple) -> np.ndarray:
+        """(F,) the most unknown volume (m^3) the gain views at `positions` (F, 3), turned by each
+        of `turns` (radians) from `yaws` (F,), see, as far as it matters for ``min(gains, cap)``:
+        headings are tried nearest to the frontier's own first, and a frontier leaves the search
+        once one of them sees at least its gain (the cap no longer binds), so only frontiers
+        whose gain the map may cut are viewed at every heading. Same result as taking the
+        maximum over all headings, in a fraction of the views."""
+        cap = np.zeros(len(yaws))
+        undecided = np.ones(len(yaws), bool)
+        for turn in turns[np.argsort(np.abs(turns), kind="stable")]:
+            index = np.flatnonzero(undecided)
+            if not len(index):
+                break
+            seen = occupancy.visible_unknown_volume(poses_from_headings(positions[index], yaws[index] + turn),
+                                                    *settings)
+            cap[index] = np.maximum(cap[index], seen)
+            undecided[index] = cap[index] < gains[index]
+        return cap
 
     def prune(self, visited_poses: np.ndarray, occupancy=None) -> list[int]:
         """Drop low-gain, visited and (with `occupancy`) occupied frontiers; returns the dropped ids.
