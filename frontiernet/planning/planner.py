@@ -151,7 +151,7 @@ class _Candidate(NamedTuple):
     frontier: object
     distance_m: float  # route length used in the utility
     utility: float  # the goal rule's score
-    detail: object  # what the tracer needs (map mode: the c* index along the edge)
+    detail: object  # what the tracer needs (map mode: the edge's points and the c* index)
     blocked: bool = False  # the tree edge beyond c* brings the body into a mapped obstacle
 
 
@@ -233,8 +233,8 @@ class FrontierPlanner:
         return None
 
     def _map_candidates(self, frontiers, robot_xy, parent_xy, grid: PlanningGrid):
-        """:class:`_Candidate` records (detail: the c* index) for frontiers with a reachable ``c*``, and
-        the tracer."""
+        """:class:`_Candidate` records (detail: the tree edge's points and the c* index into them)
+        for frontiers with a reachable ``c*``, and the tracer."""
         start = grid.cell(robot_xy)
         if not grid.inside(*start):
             return [], None
@@ -259,10 +259,10 @@ class FrontierPlanner:
             else:
                 distance = float(np.linalg.norm(frontier.position[:2] - np.asarray(robot_xy)[:2]))
             blocked = bool(at and grid.touches_occupied(edge[:at], radius).any())
-            scored.append(_Candidate(frontier, distance, self.score(frontier, distance), at, blocked))
+            scored.append(_Candidate(frontier, distance, self.score(frontier, distance), (edge, at), blocked))
 
-        def trace(frontier, at):
-            edge = edge_points(frontier.position[:2], parent_xy(frontier.parent_pose), spacing)
+        def trace(frontier, detail):
+            edge, at = detail
             cells = path_to(grid.cell(edge[at]))
             if cells is None:
                 return None
