@@ -2,7 +2,8 @@
 
 Times one forward pass at each size (median of repeats, batch 1, random input of the
 model's channels) for: torch eager with torch's default threads (the baseline), torch with
-2 and 1 threads, TorchScript, and onnxruntime (default threads, and 2). Also the training
+2 and 1 threads, the library's Predictor (channels-last layout; default threads, and 1),
+TorchScript, and onnxruntime (default threads, and 2). Also the training
 throughput (forward + backward + AdamW step, images/s) at the training crop.
 """
 
@@ -16,7 +17,7 @@ import numpy as np
 import torch
 
 from frontiernet.cli.bench import median_seconds
-from frontiernet.model.predictor import torch_threads
+from frontiernet.model.predictor import Predictor, torch_threads
 
 
 def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_crop: int = 192,
@@ -36,6 +37,7 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
         script_path = export(model_path, "torchscript", Path(folder) / "model.pt")
         runtimes = {"onnxruntime": OnnxRuntime(onnx_path), "onnxruntime_2_threads": OnnxRuntime(onnx_path, 2)}
         script = TorchScriptRuntime(script_path)
+        predictor, predictor_1 = Predictor(model_path), Predictor(model_path, threads=1)
         for size in sizes:
             image = np.random.default_rng(0).standard_normal((1, channels, size, size)).astype(np.float32)
             tensor = torch.from_numpy(image)
@@ -48,7 +50,10 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
 
             seconds = {"torch_eager": median_seconds(eager(default_threads), repeats),
                        "torch_2_threads": median_seconds(eager(min(2, default_threads)), repeats),
-                       "torch_1_thread": median_seconds(eager(1), repeats)}
+                       "torch_1_thread": median_seconds(eager(1), repeats),
+                       # the library's Predictor (explore, predict, demo): channels-last weights and input
+                       "predictor_channels_last": median_seconds(lambda: predictor.run(image), repeats),
+                       "predictor_channels_last_1_thread": median_seconds(lambda: predictor_1.run(image), repeats)}
             seconds["torchscript"] = median_seconds(lambda: script.run(image), repeats)
             for name, runtime in runtimes.items():
                 seconds[name] = median_seconds(lambda runtime=runtime: runtime.run(image), repeats)
