@@ -201,8 +201,10 @@ def test_the_cap_is_the_minimum_of_gain_and_the_best_heading_over_every_heading(
     """The cap stops viewing a frontier once one heading sees its gain: same gains as viewing all."""
     conf = tracking_conf(gain_reduction="none")
     tracker = FrontierTracker(conf, view_z=CAMERA_Z)
-    spots = [((2.0, 1.5, 1.2), 0.0), ((1.0, 0.5, 1.0), -90.0), ((3.0, 2.5, 1.2), 135.0), ((0.6, 2.6, 1.4), 90.0)]
-    tracker.add([observation(xyz, yaw, gain) for (xyz, yaw) in spots for gain in (0.5, 4.0, 30.0)], 0, 0)
+    spots = [((2.0, 1.5, 1.2), 0.0, 30.0), ((1.0, 0.5, 1.0), -90.0, 30.0), ((3.0, 2.5, 1.2), 135.0, 4.0),
+             ((0.6, 2.6, 1.4), 90.0, 0.5), ((2.0, 0.5, 1.2), 180.0, 4.0), ((3.2, 1.0, 1.2), -45.0, 30.0)]
+    tracker.add([observation(xyz, yaw, gain) for xyz, yaw, gain in spots], 0, 0)
+    assert len(tracker) == len(spots)  # far enough apart: none merged
     occupancy = room_map(0.0, 45.0)
     tracker.update_gains(occupancy)
     view = conf["gain_view"]
