@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import poses_from_headings, rotation_from_yaw_pitch
+from ..geometry import pose_from_heading, poses_from_headings
 
 
 @dataclass
@@ -67,10 +67,7 @@ class Frontier:
     def camera_pose(self, pitch: float = 0.0, yaw_offset: float = 0.0) -> np.ndarray:
         """(4, 4) ``T_world_cam`` of a level camera at the frontier looking along its heading
         (turned by `yaw_offset` radians)."""
-        T = np.eye(4)
-        T[:3, :3] = rotation_from_yaw_pitch(self.yaw + yaw_offset, pitch)
-        T[:3, 3] = self.position
-        return T
+        return pose_from_heading(*self.position, self.yaw + yaw_offset, pitch)
 
     def as_dict(self) -> dict:
         """JSON-friendly record."""
