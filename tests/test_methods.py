@@ -21,11 +21,11 @@ from frontiernet.planning.planner import FrontierPlanner
 BASELINES = ("classic", "gain-distance", "random-frontier", "vacuum")
 
 
-def run_method(spec, out, method: str, steps: int) -> dict:
+def run_method(spec, out, method: str, steps: int, *options: str) -> dict:
     stream = io.StringIO()
     with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
         code = main(["explore", "--scene", spec, "--method", method, "--max-steps", str(steps), "--no-video",
-                     "--out", str(out)])
+                     "--out", str(out), *options])
     assert code == 0, stream.getvalue()
     return json.loads((out / "metrics.json").read_text())
 
@@ -99,6 +99,23 @@ def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_p
         assert metrics["goals"] >= 1 and metrics["coverage"] > 0.5  # it has looked into the second room
     else:
         assert metrics["goals"] == 0 and metrics["steps"] == 60  # no goals, it runs until the budget ends
+
+
+@pytest.mark.slow
+def test_the_run_seed_reaches_the_explorers_draws_and_nothing_else(plan_spec, tmp_path):
+    """--seed picks vacuum's turns (a repeat of a benchmark is a new draw), while a method without
+    draws (classic, ground-truth depth) repeats its run exactly from the same start."""
+
+    def path(method, seed):
+        out = tmp_path / f"{method}{seed}"
+        metrics = run_method(plan_spec, out, method, 90, "--seed", str(seed), "--start", "2,1.5,1.2,0")
+        return metrics, np.asarray(json.loads((out / "trajectory.json").read_text())["T_world_cam"])
+
+    (first, T_first), (second, T_second) = path("vacuum", 0), path("vacuum", 1)
+    assert first["seed"] == 0 and second["seed"] == 1
+    assert not np.allclose(T_first, T_second)
+    (_, T_classic), (_, T_again) = path("classic", 0), path("classic", 1)
+    np.testing.assert_array_equal(T_classic, T_again)
 
 
 @pytest.mark.slow

@@ -80,7 +80,8 @@ class Explorer:
             :class:`~frontiernet.exploration.perception.Perception`, run as the paper's
             pipeline: its frontier pixels anchored, goals by Eq. 8).
         depth_source: a :class:`~frontiernet.depth.DepthSource` (reset by the caller).
-        conf: the whole ``configs/explore.yaml`` config; sim_conf: ``configs/sim.yaml``.
+        conf: the whole ``configs/explore.yaml`` config (``run.seed`` seeds the explorer's draws:
+            anchoring's pixel subset, random goal scores, vacuum turns); sim_conf: ``configs/sim.yaml``.
         T_start: (4, 4) start pose (level camera at the configured height).
         on_step: optional callback ``(explorer, record, frame, perception_result)`` per iteration
             (video frames, progress).
@@ -106,7 +107,7 @@ class Explorer:
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = OccupancyMap.like(voxels, conf.map)
         self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
-        self.surface = SurfaceCoverage(scene, conf, int(conf.run.seed), voxels=voxels)  # GLEAM's metrics
+        self.surface = SurfaceCoverage(scene, conf, int(conf.surface.seed), voxels=voxels)  # GLEAM's metrics
         self.surface_seen = np.zeros(self.surface.num_samples, bool)  # once seen, a surface point stays seen
         self.surface_coverage = 0.0
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from omegaconf import OmegaConf
 
 from ..errors import InputError
 from ..geometry import pose_from_heading
@@ -92,6 +93,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     if budget < 1:
         raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
     seed = int(conf.run.seed if seed is None else seed)
+    conf = OmegaConf.merge(conf, {"run": {"seed": seed}})  # the explorer's own draws read run.seed
     depth_name = DEPTH_ALIASES.get(depth or str(conf.run.depth), depth or str(conf.run.depth))
     sim = load_config("sim")
     clock = time.perf_counter()
