@@ -71,6 +71,25 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
 
 
 @pytest.mark.slow
+def test_repeats_of_a_method_that_draws_nothing_are_reported_from_its_first_run(plan_spec, tmp_path):
+    """classic on ground-truth depth repeats its run exactly (test_methods), so its repeat 1 is not
+    run but reported from repeat 0; random-frontier draws, so both repeats run."""
+    out = tmp_path / "bench"
+    code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "classic,random-frontier", "--starts", "1",
+                                 "--repeats", "2", "--max-steps", "30", "--out", out)
+    assert code == 0, stderr
+    assert "4 runs (0 failed, 1 identical repeats taken from repeat 0)" in stdout
+    rows = {(r["method"], r["repeat"]): r for r in csv.DictReader(open(out / "results.csv"))}
+    copy, first = rows[("classic", "1")], rows[("classic", "0")]
+    assert copy["status"] == "done" and copy["seed"] == "1" and copy["copy_of"].endswith("classic/start0_repeat0")
+    assert {k: v for k, v in copy.items() if k not in ("repeat", "seed", "copy_of")} == \
+        {k: v for k, v in first.items() if k not in ("repeat", "seed", "copy_of")}
+    assert not rows[("random-frontier", "1")]["copy_of"]
+    runs = {p.parent.relative_to(out / "runs").as_posix().split("/", 1)[1] for p in (out / "runs").rglob("metrics.json")}
+    assert runs == {"classic/start0_repeat0", "random-frontier/start0_repeat0", "random-frontier/start0_repeat1"}
+
+
+@pytest.mark.slow
 def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, tmp_path):
     out = tmp_path / "bench"
     code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "vacuum", "--starts", "1", "--repeats", "1",

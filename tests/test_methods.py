@@ -101,6 +101,16 @@ def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_p
         assert metrics["goals"] == 0 and metrics["steps"] == 60  # no goals, it runs until the budget ends
 
 
+def test_only_draw_free_methods_on_unseeded_depth_repeat_identically():
+    from frontiernet.exploration.methods import repeats_identically
+
+    assert repeats_identically("classic", "ground_truth") and repeats_identically("gain-distance", "ground_truth")
+    assert not repeats_identically("classic", "emulated")  # seeded depth noise
+    for method in ("frontiernet", "oracle", "random-frontier", "vacuum", "df-uniform"):
+        assert not repeats_identically(method, "ground_truth")
+    assert not repeats_identically("classic", "someone's plugin depth")
+
+
 @pytest.mark.slow
 def test_the_run_seed_reaches_the_explorers_draws_and_nothing_else(plan_spec, tmp_path):
     """--seed picks vacuum's turns (a repeat of a benchmark is a new draw), while a method without

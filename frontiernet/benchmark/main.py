@@ -10,6 +10,7 @@ from omegaconf import OmegaConf
 
 from ..errors import InputError
 from ..exploration.methods import method_names
+from ..exploration.run import DEPTH_ALIASES
 from ..io import ensure_dir, write_json
 from .plan import MIN_BUDGET, plan_runs
 from .report import write_report
@@ -56,7 +57,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                              "use another --out or remove it")
         poses = previous["start_poses"]
     clock = time.perf_counter()
-    runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts)
+    depth_name = DEPTH_ALIASES.get(depth or str(conf.run.depth), depth or str(conf.run.depth))
+    runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
+                                  depth_name)
     ensure_dir(out)
     write_json(plan_path, {"settings": settings, "start_poses": start_poses,
                            "runs": [{**run.as_dict(), "key": run.key} for run in runs]})

@@ -4,7 +4,10 @@ Start poses are sampled once per scene with the benchmark's seed (the explorer's
 :func:`~frontiernet.exploration.run.sample_start`: camera height above the floor, clearance
 from obstacles, random heading) and shared by every method and repeat, so methods differ by
 their goal choice alone. Repeat r of a start runs with seed ``seed + r`` (the depth source,
-anchoring's pixel subset and random methods draw from it).
+anchoring's pixel subset and random methods draw from it). A method that draws nothing, with a
+depth source that is not seeded (``classic`` and ``gain-distance`` on ground-truth depth:
+:func:`~frontiernet.exploration.methods.repeats_identically`), would repeat its run exactly:
+its repeats > 0 are marked ``copy_of`` repeat 0 and reported from it instead of being run again.
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ class RunSpec:
         scene: scene spec; method: method name; start, repeat: indices.
         start_pose: (x, y, z, yaw) metres and degrees, world frame.
         seed: the run's seed.
+        copy_of: the key of the run this one would repeat exactly (not run; see the module
+            docstring), or None.
     """
 
     scene: str
@@ -37,6 +42,7 @@ class RunSpec:
     repeat: int
     start_pose: tuple
     seed: int
+    copy_of: str | None = None
 
     @property
     def key(self) -> str:
@@ -85,7 +91,8 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
 
 def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
-              poses: dict | None = None, scene_starts: bool = False) -> tuple[list[RunSpec], dict]:
+              poses: dict | None = None, scene_starts: bool = False,
+              depth: str = "ground_truth") -> tuple[list[RunSpec], dict]:
     """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by
     method, and the start poses they use (scene -> list of (x, y, z, yaw_deg)).
 
@@ -93,11 +100,13 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
         poses: start poses already sampled, by scene (e.g. read back from a previous
             ``plan.json`` so a resumed benchmark keeps them); missing scenes are sampled.
         scene_starts: use the start positions a scene ships first (:func:`start_poses`).
+        depth: the depth source's name (:data:`frontiernet.depth.SOURCES`), which decides with
+            the method whether repeats are copies (see the module docstring).
     Raises:
         InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
             repeats below 1, or a scene that does not load.
     """
-    from ..exploration.methods import method_names
+    from ..exploration.methods import method_names, repeats_identically
 
     if not scenes:
         raise InputError("give at least one scene (--scenes)")
@@ -116,8 +125,10 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
             poses[scene] = start_poses(scene, int(starts), seed, conf, scene_starts)
         for start in range(int(starts)):
             for repeat in range(int(repeats)):
-                runs.extend(RunSpec(scene, method, start, repeat, tuple(poses[scene][start]), int(seed) + repeat)
-                            for method in methods)
+                for method in methods:
+                    first = RunSpec(scene, method, start, 0, tuple(poses[scene][start]), int(seed))
+                    copy_of = first.key if repeat > 0 and repeats_identically(method, depth) else None
+                    runs.append(RunSpec(scene, method, start, repeat, first.start_pose, int(seed) + repeat, copy_of))
     return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}
 
 

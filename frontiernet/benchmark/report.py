@@ -118,7 +118,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     curves = {}
     for index, row in enumerate(rows):
         if row["status"] == "done":
-            metrics = json.loads((out / "runs" / row["key"] / "metrics.json").read_text())
+            metrics = json.loads((out / "runs" / (row.get("copy_of") or row["key"]) / "metrics.json").read_text())
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
     add_shared_vox(rows, curves)
     fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]

@@ -4,7 +4,9 @@
 ``failed/<key>.json`` records it; a later invocation tries it again), so one bad run never
 stops a benchmark. A finished run (``runs/<key>/metrics.json``) is never redone: an
 interrupted benchmark resumes where it stopped. Runs write into ``<key>.partial`` and are
-renamed when complete, so a half-written run is never taken for a finished one.
+renamed when complete, so a half-written run is never taken for a finished one. A run marked
+``copy_of`` another (a repeat that would be identical, :mod:`.plan`) is not run: its row is the
+other run's, with its own scene, start, repeat and seed.
 """
 
 from __future__ import annotations
@@ -22,11 +24,12 @@ log = logging.getLogger(__name__)
 BACKENDS = ("local", "ray")
 ROW_FIELDS = ("scene", "method", "start", "repeat", "seed", "status", "error", "steps", "max_steps", "coverage",
               "vox25", "vox50", "vox100", "success", "surface_coverage", "surface_auc", "chamfer_m", "completeness",
-              "path_length_m", "collisions", "step_ms", "wall_s", "stop_reason")
+              "path_length_m", "collisions", "step_ms", "wall_s", "stop_reason", "copy_of")
+_IDENTITY = ("scene", "method", "start", "repeat", "seed", "key", "copy_of")
 
 
 def _row(run: dict, status: str, record: dict | None = None, error: str = "") -> dict:
-    row = {name: run[name] for name in ("scene", "method", "start", "repeat", "seed", "key")}
+    row = {name: run.get(name) for name in _IDENTITY}
     row.update(status=status, error=error)
     if record is not None:
         vox = record["vox_at"]
@@ -97,8 +100,16 @@ def run_one(run: dict, settings: dict) -> dict:
         return _row(run, "failed", error=message)
 
 
+def _copied_row(run: dict, original: dict) -> dict:
+    """The row of `run`, a copy of the run whose row is `original` (see the module docstring)."""
+    if original["status"] != "done":
+        return _row(run, "failed", error=f"the run it repeats ({run['copy_of']}) failed: {original['error']}")
+    return {**original, **{name: run[name] for name in _IDENTITY}}
+
+
 def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", progress: bool = True) -> list[dict]:
-    """Every run of `runs` (:class:`~frontiernet.benchmark.plan.RunSpec`), rows in the same order.
+    """Every run of `runs` (:class:`~frontiernet.benchmark.plan.RunSpec`), rows in the same order;
+    runs marked ``copy_of`` another take its row (the other run must be among `runs`).
 
     Args:
         workers: parallel runs (local processes, or Ray tasks in flight); each gets
@@ -110,7 +121,8 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
         raise InputError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
     if int(workers) < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
-    tasks = [{**run.as_dict(), "key": run.key} for run in runs]
+    every = [{**run.as_dict(), "key": run.key} for run in runs]
+    tasks = [task for task in every if not task["copy_of"]]
     settings = {**settings, "threads": max(1, (os.cpu_count() or 1) // int(workers))}
     rows: list = [None] * len(tasks)
     with _Progress(len(tasks), progress) as bar:
@@ -122,7 +134,8 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
                 bar.advance(rows[index])
         else:
             _run_processes(tasks, settings, int(workers), rows, bar)
-    return rows
+    by_key = {row["key"]: row for row in rows}
+    return [_copied_row(task, by_key[task["copy_of"]]) if task["copy_of"] else by_key[task["key"]] for task in every]
 
 
 def _run_processes(tasks, settings, workers, rows, bar) -> None:

@@ -91,8 +91,10 @@ def run_exploration_benchmark(args) -> int:
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
                   model=args.model, depth=args.depth, scene_starts=args.scene_starts, progress=True)
     failed = sum(row["status"] != "done" for row in result["rows"])
+    copies = sum(bool(row["copy_of"]) for row in result["rows"])
+    copied = f", {copies} identical repeats taken from repeat 0" if copies else ""
     print(Path(result["table"]).read_text())
-    print(f"bench: {len(result['rows'])} runs ({failed} failed) in {result['wall_s']} s; "
+    print(f"bench: {len(result['rows'])} runs ({failed} failed{copied}) in {result['wall_s']} s; "
           f"{result['results']}, {result['table']}, {len(result['plots'])} coverage plot(s) in {args.out}")
     return 0
 

@@ -26,6 +26,9 @@ class DepthSource(ABC):
     name: str = "depth"
     #: True when :meth:`estimate` needs ``gt_depth`` (simulation only).
     requires_ground_truth: bool = False
+    #: True when the output depends on the seed given to :meth:`reset` (emulated noise): runs
+    #: that differ only in their seed differ.
+    seeded: bool = False
 
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode; sources with randomness reseed from `seed`."""

@@ -115,6 +115,7 @@ class EmulatedMonocularDepth(DepthSource):
 
     name = "emulated"
     requires_ground_truth = True
+    seeded = True
 
     def __init__(self, conf: Mapping[str, Any] | None = None) -> None:
         c = source_conf(self.name, conf)

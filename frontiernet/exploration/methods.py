@@ -118,6 +118,21 @@ MAP_METHODS = {"classic": ("uniform", "nearest"), "gain-distance": ("unknown_vol
                "random-frontier": ("uniform", "random")}
 
 
+#: Methods that draw no random numbers: with a depth source that is not seeded, a run depends on
+#: its start alone (the benchmark runs them once per start; see :func:`repeats_identically`).
+DRAW_FREE_METHODS = tuple(name for name, (_, goal) in MAP_METHODS.items() if goal != "random")
+
+
+def repeats_identically(method: str, depth: str) -> bool:
+    """True when runs of `method` with depth source `depth` (a name of
+    :data:`frontiernet.depth.SOURCES`) that differ only in their seed are the same run: the method
+    is in :data:`DRAW_FREE_METHODS` and the depth source is not seeded. The image methods draw
+    (anchoring's pixel subset), as do ``random-frontier``, ``vacuum`` and, to be safe, plugins."""
+    from ..depth import SOURCES
+
+    return method in DRAW_FREE_METHODS and depth in SOURCES and not SOURCES[depth].seeded
+
+
 def method_names() -> list[str]:
     """Every method name: built-in, perception plugins (e.g. datagen's ``oracle``), method plugins."""
     from importlib.metadata import entry_points
@@ -147,4 +162,5 @@ def make_method(name: str, model=None, scene=None, voxels=None, sim_conf=None, c
     raise InputError(f"unknown exploration method '{name}'; valid: {', '.join(method_names())}")
 
 
-__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "make_method", "method_names", "GOAL_RULES"]
+__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "make_method", "method_names", "GOAL_RULES",
+           "DRAW_FREE_METHODS", "repeats_identically"]
