@@ -27,16 +27,17 @@ from .export import TORCHSCRIPT_EXTRA
 
 
 class OnnxRuntime(Runtime):
-    """An exported ONNX model run by onnxruntime (``threads``: intra-op threads, None = all)."""
+    """An exported ONNX model run by onnxruntime (``threads``: intra-op threads; None = torch's
+    intra-op thread count, so one setting holds for every runtime of the process, e.g. a
+    benchmark worker's share of the cores)."""
 
     def __init__(self, path: str | Path, threads: int | None = None):
         import onnxruntime
 
         path = Path(path)
         options = onnxruntime.SessionOptions()
-        if threads:
-            options.intra_op_num_threads = int(threads)
-            options.inter_op_num_threads = 1
+        options.intra_op_num_threads = int(threads or torch.get_num_threads())
+        options.inter_op_num_threads = 1
         try:
             self.session = onnxruntime.InferenceSession(str(path), options,
                                                         providers=onnxruntime.get_available_providers())

@@ -72,6 +72,17 @@ def test_exported_models_take_any_size(exported):
         assert np.abs(logits - reference[1]).max() < 1e-4
 
 
+def test_onnx_runs_on_the_threads_torch_was_given_unless_told(exported):
+    """A benchmark worker limits torch to its share of the cores; an ONNX model it opens keeps to it."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        assert load_runtime(exported["onnx"]).session.get_session_options().intra_op_num_threads == 1
+        assert load_runtime(exported["onnx"], threads=2).session.get_session_options().intra_op_num_threads == 2
+    finally:
+        torch.set_num_threads(previous)
+
+
 def test_predict_command_writes_overlay_and_arrays(model_file, tmp_path, capsys):
     rgb = np.zeros((120, 160, 3), np.uint8)
     rgb[:, 80:] = (200, 180, 160)
