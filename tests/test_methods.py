@@ -101,6 +101,30 @@ def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_p
         assert metrics["goals"] == 0 and metrics["steps"] == 60  # no goals, it runs until the budget ends
 
 
+def make_my_planner(model, scene, voxels, sim_conf, conf):
+    """docs/exploration.md's plugin example: map frontiers scored by visible unknown volume, nearest first."""
+    return Method("my-planner", MapSource("unknown_volume"), goal="nearest", fresh_frontiers=True)
+
+
+@pytest.mark.slow
+def test_a_method_registered_under_the_entry_point_group_explores_and_is_benchmarked(plan_spec, tmp_path,
+                                                                                      monkeypatch):
+    import importlib.metadata
+
+    real = importlib.metadata.entry_points
+    plugin = importlib.metadata.EntryPoint("my-planner", "test_methods:make_my_planner", "frontiernet.methods")
+    monkeypatch.setattr(importlib.metadata, "entry_points",
+                        lambda **kw: [plugin] if kw.get("group") == "frontiernet.methods" else real(**kw))
+    assert "my-planner" in method_names()
+    metrics = run_method(plan_spec, tmp_path / "mine", "my-planner", 50, "--start", "2,1.5,1.2,0")
+    assert metrics["method"] == "my-planner" and metrics["collisions"] == 0 and metrics["goals"] >= 1
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+        code = main(["bench", "--scenes", plan_spec, "--methods", "my-planner", "--starts", "1", "--repeats", "1",
+                     "--max-steps", "20", "--out", str(tmp_path / "bench")])
+    assert code == 0 and "| my-planner |" in stream.getvalue(), stream.getvalue()
+
+
 def test_only_draw_free_methods_on_unseeded_depth_repeat_identically():
     from frontiernet.exploration.methods import repeats_identically
 
