@@ -69,6 +69,16 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     assert code == 0, stderr
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
 
+    # --report rebuilds the report from the finished runs alone (here: one run not finished yet)
+    unfinished = next(r for r in plan["runs"] if r["method"] == "classic" and r["start"] == 1)
+    (out / "runs" / unfinished["key"]).rename(out / "elsewhere")
+    code, stdout, stderr = bench("--report", "--out", out)
+    assert code == 0, stderr
+    assert "report of 3 finished runs (1 not yet)" in stdout
+    assert (out / "table.md").read_text().startswith("Interim: 3 of 4 runs finished")
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert len(rows) == 3 and ("classic", "1") not in {(r["method"], r["start"]) for r in rows}
+
 
 @pytest.mark.slow
 def test_repeats_of_a_method_that_draws_nothing_are_reported_from_its_first_run(plan_spec, tmp_path):
@@ -87,6 +97,8 @@ def test_repeats_of_a_method_that_draws_nothing_are_reported_from_its_first_run(
     assert not rows[("random-frontier", "1")]["copy_of"]
     runs = {p.parent.relative_to(out / "runs").as_posix().split("/", 1)[1] for p in (out / "runs").rglob("metrics.json")}
     assert runs == {"classic/start0_repeat0", "random-frontier/start0_repeat0", "random-frontier/start0_repeat1"}
+    final = (out / "results.csv").read_text()
+    assert bench("--report", "--out", out)[0] == 0 and (out / "results.csv").read_text() == final  # copies too
 
 
 @pytest.mark.slow
@@ -99,6 +111,7 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
     assert rows[0]["status"] == "failed" and "no_such_depth" in rows[0]["error"]
     assert "1 run(s) failed" in (out / "table.md").read_text()
     assert list((out / "failed").glob("*.json"))
+    assert bench("--report", "--out", out)[0] == 0 and "1 run(s) failed" in (out / "table.md").read_text()
 
 
 @pytest.mark.parametrize("args, message", [
@@ -110,6 +123,13 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
 def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, message):
     code, _, stderr = bench("--scenes", plan_spec, "--max-steps", "20", "--out", tmp_path / "b", *args)
     assert code == 2 and message in stderr and stderr.count("\n") == 1
+
+
+def test_report_of_a_folder_without_a_benchmark_says_so(tmp_path, one_line_error):
+    assert main(["bench", "--report", "--out", str(tmp_path)]) == 2
+    assert "no benchmark here" in one_line_error()
+    assert main(["bench", "--report"]) == 2
+    assert "--report needs --out" in one_line_error()
 
 
 def test_bench_without_a_benchmark_or_scenes_says_what_to_give():

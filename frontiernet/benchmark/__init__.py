@@ -6,12 +6,13 @@ paper's Table I for any scene set. Steps, one module each (hloc style):
 * :mod:`.plan`: start poses sampled once per scene (seeded) and the list of runs;
 * :mod:`.runner`: the runs, in parallel (local processes or Ray), resumable, failures recorded;
 * :mod:`.report`: ``results.csv``, ``table.md`` (Vox@25/50/100 with shared step thresholds,
-  success) and coverage curves per scene.
+  success) and coverage curves per scene; :func:`report` rebuilds it from the runs finished so
+  far (``--report``).
 """
 
-from .main import main
+from .main import main, report
 from .plan import RunSpec, plan_runs, start_poses
 from .report import write_report
 from .runner import run_all
 
-__all__ = ["main", "RunSpec", "plan_runs", "start_poses", "run_all", "write_report"]
+__all__ = ["main", "report", "RunSpec", "plan_runs", "start_poses", "run_all", "write_report"]

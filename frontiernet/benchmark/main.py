@@ -14,7 +14,7 @@ from ..exploration.run import DEPTH_ALIASES
 from ..io import ensure_dir, write_json
 from .plan import MIN_BUDGET, plan_runs
 from .report import write_report
-from .runner import run_all
+from .runner import finished_row, run_all, with_copies
 
 
 def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
@@ -69,4 +69,26 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
-__all__ = ["main"]
+def report(out: str | Path) -> dict:
+    """Rebuild the report of benchmark folder `out` from the runs finished so far; runs nothing,
+    so it is safe while the benchmark runs (``frontiernet bench --report --out DIR``).
+
+    Returns:
+        as :func:`main`, plus ``pending`` (planned runs not finished yet) and no ``wall_s``.
+    Raises:
+        InputError: `out` holds no benchmark (no ``plan.json``).
+    """
+    out = Path(out)
+    if not (out / "plan.json").is_file():
+        raise InputError(f"{out}: no benchmark here (no plan.json); run frontiernet bench --scenes ... --out {out}")
+    plan = json.loads((out / "plan.json").read_text())
+    runs = plan["runs"]
+    own = (finished_row(run, out) for run in runs if not run.get("copy_of"))
+    rows = with_copies(runs, {row["key"]: row for row in own if row is not None})
+    finished = [row for row in rows if row is not None]
+    scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
+    result = write_report(out, finished, scenes, methods, pending=len(rows) - len(finished))
+    return {"rows": finished, **result, "pending": len(rows) - len(finished)}
+
+
+__all__ = ["main", "report"]

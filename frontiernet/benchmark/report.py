@@ -63,11 +63,15 @@ def _cell(values: list, scale: float) -> str:
     return f"{values.mean():.1f} +- {values.std():.1f}" if len(values) > 1 else f"{values.mean():.1f}"
 
 
-def table_markdown(rows: list[dict], scenes: list[str], methods: list[str]) -> str:
-    """One Table I per metric: rows methods, columns scenes and their mean, cells mean +- std."""
+def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> str:
+    """One Table I per metric: rows methods, columns scenes and their mean, cells mean +- std
+    (`pending`: runs of the plan not finished yet, said at the top)."""
     done = [r for r in rows if r["status"] == "done"]
     names = [scene_key(s) for s in scenes]
     lines = []
+    if pending:
+        lines += [f"Interim: {len(rows)} of {len(rows) + pending} runs finished; Vox@25 and @50 thresholds are "
+                  "shared among the finished runs of each comparison.", ""]
     for field, title, scale in METRICS:
         lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
                   "| --- |" + " --- |" * (len(names) + 1)]
@@ -112,8 +116,9 @@ def plot_curves(rows: list[dict], curves: dict, scene: str, path: Path) -> None:
     plt.close(figure)
 
 
-def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str]) -> dict:
-    """Write ``results.csv``, ``table.md`` and ``coverage_<scene>.png`` into `out`; returns paths."""
+def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> dict:
+    """Write ``results.csv``, ``table.md`` and ``coverage_<scene>.png`` into `out`; returns paths.
+    `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not."""
     out = Path(out)
     curves = {}
     for index, row in enumerate(rows):
@@ -130,9 +135,9 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
             writer.writerows(rows)
 
     atomic_write(out / "results.csv", write_csv)
-    atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table_markdown(rows, scenes, methods)))
+    atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table_markdown(rows, scenes, methods, pending)))
     plots = []
-    for scene in scenes:
+    for scene in (s for s in scenes if s in {row["scene"] for row in rows}):  # scenes with finished runs
         plots.append(out / f"coverage_{scene_key(scene)}.png")
         plot_curves(rows, curves, scene, plots[-1])
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}

@@ -59,6 +59,39 @@ def _limit_threads(threads: int) -> None:
         pass
 
 
+def _failed_path(out: Path, key: str) -> Path:
+    return Path(out) / "failed" / (key.replace("/", "__") + ".json")
+
+
+def finished_row(run: dict, out: str | Path) -> dict | None:
+    """The row of `run` (a plan's run dict) if it finished or failed in benchmark folder `out`,
+    else None (not run yet). Runs nothing."""
+    final = Path(out) / "runs" / run["key"]
+    if (final / "metrics.json").is_file():
+        return _row(run, "done", json.loads((final / "metrics.json").read_text()))
+    failed = _failed_path(out, run["key"])
+    if failed.is_file():
+        return _row(run, "failed", error=json.loads(failed.read_text())["error"])
+    return None
+
+
+def _copied_row(run: dict, original: dict) -> dict:
+    """The row of `run`, a copy of the run whose row is `original` (see the module docstring)."""
+    if original["status"] != "done":
+        return _row(run, "failed", error=f"the run it repeats ({run['copy_of']}) failed: {original['error']}")
+    return {**original, **{name: run[name] for name in _IDENTITY}}
+
+
+def with_copies(runs: list[dict], rows_by_key: dict) -> list:
+    """The rows of `runs` in order: a run's own row, or for a run marked ``copy_of`` its original's
+    (:func:`_copied_row`); None where that row is missing."""
+    rows = []
+    for run in runs:
+        original = rows_by_key.get(run.get("copy_of") or run["key"])
+        rows.append(_copied_row(run, original) if original is not None and run.get("copy_of") else original)
+    return rows
+
+
 def run_one(run: dict, settings: dict) -> dict:
     """Run (or find finished) one benchmark run; returns its result row. Never raises.
 
@@ -72,7 +105,7 @@ def run_one(run: dict, settings: dict) -> dict:
     from ..exploration.run import main
 
     out = Path(settings["out"])
-    final, failed = out / "runs" / run["key"], out / "failed" / (run["key"].replace("/", "__") + ".json")
+    final, failed = out / "runs" / run["key"], _failed_path(out, run["key"])
     if (final / "metrics.json").is_file():
         return _row(run, "done", json.loads((final / "metrics.json").read_text()))
     partial = final.with_name(final.name + ".partial")
@@ -98,13 +131,6 @@ def run_one(run: dict, settings: dict) -> dict:
         os.replace(tmp, failed)
         shutil.rmtree(partial, ignore_errors=True)
         return _row(run, "failed", error=message)
-
-
-def _copied_row(run: dict, original: dict) -> dict:
-    """The row of `run`, a copy of the run whose row is `original` (see the module docstring)."""
-    if original["status"] != "done":
-        return _row(run, "failed", error=f"the run it repeats ({run['copy_of']}) failed: {original['error']}")
-    return {**original, **{name: run[name] for name in _IDENTITY}}
 
 
 def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", progress: bool = True) -> list[dict]:
@@ -134,8 +160,7 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
                 bar.advance(rows[index])
         else:
             _run_processes(tasks, settings, int(workers), rows, bar)
-    by_key = {row["key"]: row for row in rows}
-    return [_copied_row(task, by_key[task["copy_of"]]) if task["copy_of"] else by_key[task["key"]] for task in every]
+    return with_copies(every, {row["key"]: row for row in rows})
 
 
 def _run_processes(tasks, settings, workers, rows, bar) -> None:
@@ -204,4 +229,4 @@ class _Progress:
             self._bar.__exit__(*exc)
 
 
-__all__ = ["run_one", "run_all", "BACKENDS", "ROW_FIELDS"]
+__all__ = ["run_one", "run_all", "finished_row", "with_copies", "BACKENDS", "ROW_FIELDS"]

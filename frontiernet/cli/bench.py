@@ -67,6 +67,9 @@ def _exploration_options(parser) -> None:
     group.add_argument("--repeats", type=int, default=3, help="runs per start and method (seeds seed..seed+R-1)")
     group.add_argument("--max-steps", type=int, help="step budget (default: configs/explore.yaml run.max_steps)")
     group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
+    group.add_argument("--report", action="store_true",
+                       help="with --out only: rebuild results.csv, table.md and the plots from the runs finished "
+                            "so far, running nothing (safe while the benchmark runs)")
     group.add_argument("--workers", type=int, default=1, help="parallel runs")
     group.add_argument("--backend", default="local", help="local (processes) or ray")
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
@@ -77,10 +80,18 @@ def _exploration_options(parser) -> None:
 
 
 def run_exploration_benchmark(args) -> int:
-    from ..benchmark import main
+    from ..benchmark import main, report
     from ..config import load_config
     from ..errors import InputError
 
+    if args.report:
+        if not args.out:
+            raise InputError("--report needs --out DIR, the benchmark folder")
+        result = report(args.out)
+        print(Path(result["table"]).read_text())
+        print(f"bench: report of {len(result['rows'])} finished runs ({result['pending']} not yet): {result['results']}, "
+              f"{result['table']}, {len(result['plots'])} coverage plot(s) in {args.out}")
+        return 0
     if not args.scenes:  # (a benchmark subcommand sets its own func)
         raise InputError("give a benchmark (render, map, explore, ...) or --scenes for the exploration benchmark")
     if not args.out:
