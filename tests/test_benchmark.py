@@ -102,6 +102,20 @@ def test_repeats_of_a_method_that_draws_nothing_are_reported_from_its_first_run(
 
 
 @pytest.mark.slow
+def test_the_ray_backend_gives_the_rows_of_local_processes(plan_spec, tmp_path):
+    pytest.importorskip("ray")
+    common = ["--scenes", plan_spec, "--methods", "classic", "--starts", "2", "--repeats", "1", "--max-steps", "20",
+              "--workers", "2"]
+    results = {}
+    for backend in ("local", "ray"):
+        code, stdout, stderr = bench(*common, "--backend", backend, "--out", tmp_path / backend)
+        assert code == 0, stderr
+        results[backend] = [{k: v for k, v in row.items() if k not in ("wall_s", "step_ms")}
+                            for row in csv.DictReader(open(tmp_path / backend / "results.csv"))]
+    assert len(results["ray"]) == 2 and results["ray"] == results["local"]
+
+
+@pytest.mark.slow
 def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, tmp_path):
     out = tmp_path / "bench"
     code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "vacuum", "--starts", "1", "--repeats", "1",
