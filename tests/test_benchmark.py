@@ -151,14 +151,15 @@ def test_bench_without_a_benchmark_or_scenes_says_what_to_give():
     assert code == 2 and "--scenes" in stderr
 
 
-def kth_folder(folder, starts) -> str:
-    """A two-room plan in KTH/MapEx's layout with a start_poses.json of `starts` (raw row, col)."""
+def kth_folder(folder, starts, wall=48, door=(20, 40)) -> str:
+    """A two-room plan in KTH/MapEx's layout (0.05 m/px) with a start_poses.json of `starts` (raw row,
+    col): rooms left and right of a 4 px wall from column `wall`, joined by a door over rows `door`."""
     occ = np.full((60, 100), 254, np.uint8)
     occ[10:50, 10:13] = occ[10:50, 87:90] = occ[10:13, 10:90] = occ[47:50, 10:90] = 0
-    occ[10:50, 48:52] = 0
-    occ[20:40, 48:52] = 254  # a 1 m door
+    occ[10:50, wall:wall + 4] = 0
+    occ[door[0]:door[1], wall:wall + 4] = 254  # default: a 1 m door
     valid = np.zeros_like(occ)
-    valid[13:47, 13:48], valid[13:47, 52:87] = 1, 2
+    valid[13:47, 13:wall], valid[13:47, wall + 4:87] = 1, 2
     np.save(folder / "occ_map.npy", occ)
     np.save(folder / "valid_space.npy", valid)
     (folder / "start_poses.json").write_text(json.dumps({"start_poses": [{"raw_pixel_row_col": s} for s in starts]}))
@@ -178,6 +179,20 @@ def test_scene_starts_come_first_from_a_plan_folders_start_poses(tmp_path):
     assert poses[0][2] == pytest.approx(conf.motion.camera_height_m) and len(poses) == 3  # the third is sampled
     assert start_poses(spec, 3, 0, conf, scene_starts=True) == poses  # seeded headings
     assert [p[:2] for p in start_poses(spec, 2, 0, conf)] != [p[:2] for p in poses[:2]]  # without: sampled
+
+
+def test_a_shipped_start_shut_in_by_a_narrow_door_is_left_out_and_sampled_starts_avoid_it(tmp_path, caplog):
+    """Room 2's door is 0.4 m wide, narrower than the robot's 2 x 0.3 m clearance: its shipped start
+    is left out (logged) and every start lies in room 1, the region the robot can travel."""
+    from frontiernet.benchmark.plan import start_poses
+    from frontiernet.config import load_config
+
+    spec = kth_folder(tmp_path, [[30, 75], [30, 30]], wall=60, door=(26, 34))  # a 0.4 m door
+    with caplog.at_level("WARNING"):
+        poses = start_poses(spec, 4, 0, load_config("explore"), scene_starts=True)
+    assert "shipped start 0" in caplog.text and "too narrow" in caplog.text
+    assert poses[0][:2] == pytest.approx(((30 + 0.5) * 0.05, (60 - 30 - 0.5) * 0.05), abs=1e-4)  # start 1
+    assert len(poses) == 4 and all(x < 60 * 0.05 for x, *_ in poses)  # the rest sampled in room 1
 
 
 def test_a_shipped_start_on_a_wall_is_an_input_error(tmp_path):

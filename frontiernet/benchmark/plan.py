@@ -2,7 +2,7 @@
 
 Start poses are sampled once per scene with the benchmark's seed (the explorer's own
 :func:`~frontiernet.exploration.run.sample_start`: camera height above the floor, clearance
-from obstacles, random heading) and shared by every method and repeat, so methods differ by
+from obstacles, inside the region the robot can travel, random heading) and shared by every method and repeat, so methods differ by
 their goal choice alone. Repeat r of a start runs with seed ``seed + r`` (the depth source,
 anchoring's pixel subset and random methods draw from it). A method that draws nothing, with a
 depth source that is not seeded (``classic`` and ``gain-distance`` on ground-truth depth:
@@ -13,6 +13,7 @@ its repeats > 0 are marked ``copy_of`` repeat 0 and reported from it instead of 
 from __future__ import annotations
 
 import hashlib
+import logging
 import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -20,6 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+
+log = logging.getLogger(__name__)
 
 MIN_BUDGET = 4  # Vox@25 needs a step at a quarter of the budget
 
@@ -63,15 +66,16 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     """`count` start poses (x, y, z, yaw_deg) of scene `spec`, seeded (see the module docstring).
 
     With `scene_starts`, the positions a scene ships come first (a KTH plan folder's MapEx
-    ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``);
-    sampled poses fill up the count.
+    ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``),
+    except those outside the scene's :func:`~frontiernet.exploration.run.main_region` (shut in by
+    doors too narrow for the robot: logged and left out); sampled poses fill up the count.
 
     Raises:
         InputError: an unknown or unreadable scene, or one without free space to start from.
     """
     from ..config import load_config
     from ..exploration.motion import yaw_of
-    from ..exploration.run import sample_start
+    from ..exploration.run import main_region, sample_start
     from ..scenes import load_scene
     from ..simulator.voxels import voxelize_scene
 
@@ -81,9 +85,15 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     poses = []
     if scene_starts:
         z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
-        for x, y in scene.metadata.extra.get("start_xy", [])[:count]:
-            poses.append((round(float(x), 4), round(float(y), 4), round(z, 4),
-                          round(float(rng.uniform(-180.0, 180.0)), 4)))
+        region = main_region(scene, voxels, conf)
+        for index, (x, y) in enumerate(scene.metadata.extra.get("start_xy", [])):
+            yaw = float(rng.uniform(-180.0, 180.0))
+            i, j = voxels.world_to_index(np.array([x, y, z]))[:2]
+            if not region[i, j]:
+                log.warning("%s: shipped start %d at (%.2f, %.2f) is shut in by doors too narrow for the robot "
+                            "(planner.clearance_m); left out", spec, index, x, y)
+            elif len(poses) < count:
+                poses.append((round(float(x), 4), round(float(y), 4), round(z, 4), round(yaw, 4)))
     while len(poses) < count:
         T = sample_start(scene, voxels, conf, rng)
         poses.append(tuple(round(float(v), 4) for v in (*T[:3, 3], np.degrees(yaw_of(T)))))

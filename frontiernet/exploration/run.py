@@ -30,9 +30,26 @@ def parse_start(text: str) -> tuple[float, float, float, float]:
     return values[0], values[1], values[2], values[3]
 
 
+def main_region(scene, voxels, conf) -> np.ndarray:
+    """(X, Y) bool columns of the scene's main region at camera height: the largest 8-connected
+    region of columns at least ``planner.clearance_m`` from obstacles over the planning band (the
+    robot's true traversable space, as the planner's grid search moves). A start outside it is
+    shut in a room whose doors are too narrow for the robot (KTH plans draw some office doors
+    0.5 m wide), and every method would explore that room alone."""
+    from scipy import ndimage
+
+    z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+    band = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
+    traversable = voxels.column_clearance(voxels.layer(z), band) >= float(conf.planner.clearance_m)
+    labels, count = ndimage.label(traversable, structure=np.ones((3, 3), bool))
+    if count == 0:
+        return traversable
+    return labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+
+
 def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     """A (4, 4) start pose: camera ``motion.camera_height_m`` above the scene's floor, at a random
-    explorable spot at least ``run.start_clearance_m`` from obstacles, random heading.
+    spot of the :func:`main_region` at least ``run.start_clearance_m`` from obstacles, random heading.
 
     Raises:
         InputError: the scene has no such spot (no free space at camera height).
@@ -41,7 +58,7 @@ def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     size = voxels.voxel_size
     band = max(1, int(np.ceil(float(conf.planner.height_band_m) / size)))
     clearance = voxels.column_clearance(voxels.layer(z), band)
-    cells = np.argwhere(clearance >= float(conf.run.start_clearance_m))
+    cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & main_region(scene, voxels, conf))
     if not len(cells):
         raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
                          f"with {conf.run.start_clearance_m} m clearance to start from")
