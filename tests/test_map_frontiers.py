@@ -12,7 +12,7 @@ from omegaconf import OmegaConf
 from conftest import box_scene, room_boxes
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
-from frontiernet.frontiers.map_frontiers import frontier_regions, frontier_settings, map_frontiers
+from frontiernet.frontiers.map_frontiers import _split_long, frontier_regions, frontier_settings, map_frontiers
 from frontiernet.geometry import pose_from_heading
 from frontiernet.mapping import OccupancyMap
 from frontiernet.simulator.camera import PinholeCamera, Renderer
@@ -221,3 +221,11 @@ def test_bad_inputs_are_input_errors_naming_the_value(z, pose, changes, message)
     occupancy = OccupancyMap.from_bounds(ROOM_BOUNDS, load_config("explore").map)
     with pytest.raises(InputError, match=message):
         map_frontiers(occupancy, z, conf(**changes), pose)
+
+
+def test_a_long_region_of_few_far_apart_cells_is_split_into_single_cells_not_empty_pieces():
+    """A chunk of a bent region can hold few cells spanning more than their count of maximum
+    extents (KTH runs failed on it: an empty piece); each cell becomes its own piece."""
+    cells = np.array([[0, 0], [0, 10], [0, 20], [5, 20]], np.int64)
+    pieces = _split_long(np.arange(4), cells, max_extent_cells=3.0)
+    assert sorted(np.concatenate(pieces).tolist()) == [0, 1, 2, 3] and all(len(p) == 1 for p in pieces)

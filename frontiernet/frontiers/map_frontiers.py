@@ -186,7 +186,8 @@ def _split_long(members: np.ndarray, cells: np.ndarray, max_extent_cells: float)
         if extent <= max_extent_cells:
             pieces.append(part)
             continue
-        chunks = int(np.ceil(extent / max_extent_cells))
+        # at most one chunk per cell: a chunk of a bent region can hold a few cells far apart
+        chunks = min(int(np.ceil(extent / max_extent_cells)), len(part))
         todo.extend(reversed(np.array_split(part[np.argsort(along, kind="stable")], chunks)))
     return pieces
 
