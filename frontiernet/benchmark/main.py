@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 
 from ..errors import InputError
 from ..exploration.methods import method_names
-from ..exploration.run import DEPTH_ALIASES
+from ..exploration.run import depth_source_name
 from ..io import ensure_dir, write_json
 from .plan import MIN_BUDGET, plan_runs
 from .report import write_report
@@ -57,9 +57,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                              "use another --out or remove it")
         poses = previous["start_poses"]
     clock = time.perf_counter()
-    depth_name = DEPTH_ALIASES.get(depth or str(conf.run.depth), depth or str(conf.run.depth))
     runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
-                                  depth_name)
+                                  depth_source_name(depth, conf))
     ensure_dir(out)
     write_json(plan_path, {"settings": settings, "start_poses": start_poses,
                            "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
@@ -86,9 +85,9 @@ def report(out: str | Path) -> dict:
     own = (finished_row(run, out) for run in runs if not run.get("copy_of"))
     rows = with_copies(runs, {row["key"]: row for row in own if row is not None})
     finished = [row for row in rows if row is not None]
+    pending = len(rows) - len(finished)
     scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
-    result = write_report(out, finished, scenes, methods, pending=len(rows) - len(finished))
-    return {"rows": finished, **result, "pending": len(rows) - len(finished)}
+    return {"rows": finished, **write_report(out, finished, scenes, methods, pending), "pending": pending}
 
 
 __all__ = ["main", "report"]

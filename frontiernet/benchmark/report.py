@@ -137,7 +137,8 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     atomic_write(out / "results.csv", write_csv)
     atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table_markdown(rows, scenes, methods, pending)))
     plots = []
-    for scene in (s for s in scenes if s in {row["scene"] for row in rows}):  # scenes with finished runs
+    reported = {row["scene"] for row in rows}
+    for scene in (s for s in scenes if s in reported):  # scenes with finished runs
         plots.append(out / f"coverage_{scene_key(scene)}.png")
         plot_curves(rows, curves, scene, plots[-1])
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}

@@ -30,21 +30,37 @@ def parse_start(text: str) -> tuple[float, float, float, float]:
     return values[0], values[1], values[2], values[3]
 
 
-def main_region(scene, voxels, conf) -> np.ndarray:
-    """(X, Y) bool columns of the scene's main region at camera height: the largest 8-connected
-    region of columns at least ``planner.clearance_m`` from obstacles over the planning band (the
-    robot's true traversable space, as the planner's grid search moves). A start outside it is
-    shut in a room whose doors are too narrow for the robot (KTH plans draw some office doors
-    0.5 m wide), and every method would explore that room alone."""
-    from scipy import ndimage
+def depth_source_name(depth: str | None, conf) -> str:
+    """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``)."""
+    name = depth or str(conf.run.depth)
+    return DEPTH_ALIASES.get(name, name)
 
+
+def _camera_clearance(scene, voxels, conf) -> tuple[float, np.ndarray]:
+    """Camera height z (metres, ``motion.camera_height_m`` above the floor) and the (X, Y) float64
+    clearance (metres) of each column over the planning band around it."""
     z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
     band = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
-    traversable = voxels.column_clearance(voxels.layer(z), band) >= float(conf.planner.clearance_m)
+    return z, voxels.column_clearance(voxels.layer(z), band)
+
+
+def _largest_region(traversable: np.ndarray) -> np.ndarray:
+    """(X, Y) bool: the largest 8-connected region of `traversable` (as the planner's grid search moves)."""
+    from scipy import ndimage
+
     labels, count = ndimage.label(traversable, structure=np.ones((3, 3), bool))
     if count == 0:
         return traversable
     return labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+
+
+def main_region(scene, voxels, conf) -> np.ndarray:
+    """(X, Y) bool columns of the scene's main region at camera height: the largest 8-connected
+    region of columns at least ``planner.clearance_m`` from obstacles over the planning band (the
+    robot's true traversable space). A start outside it is shut in a room whose doors are too
+    narrow for the robot (KTH plans draw some office doors 0.5 m wide), and every method would
+    explore that room alone."""
+    return _largest_region(_camera_clearance(scene, voxels, conf)[1] >= float(conf.planner.clearance_m))
 
 
 def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
@@ -54,16 +70,14 @@ def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     Raises:
         InputError: the scene has no such spot (no free space at camera height).
     """
-    z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
-    size = voxels.voxel_size
-    band = max(1, int(np.ceil(float(conf.planner.height_band_m) / size)))
-    clearance = voxels.column_clearance(voxels.layer(z), band)
-    cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & main_region(scene, voxels, conf))
+    z, clearance = _camera_clearance(scene, voxels, conf)
+    region = _largest_region(clearance >= float(conf.planner.clearance_m))  # main_region, from one clearance
+    cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & region)
     if not len(cells):
         raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
                          f"with {conf.run.start_clearance_m} m clearance to start from")
     i, j = cells[rng.integers(len(cells))]
-    x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * size
+    x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * voxels.voxel_size
     return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)), np.radians(float(conf.motion.pitch_deg)))
 
 
@@ -111,7 +125,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
     seed = int(conf.run.seed if seed is None else seed)
     conf = OmegaConf.merge(conf, {"run": {"seed": seed}})  # the explorer's own draws read run.seed
-    depth_name = DEPTH_ALIASES.get(depth or str(conf.run.depth), depth or str(conf.run.depth))
+    depth_name = depth_source_name(depth, conf)
     sim = load_config("sim")
     clock = time.perf_counter()
     loaded = load_scene(scene)
