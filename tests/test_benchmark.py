@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from frontiernet.benchmark.report import add_shared_vox, coverage_at
+from frontiernet.benchmark.report import add_shared_vox, coverage_at, table_markdown
 from frontiernet.cli.main import main
 
 
@@ -37,6 +37,26 @@ def test_runs_of_other_comparisons_do_not_share_thresholds():
     rows = [{"scene": "s", "start": start, "repeat": 0, "method": "a"} for start in (0, 1)]
     add_shared_vox(rows, {0: np.linspace(0, 1, 101), 1: np.linspace(0, 1, 11)})
     assert rows[0]["vox25_shared"] == pytest.approx(0.25) and rows[1]["vox25_shared"] == pytest.approx(0.3)
+
+
+def test_the_summary_gives_table_one_per_scene_source_and_over_all_scenes():
+    scenes = ["procedural:1", "procedural:2", "house.glb"]
+    coverage = {"procedural:1": 0.3, "procedural:2": 0.5, "house.glb": 0.9}
+    rows = [{"scene": scene, "method": method, "status": "done", "vox25_shared": value / 4,
+             "vox50_shared": value / 2, "vox100": value, "success": value > 0.4}
+            for scene, value in coverage.items() for method in ("ours", "theirs")]
+    rows.append({"scene": "house.glb", "method": "theirs", "start": 1, "repeat": 0, "status": "failed",
+                 "error": "boom"})  # not in the summary's runs
+    table = table_markdown(rows, scenes, ["ours", "theirs"])
+    blocks = table.split("### ")
+    procedural = next(b for b in blocks if b.startswith("Summary: procedural (2 scenes)"))
+    mesh = next(b for b in blocks if b.startswith("Summary: mesh (1 scene)"))
+    overall = next(b for b in blocks if b.startswith("Summary: all scenes (3 scenes)"))
+    # runs, Vox@25 / 50 / 100 mean +- std over the source's runs, success as a rate
+    assert "| ours | 2 | 10.0 +- 2.5 | 20.0 +- 5.0 | 40.0 +- 10.0 | 50.0 |" in procedural
+    assert "| ours | 1 | 22.5 | 45.0 | 90.0 | 100.0 |" in mesh
+    assert "| theirs | 3 | 14.2 +- 6.2 | 28.3 +- 12.5 | 56.7 +- 24.9 | 66.7 |" in overall
+    assert table.index("Summary: all scenes") < table.index("### Vox@25 (%)")  # the summary comes first
 
 
 @pytest.mark.slow

@@ -6,7 +6,9 @@ scene, start and repeat) can end at different steps (no frontiers left), so for 
 50 the step is shared: the mean over the compared methods of k % of each one's steps; a run
 that ended earlier holds its final coverage. k = 100 is the end of each run (the budget
 unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +- std over
-starts x repeats; the last column is the mean over scenes. GLEAM's metrics come with each
+starts x repeats; the last column is the mean over scenes. The summary at the top has the
+paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
+plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes. GLEAM's metrics come with each
 run (:mod:`frontiernet.exploration.surface`): surface coverage of Poisson-disk samples of the
 mesh, its AUC over the budget and the one-way Chamfer distance to the robot's map.
 """
@@ -21,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import atomic_write
+from ..scenes.spec import parse_spec
 from .plan import scene_key
 from .runner import ROW_FIELDS
 
@@ -56,22 +59,57 @@ def add_shared_vox(rows: list[dict], curves: dict) -> None:
                 rows[i][f"vox{k}_shared"] = coverage_at(curves[i], step)
 
 
-def _cell(values: list, scale: float) -> str:
+def _cell(values: list, scale: float, spread: bool = True) -> str:
     if not values:
         return "--"
     values = np.asarray(values, np.float64) * scale
-    return f"{values.mean():.1f} +- {values.std():.1f}" if len(values) > 1 else f"{values.mean():.1f}"
+    return f"{values.mean():.1f} +- {values.std():.1f}" if spread and len(values) > 1 else f"{values.mean():.1f}"
+
+
+SUMMARY_METRICS = METRICS[:4]
+
+
+def _source(scene: str) -> str:
+    try:
+        return parse_spec(scene).source
+    except Exception:  # a scene spec that no longer resolves (its files moved) is still reported
+        return "other"
+
+
+def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
+    """Table I layout per scene source and over all scenes: rows methods, columns Vox@25/50/100
+    and success, cells mean +- std over the finished runs (`done`) of those scenes (success: the
+    rate alone, as the paper gives it)."""
+    groups: dict[str, list[str]] = defaultdict(list)
+    for scene in scenes:
+        groups[_source(scene)].append(scene)
+    if len(groups) > 1:
+        groups["all scenes"] = list(scenes)
+    lines = []
+    for name, members in groups.items():
+        lines += [f"### Summary: {name} ({len(members)} scene{'s' * (len(members) > 1)})", "",
+                  "| method | runs | " + " | ".join(title for _, title, _ in SUMMARY_METRICS) + " |",
+                  "| --- | --- |" + " --- |" * len(SUMMARY_METRICS)]
+        for method in methods:
+            runs = [r for r in done if r["method"] == method and r["scene"] in members]
+            cells = [_cell([float(r[field]) for r in runs if r.get(field) is not None], scale, field != "success")
+                     for field, _, scale in SUMMARY_METRICS]
+            lines.append(f"| {method} | {len(runs)} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
 
 
 def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> str:
-    """One Table I per metric: rows methods, columns scenes and their mean, cells mean +- std
-    (`pending`: runs of the plan not finished yet, said at the top)."""
+    """The summary (:func:`summary_markdown`), then one Table I per metric: rows methods, columns
+    scenes and their mean, cells mean +- std (`pending`: runs of the plan not finished yet, said
+    at the top)."""
     done = [r for r in rows if r["status"] == "done"]
     names = [scene_key(s) for s in scenes]
     lines = []
     if pending:
         lines += [f"Interim: {len(rows)} of {len(rows) + pending} runs finished; Vox@25 and @50 thresholds are "
                   "shared among the finished runs of each comparison.", ""]
+    lines += summary_markdown(done, scenes, methods)
     for field, title, scale in METRICS:
         lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
                   "| --- |" + " --- |" * (len(names) + 1)]
@@ -144,4 +182,4 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "add_shared_vox", "table_markdown", "coverage_at", "SUCCESS_COVERAGE"]
+__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "coverage_at", "SUCCESS_COVERAGE"]
