@@ -7,7 +7,17 @@
 - :func:`open_dataset`: read a dataset (``open_dataset(path)[i]`` is a dict of arrays).
 """
 
-from .dataset import FrontierDataset, open_dataset
-from .shards import DatasetError
+import importlib
+
+_EXPORTS = {"open_dataset": ".dataset", "FrontierDataset": ".dataset", "DatasetError": ".shards"}
+
+
+def __getattr__(name: str):
+    """Import on first use (PEP 562): ``frontiernet``'s CLI loads ``datagen.cli`` for every
+    command, and the dataset's torch and HDBSCAN imports took seconds of each start."""
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'datagen' has no attribute {name!r}")
+    return getattr(importlib.import_module(_EXPORTS[name], __name__), name)
+
 
 __all__ = ["open_dataset", "FrontierDataset", "DatasetError"]

@@ -14,15 +14,19 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from frontiernet.cli.bench import median_seconds
-from frontiernet.model.predictor import Predictor, torch_threads
+
+# torch is imported where it is used: `frontiernet` loads this module to list `bench inference`
+# with every command it parses, and importing torch took seconds of each start.
 
 
 def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_crop: int = 192,
                     train_batch: int = 8) -> dict:
+    import torch
+
     from frontiernet.model import load_model
+    from frontiernet.model.predictor import Predictor, torch_threads
 
     from .export import export
     from .runtime import OnnxRuntime, TorchScriptRuntime
@@ -68,6 +72,8 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
 
 def _training_throughput(model, channels: int, crop: int, batch: int, conf, inference_fps: float) -> dict:
     """Images/s of a training step on this machine's device (GPU when there is one)."""
+    import torch
+
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     model = model.to(device).train()
     optimizer = torch.optim.AdamW(model.parameters(), lr=1e-4)

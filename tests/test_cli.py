@@ -81,3 +81,15 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def test_the_command_line_starts_without_loading_torch():
+    # every command's parser (plugins' `datagen`, `train`, `deploy` and `bench inference` too)
+    # is built on each start; torch and HDBSCAN imports there took seconds of `frontiernet --help`
+    code = ("import json, sys; from frontiernet.cli.main import build_parser; parser = build_parser(); "
+            "print(json.dumps({'heavy': [m for m in ('torch', 'hdbscan', 'open3d', 'sklearn') if m in sys.modules], "
+            "'commands': sorted(parser._subparsers._group_actions[0].choices)}))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    started = json.loads(result.stdout)
+    assert started["heavy"] == [], f"imported at start-up: {started['heavy']}"
+    assert {"datagen", "train", "export", "bench", "explore"} <= set(started["commands"])
