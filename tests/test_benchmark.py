@@ -10,7 +10,8 @@ import json
 import numpy as np
 import pytest
 
-from frontiernet.benchmark.report import add_shared_vox, coverage_at, table_markdown
+from frontiernet.benchmark.plan import scene_key
+from frontiernet.benchmark.report import add_shared_vox, coverage_at, table_markdown, write_report
 from frontiernet.cli.main import main
 
 
@@ -57,6 +58,22 @@ def test_the_summary_gives_table_one_per_scene_source_and_over_all_scenes():
     assert "| ours | 1 | 22.5 | 45.0 | 90.0 | 100.0 |" in mesh
     assert "| theirs | 3 | 14.2 +- 6.2 | 28.3 +- 12.5 | 56.7 +- 24.9 | 66.7 |" in overall
     assert table.index("Summary: all scenes") < table.index("### Vox@25 (%)")  # the summary comes first
+
+
+def test_the_report_plots_each_scene_and_the_mean_of_each_source_with_several(tmp_path):
+    scenes = ["procedural:1", "procedural:2", "house.glb"]
+    rows = []
+    for index, scene in enumerate(scenes):
+        key = f"scene{index}/classic/start0_repeat0"
+        (tmp_path / "runs" / key).mkdir(parents=True)
+        (tmp_path / "runs" / key / "metrics.json").write_text(json.dumps({"coverage_per_step": [0.0, 0.1, 0.2, 0.3]}))
+        rows.append({"scene": scene, "method": "classic", "start": 0, "repeat": 0, "key": key, "status": "done",
+                     "vox100": 0.3, "success": False})
+    plots = write_report(tmp_path, rows, scenes, ["classic"])["plots"]
+    expected = [f"coverage_{scene_key(scene)}.png" for scene in scenes]
+    expected += ["coverage_summary_procedural.png", "coverage_summary_all_scenes.png"]  # no mean of the one mesh
+    assert sorted(path.name for path in plots) == sorted(expected)
+    assert all(path.stat().st_size > 1000 for path in plots)
 
 
 @pytest.mark.slow

@@ -76,17 +76,23 @@ def _source(scene: str) -> str:
         return "other"
 
 
-def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
-    """Table I layout per scene source and over all scenes: rows methods, columns Vox@25/50/100
-    and success, cells mean +- std over the finished runs (`done`) of those scenes (success: the
-    rate alone, as the paper gives it)."""
+def _source_groups(scenes: list[str]) -> dict[str, list[str]]:
+    """Scenes by source (``mesh``, ``hm3d``, ``floorplan``, ``procedural``), in order of first
+    appearance, plus ``all scenes`` when there are several sources."""
     groups: dict[str, list[str]] = defaultdict(list)
     for scene in scenes:
         groups[_source(scene)].append(scene)
     if len(groups) > 1:
         groups["all scenes"] = list(scenes)
+    return dict(groups)
+
+
+def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
+    """Table I layout per scene source and over all scenes: rows methods, columns Vox@25/50/100
+    and success, cells mean +- std over the finished runs (`done`) of those scenes (success: the
+    rate alone, as the paper gives it)."""
     lines = []
-    for name, members in groups.items():
+    for name, members in _source_groups(scenes).items():
         lines += [f"### Summary: {name} ({len(members)} scene{'s' * (len(members) > 1)})", "",
                   "| method | runs | " + " | ".join(title for _, title, _ in SUMMARY_METRICS) + " |",
                   "| --- | --- |" + " --- |" * len(SUMMARY_METRICS)]
@@ -128,8 +134,9 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
     return "\n".join(lines)
 
 
-def plot_curves(rows: list[dict], curves: dict, scene: str, path: Path) -> None:
-    """Mean coverage per step of each method on `scene` (band: +- std over starts x repeats)."""
+def plot_curves(rows: list[dict], curves: dict, scenes: list[str], title: str, path: Path) -> None:
+    """Mean coverage per step of each method over its runs on `scenes` (band: +- std over
+    those runs; a run that stopped early holds its final coverage)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -137,7 +144,7 @@ def plot_curves(rows: list[dict], curves: dict, scene: str, path: Path) -> None:
 
     figure, axes = plt.subplots(figsize=(6, 4), dpi=100)
     for method in dict.fromkeys(r["method"] for r in rows):
-        runs = [curves[i] for i, r in enumerate(rows) if i in curves and r["method"] == method and r["scene"] == scene]
+        runs = [curves[i] for i, r in enumerate(rows) if i in curves and r["method"] == method and r["scene"] in scenes]
         if not runs:
             continue
         length = max(len(c) for c in runs)
@@ -145,7 +152,7 @@ def plot_curves(rows: list[dict], curves: dict, scene: str, path: Path) -> None:
         mean, std = stacked.mean(0), stacked.std(0)
         axes.plot(mean, label=method)
         axes.fill_between(np.arange(length), mean - std, mean + std, alpha=0.15)
-    axes.set(xlabel="step", ylabel="coverage (% of explorable volume)", title=scene_key(scene))
+    axes.set(xlabel="step", ylabel="coverage (% of explorable volume)", title=title)
     axes.grid(alpha=0.3)
     if axes.lines:
         axes.legend(fontsize=8)
@@ -154,8 +161,20 @@ def plot_curves(rows: list[dict], curves: dict, scene: str, path: Path) -> None:
     plt.close(figure)
 
 
+def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], str]]:
+    """(file stem, scenes, title) of each coverage plot: one per scene with finished runs, and
+    with several scenes one per scene source (as the summary) and, if several sources, all."""
+    sets = [(scene_key(s), [s], scene_key(s)) for s in scenes if s in reported]
+    groups = _source_groups(scenes)
+    if len(scenes) > 1:
+        sets += [(f"summary_{name.replace(' ', '_')}", members, f"{name} ({len(members)} scenes, mean)")
+                 for name, members in groups.items() if len(members) > 1 and reported & set(members)]
+    return sets
+
+
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> dict:
-    """Write ``results.csv``, ``table.md`` and ``coverage_<scene>.png`` into `out`; returns paths.
+    """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
+    ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
     `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not."""
     out = Path(out)
     curves = {}
@@ -175,10 +194,9 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     atomic_write(out / "results.csv", write_csv)
     atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table_markdown(rows, scenes, methods, pending)))
     plots = []
-    reported = {row["scene"] for row in rows}
-    for scene in (s for s in scenes if s in reported):  # scenes with finished runs
-        plots.append(out / f"coverage_{scene_key(scene)}.png")
-        plot_curves(rows, curves, scene, plots[-1])
+    for stem, members, title in _plot_sets(scenes, {row["scene"] for row in rows}):
+        plots.append(out / f"coverage_{stem}.png")
+        plot_curves(rows, curves, members, title, plots[-1])
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
