@@ -170,6 +170,7 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
     (["--max-steps", "3"], "at least 4 steps"),
     (["--starts", "0"], "at least 1"),
     (["--backend", "slurm"], "--backend must be one of local, ray"),
+    (["--scenes", "procedural:9-2"], "seed range must satisfy 0 <= FIRST <= LAST"),
 ])
 def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, message):
     code, _, stderr = bench("--scenes", plan_spec, "--max-steps", "20", "--out", tmp_path / "b", *args)
@@ -201,6 +202,20 @@ def kth_folder(folder, starts, wall=48, door=(20, 40)) -> str:
     np.save(folder / "valid_space.npy", valid)
     (folder / "start_poses.json").write_text(json.dumps({"start_poses": [{"raw_pixel_row_col": s} for s in starts]}))
     return f"floorplan:{folder}"
+
+
+def test_a_folder_of_floor_plans_is_benchmarked_plan_by_plan(tmp_path):
+    plans = tmp_path / "kth"
+    for name, wall in (("plan_a", 48), ("plan_b", 40)):
+        (plans / name).mkdir(parents=True)
+        kth_folder(plans / name, [[30, 30]], wall=wall)
+    out = tmp_path / "bench"
+    code, _, stderr = bench("--scenes", plans, "--methods", "vacuum", "--starts", "1", "--repeats", "1",
+                            "--max-steps", "8", "--out", out)
+    assert code == 0, stderr
+    plan = json.loads((out / "plan.json").read_text())
+    assert list(plan["start_poses"]) == [str(plans / "plan_a"), str(plans / "plan_b")]
+    assert {row["status"] for row in csv.DictReader(open(out / "results.csv"))} == {"done"}
 
 
 def test_scene_starts_come_first_from_a_plan_folders_start_poses(tmp_path):

@@ -12,6 +12,7 @@ from ..errors import InputError
 from ..exploration.methods import method_names
 from ..exploration.run import depth_source_name
 from ..io import ensure_dir, write_json
+from ..scenes.spec import expand_specs
 from .plan import MIN_BUDGET, plan_runs
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
@@ -23,7 +24,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     """Run every method on every scene from shared start poses and write the report to `out`.
 
     Args:
-        conf: ``configs/explore.yaml`` (with the user's overrides); scenes: scene specs;
+        conf: ``configs/explore.yaml`` (with the user's overrides); scenes: scene specs,
+            expanded as datagen's (``procedural:1000-1009``, globs, a folder of KTH plans or
+            HM3D scenes: :func:`~frontiernet.scenes.spec.expand_specs`);
         methods: method names (:mod:`frontiernet.exploration.methods`).
         starts, repeats: start poses per scene, runs per start and method.
         max_steps: step budget (None: ``run.max_steps``); seed: start poses and run seeds
@@ -40,6 +43,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
     seed = int(conf.run.seed if seed is None else seed)
+    scenes = expand_specs(scenes)
     valid = method_names()
     for method in methods:
         if method not in valid:

@@ -58,7 +58,8 @@ def add_parser(subparsers) -> None:
 def _exploration_options(parser) -> None:
     """``frontiernet bench --scenes ... --methods ...``: every method on the same scenes, starts and budget."""
     group = parser.add_argument_group("exploration benchmark (docs/benchmark.md)")
-    group.add_argument("--scenes", nargs="+", metavar="SPEC", help="scene specs")
+    group.add_argument("--scenes", nargs="+", metavar="SPEC",
+                       help="scene specs; ranges (procedural:1000-1009), globs and folders of scenes expand")
     group.add_argument("--methods", default="frontiernet,classic",
                        help="comma-separated methods (default frontiernet,classic; see `frontiernet explore -h`)")
     group.add_argument("--starts", type=int, default=3, help="start poses per scene (sampled once, shared)")
