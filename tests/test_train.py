@@ -215,6 +215,17 @@ def test_ctrl_c_leaves_a_resumable_checkpoint(tiny_dataset, tmp_path):
     process.send_signal(signal.SIGINT)
     try:
         _, err = process.communicate(timeout=300)  # a hang guard: a loaded machine may take a while
+    except subprocess.TimeoutExpired:
+        # Seen three times, only in a clean clone's full suite on a loaded machine (the SIGINT
+        # disposition of pytest never changes there; alone the test passes): say which hang it was
+        state = ("still running" if process.poll() is None else
+                 f"exited ({process.returncode}) but something kept its output pipes open")
+        process.kill()
+        try:
+            _, err = process.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            err = "(output pipes still open)"
+        pytest.fail(f"training did not stop within 300 s of SIGINT: {state}; stderr: {err[-2000:]}")
     finally:
         if process.poll() is None:  # never leave a training run behind
             process.kill()
