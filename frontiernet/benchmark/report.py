@@ -8,9 +8,10 @@ that ended earlier holds its final coverage. k = 100 is the end of each run (the
 unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +- std over
 starts x repeats; the last column is the mean over scenes. The summary at the top has the
 paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
-plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes. GLEAM's metrics come with each
-run (:mod:`frontiernet.exploration.surface`): surface coverage of Poisson-disk samples of the
-mesh, its AUC over the budget and the one-way Chamfer distance to the robot's map.
+plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes.
+GLEAM's metrics come with each run (:mod:`frontiernet.exploration.surface`): surface coverage
+of Poisson-disk samples of the mesh, its AUC over the budget and the one-way Chamfer distance
+to the robot's map.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError
 from ..io import atomic_write
 from ..scenes.spec import parse_spec
 from .plan import scene_key
@@ -72,7 +74,7 @@ SUMMARY_METRICS = METRICS[:4]
 def _source(scene: str) -> str:
     try:
         return parse_spec(scene).source
-    except Exception:  # a scene spec that no longer resolves (its files moved) is still reported
+    except InputError:  # a scene spec that no longer resolves (its files moved) is still reported
         return "other"
 
 
