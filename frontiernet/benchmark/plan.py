@@ -1,9 +1,9 @@
 """Benchmark plan: start poses per scene and the runs (scene x method x start x repeat).
 
 Start poses are sampled once per scene with the benchmark's seed (the explorer's own
-:func:`~frontiernet.exploration.run.sample_start`: camera height above the floor, clearance
-from obstacles, inside the region the robot can travel, random heading) and shared by every method and repeat, so methods differ by
-their goal choice alone. Repeat r of a start runs with seed ``seed + r`` (the depth source,
+:func:`~frontiernet.exploration.run.start_sampler`: camera height above the floor, clearance
+from obstacles, inside the region the robot can travel, random heading) and shared by every
+method and repeat, so methods differ by their goal choice alone. Repeat r of a start runs with seed ``seed + r`` (the depth source,
 anchoring's pixel subset and random methods draw from it). A method that draws nothing, with a
 depth source that is not seeded (``classic`` and ``gain-distance`` on ground-truth depth:
 :func:`~frontiernet.exploration.methods.repeats_identically`), would repeat its run exactly:
@@ -67,25 +67,25 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
     With `scene_starts`, the positions a scene ships come first (a KTH plan folder's MapEx
     ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``),
-    except those outside the scene's :func:`~frontiernet.exploration.run.main_region` (shut in by
-    doors too narrow for the robot: logged and left out); sampled poses fill up the count.
+    except those outside the scene's main region (:func:`~frontiernet.exploration.run.start_sampler`:
+    shut in by doors too narrow for the robot; logged and left out); sampled poses fill up the count.
 
     Raises:
         InputError: an unknown or unreadable scene, or one without free space to start from.
     """
     from ..config import load_config
     from ..exploration.motion import yaw_of
-    from ..exploration.run import main_region, sample_start
+    from ..exploration.run import start_sampler
     from ..scenes import load_scene
     from ..simulator.voxels import voxelize_scene
 
     scene = load_scene(spec)
     voxels = voxelize_scene(scene, load_config("sim").voxels)
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
+    region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
     poses = []
     if scene_starts:
         z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
-        region = main_region(scene, voxels, conf)
         for index, (x, y) in enumerate(scene.metadata.extra.get("start_xy", [])):
             yaw = float(rng.uniform(-180.0, 180.0))
             i, j = voxels.world_to_index(np.array([x, y, z]))[:2]
@@ -95,7 +95,7 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
             elif len(poses) < count:
                 poses.append((round(float(x), 4), round(float(y), 4), round(z, 4), round(yaw, 4)))
     while len(poses) < count:
-        T = sample_start(scene, voxels, conf, rng)
+        T = draw(rng)
         poses.append(tuple(round(float(v), 4) for v in (*T[:3, 3], np.degrees(yaw_of(T)))))
     return poses
 

@@ -54,31 +54,39 @@ def _largest_region(traversable: np.ndarray) -> np.ndarray:
     return labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
 
 
-def main_region(scene, voxels, conf) -> np.ndarray:
-    """(X, Y) bool columns of the scene's main region at camera height: the largest 8-connected
-    region of columns at least ``planner.clearance_m`` from obstacles over the planning band (the
-    robot's true traversable space). A start outside it is shut in a room whose doors are too
-    narrow for the robot (KTH plans draw some office doors 0.5 m wide), and every method would
-    explore that room alone."""
-    return _largest_region(_camera_clearance(scene, voxels, conf)[1] >= float(conf.planner.clearance_m))
+def start_sampler(scene, voxels, conf):
+    """The scene's main region and a sampler of start poses in it, from one clearance map.
+
+    The main region is the largest 8-connected region of columns at camera height at least
+    ``planner.clearance_m`` from obstacles over the planning band (the robot's true traversable
+    space). A start outside it is shut in a room whose doors are too narrow for the robot (KTH
+    plans draw some office doors 0.5 m wide), and every method would explore that room alone.
+
+    Returns:
+        (region, draw): region, (X, Y) bool columns of the main region; draw(rng), a (4, 4)
+        start pose: camera ``motion.camera_height_m`` above the scene's floor, at a random spot
+        of the region at least ``run.start_clearance_m`` from obstacles, random heading. draw
+        raises :class:`InputError` when the scene has no such spot (no free space at camera height).
+    """
+    z, clearance = _camera_clearance(scene, voxels, conf)
+    region = _largest_region(clearance >= float(conf.planner.clearance_m))
+    cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & region)
+
+    def draw(rng: np.random.Generator) -> np.ndarray:
+        if not len(cells):
+            raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
+                             f"with {conf.run.start_clearance_m} m clearance to start from")
+        i, j = cells[rng.integers(len(cells))]
+        x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * voxels.voxel_size
+        return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)),
+                                 np.radians(float(conf.motion.pitch_deg)))
+
+    return region, draw
 
 
 def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
-    """A (4, 4) start pose: camera ``motion.camera_height_m`` above the scene's floor, at a random
-    spot of the :func:`main_region` at least ``run.start_clearance_m`` from obstacles, random heading.
-
-    Raises:
-        InputError: the scene has no such spot (no free space at camera height).
-    """
-    z, clearance = _camera_clearance(scene, voxels, conf)
-    region = _largest_region(clearance >= float(conf.planner.clearance_m))  # main_region, from one clearance
-    cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & region)
-    if not len(cells):
-        raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
-                         f"with {conf.run.start_clearance_m} m clearance to start from")
-    i, j = cells[rng.integers(len(cells))]
-    x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * voxels.voxel_size
-    return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)), np.radians(float(conf.motion.pitch_deg)))
+    """One start pose drawn by :func:`start_sampler` (raises :class:`InputError` as its draw)."""
+    return start_sampler(scene, voxels, conf)[1](rng)
 
 
 def _uses_model(method) -> bool:
