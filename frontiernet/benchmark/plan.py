@@ -3,9 +3,10 @@
 Start poses are sampled once per scene with the benchmark's seed (the explorer's own
 :func:`~frontiernet.exploration.run.start_sampler`: camera height above the floor, clearance
 from obstacles, inside the region the robot can travel, random heading) and shared by every
-method and repeat, so methods differ by their goal choice alone. Repeat r of a start runs with seed ``seed + r`` (the depth source,
-anchoring's pixel subset and random methods draw from it). A method that draws nothing, with a
-depth source that is not seeded (``classic`` and ``gain-distance`` on ground-truth depth:
+method and repeat, so methods differ by their goal choice alone. Repeat r of a start runs with
+seed ``seed + r`` (the depth source, anchoring's pixel subset and random methods draw from it).
+A method that draws nothing, with a depth source that is not seeded (``classic`` and
+``gain-distance`` on ground-truth depth:
 :func:`~frontiernet.exploration.methods.repeats_identically`), would repeat its run exactly:
 its repeats > 0 are marked ``copy_of`` repeat 0 and reported from it instead of being run again.
 """

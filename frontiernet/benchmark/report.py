@@ -167,11 +167,8 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
     """(file stem, scenes, title) of each coverage plot: one per scene with finished runs, and
     with several scenes one per scene source (as the summary) and, if several sources, all."""
     sets = [(scene_key(s), [s], scene_key(s)) for s in scenes if s in reported]
-    groups = _source_groups(scenes)
-    if len(scenes) > 1:
-        sets += [(f"summary_{name.replace(' ', '_')}", members, f"{name} ({len(members)} scenes, mean)")
-                 for name, members in groups.items() if len(members) > 1 and reported & set(members)]
-    return sets
+    return sets + [(f"summary_{name.replace(' ', '_')}", members, f"{name} ({len(members)} scenes, mean)")
+                   for name, members in _source_groups(scenes).items() if len(members) > 1 and reported & set(members)]
 
 
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> dict:
