@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import zipfile
 
 import numpy as np
 import pytest
@@ -103,6 +104,17 @@ def test_bad_model_files_are_refused_by_name(tmp_path):
     corrupt.write_bytes(b"\x00" * 100)
     with pytest.raises(InputError, match="corrupt.safetensors: not a readable"):
         load_model(corrupt)
+    text = tmp_path / "notes.ckpt"
+    text.write_text("hello\n")  # the weights-only unpickler failed on it with a bare KeyError
+    with pytest.raises(InputError, match="notes.ckpt: not a readable checkpoint"):
+        load_model(text)
+    damaged = tmp_path / "damaged.ckpt"  # a zip archive as torch.save writes it, its pickle garbled
+    torch.save({"state_dict": {"w": torch.zeros(2)}}, tmp_path / "whole.ckpt")
+    with zipfile.ZipFile(tmp_path / "whole.ckpt") as whole, zipfile.ZipFile(damaged, "w") as out:
+        for name in whole.namelist():
+            out.writestr(name, b"hello world" if name.endswith("data.pkl") else whole.read(name))
+    with pytest.raises(InputError, match="damaged.ckpt: not a readable checkpoint"):
+        load_model(damaged)
     # weights of one architecture under the config of another
     from safetensors.torch import save_file
     wrong = tmp_path / "wrong.safetensors"

@@ -119,13 +119,17 @@ def _read_safetensors(path: Path) -> tuple[dict, dict]:
 
 
 def _read_checkpoint(path: Path) -> tuple[dict, dict]:
-    """Weights and model config of a Lightning checkpoint written by ``frontiernet train``."""
+    """Weights and model config of a Lightning checkpoint written by ``frontiernet train`` (a
+    PyTorch zip archive; anything else, a bare pickle included, is refused unopened)."""
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"{path}: not a readable checkpoint (not a PyTorch zip archive, the format "
+                         "frontiernet train writes)")
     try:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as error:
         raise InputError(f"{path}: refused: the checkpoint holds objects other than weights and plain "
                          f"data (opening it could run code): {str(error).splitlines()[0][:160]}") from None
-    except (RuntimeError, EOFError, OSError, zipfile.BadZipFile, ValueError) as error:
+    except Exception as error:  # a damaged archive: the unpickler fails with KeyError, IndexError, ...
         raise InputError(f"{path}: not a readable checkpoint ({error.__class__.__name__}: "
                          f"{str(error).splitlines()[0][:120] if str(error) else 'truncated?'})") from None
     if not isinstance(checkpoint, dict) or "state_dict" not in checkpoint:
