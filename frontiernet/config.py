@@ -55,20 +55,61 @@ def load_config(
     """
     names = [name] if isinstance(name, str) else list(name)
     conf = OmegaConf.merge(*[_read_yaml(default_config_path(n)) for n in names])
+    return merge_user(conf, user_file, overrides)
+
+
+def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides: Iterable[str] = ()) -> DictConfig:
+    """`conf` with a user YAML file, then ``key.sub=value`` overrides, merged on top. Every key
+    they set must exist in `conf` (a typo would otherwise be ignored in silence), except under
+    a key whose default is null or an empty mapping (open option sections)."""
     if user_file is not None:
-        conf = OmegaConf.merge(conf, _read_yaml(Path(user_file)))
+        user = _read_yaml(Path(user_file))
+        _check_keys(conf, user, str(user_file))
+        conf = OmegaConf.merge(conf, user)
     return apply_overrides(conf, overrides)
 
 
 def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConfig:
-    """`conf` with ``key.sub=value`` strings merged on top (InputError for a malformed one)."""
+    """`conf` with ``key.sub=value`` strings merged on top (InputError for a malformed one or a
+    key that `conf` does not have, see :func:`merge_user`)."""
     overrides = list(overrides)
     if overrides:
         bad = [item for item in overrides if "=" not in item]
         if bad:
             raise InputError(f"override '{bad[0]}' is not of the form key=value")
         try:
-            conf = OmegaConf.merge(conf, OmegaConf.from_dotlist(overrides))
+            extra = OmegaConf.from_dotlist(overrides)
+        except OmegaConfBaseException as error:
+            raise InputError(f"bad override {overrides}: {error}") from None
+        _check_keys(conf, extra, "override")
+        try:
+            conf = OmegaConf.merge(conf, extra)
         except OmegaConfBaseException as error:
             raise InputError(f"bad override {overrides}: {error}") from None
     return conf
+
+
+def _check_keys(base: DictConfig, extra: DictConfig, source: str) -> None:
+    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings."""
+    from difflib import get_close_matches
+
+    def deeper(tree: dict, prefix: str):  # every dotted key below `tree`
+        for key, value in tree.items():
+            yield f"{prefix}{key}"
+            if isinstance(value, dict):
+                yield from deeper(value, f"{prefix}{key}.")
+
+    def walk(defaults, given, prefix: str):
+        for key, value in given.items():
+            name = f"{prefix}{key}"
+            if key not in defaults:
+                nested = [path for path in deeper(defaults, prefix) if path.rsplit(".", 1)[-1] == str(key)]
+                close = nested or [prefix + k for k in get_close_matches(str(key), [str(k) for k in defaults], n=3)]
+                hint = f"; did you mean {', '.join(close[:3])}?" if close else (
+                    f"; keys here: {', '.join(map(str, defaults))}" if prefix else "")
+                raise InputError(f"{source}: unknown config key '{name}'{hint}")
+            default = defaults[key]
+            if isinstance(value, dict) and isinstance(default, dict) and default:
+                walk(default, value, f"{name}.")
+
+    walk(OmegaConf.to_container(base, resolve=False), OmegaConf.to_container(extra, resolve=False), "")

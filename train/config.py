@@ -8,17 +8,13 @@ from typing import Iterable
 
 from omegaconf import DictConfig, OmegaConf
 
-from frontiernet.config import apply_overrides, load_config
+from frontiernet.config import load_config, merge_user
 from frontiernet.errors import InputError
 
 
 def load_train_config(user_file: str | Path | None = None, overrides: Iterable[str] = ()) -> DictConfig:
     """The resolved training config (see ``configs/train.yaml``)."""
-    conf = OmegaConf.merge({"model": load_config("model")}, load_config("train"))
-    if user_file is not None:
-        user = load_config("train", user_file)  # reuses the YAML checks; merged over the defaults
-        conf = OmegaConf.merge(conf, user)
-    conf = apply_overrides(conf, overrides)
+    conf = merge_user(OmegaConf.merge({"model": load_config("model")}, load_config("train")), user_file, overrides)
     if not conf.data.path:
         raise InputError("data.path is not set: give the dataset folder (data.path=DIR)")
     return conf

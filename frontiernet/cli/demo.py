@@ -23,13 +23,12 @@ def add_parser(subparsers) -> None:
 def run(args) -> int:
     from omegaconf import OmegaConf
 
-    from ..config import load_config
+    from ..config import load_config, merge_user
     from ..exploration.run import main
     from .explore import summary_line
 
-    demo = load_config("demo", args.config)
-    scene = args.scene or str(demo.pop("scene"))
-    conf = OmegaConf.merge(load_config("explore"), demo)
+    conf = merge_user(OmegaConf.merge(load_config("explore"), load_config("demo")), args.config)
+    scene = args.scene or str(conf.pop("scene"))
     record = main(conf, scene, args.out, model=args.model, max_steps=args.max_steps)
     print(summary_line(record, args.out))
     return 0

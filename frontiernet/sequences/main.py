@@ -187,11 +187,8 @@ def load_sequence_config(user_file=None, overrides=()):
     ``configs/explore.yaml`` underneath (sequence.yaml's keys win), then a user file and overrides."""
     from omegaconf import OmegaConf
 
-    from ..config import apply_overrides, load_config
+    from ..config import load_config, merge_user
 
     explore = load_config("explore")
     base = OmegaConf.create({key: explore[key] for key in ("anchoring", "tracking", "map")})
-    conf = OmegaConf.merge(base, load_config("sequence"))
-    if user_file is not None:
-        conf = OmegaConf.merge(conf, load_config("sequence", user_file))
-    return apply_overrides(conf, overrides)
+    return merge_user(OmegaConf.merge(base, load_config("sequence")), user_file, overrides)
