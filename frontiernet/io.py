@@ -27,7 +27,10 @@ def ensure_dir(path: str | Path) -> Path:
 def atomic_write(path: str | Path, write) -> Path:
     """Call ``write(tmp_path)`` on a temporary file beside `path`, then rename it into place."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    except OSError as error:  # a missing folder, a file where the folder should be, no permission
+        raise InputError(f"{path}: cannot write ({error.strerror})") from None
     os.close(fd)
     try:
         write(Path(tmp))
@@ -53,9 +56,19 @@ def write_npy(path: str | Path, array: np.ndarray) -> Path:
     return atomic_write(path, write)
 
 
+def check_image_name(path: str | Path) -> None:
+    """InputError unless `path`'s suffix names an image format OpenCV writes (.png, .jpg, ...)."""
+    import cv2
+
+    if not cv2.haveImageWriter(str(path)):
+        raise InputError(f"{path}: not an image file name OpenCV can write (use .png or .jpg)")
+
+
 def write_image(path: str | Path, rgb: np.ndarray) -> Path:
     """Write an (H, W, 3) uint8 RGB image (format from the suffix, e.g. .png)."""
     import cv2
+
+    check_image_name(path)
 
     def write(tmp: Path) -> None:
         ok, data = cv2.imencode(Path(path).suffix, np.ascontiguousarray(rgb[..., ::-1]))

@@ -11,6 +11,7 @@ import pytest
 from PIL import Image
 
 from frontiernet.cli.main import main
+from frontiernet.errors import InputError
 
 
 def test_scene_info_reports_bounds_triangles_and_explorable_volume(plan_spec, capsys):
@@ -45,6 +46,7 @@ def test_render_writes_rgb_depth_in_metres_and_camera(plan_spec, tmp_path, capsy
     (["render", "{plan}", "--pose", "2,2.5,1.2", "--out", "{out}"], "expected x,y,z,yaw"),
     (["scene", "info", "no/such/scene.glb"], "not found"),
     (["scene", "info", "floorplan:x.png?resolution=-1"], "positive"),
+    (["scene", "topdown", "{plan}", "--out", "{out}/top.txt"], "top.txt: not an image file name"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(plan_spec, tmp_path, capsys, args, message):
     args = [a.format(plan=plan_spec, out=tmp_path / "out") for a in args]
@@ -73,6 +75,8 @@ def test_outputs_are_written_atomically_with_normal_permissions(tmp_path):
         atomic_write(tmp_path / "a.json", lambda tmp: (tmp.write_text("half"), (_ for _ in ()).throw(RuntimeError())))
     assert json.loads((tmp_path / "a.json").read_text()) == {"x": 1}  # the old file is intact
     assert os.listdir(tmp_path) == ["a.json"]  # no temporary left behind
+    with pytest.raises(InputError, match="a.json/b.json: cannot write"):  # a file where a folder should be
+        write_json(tmp_path / "a.json" / "b.json", {"x": 2})
 
 
 def _umask() -> int:

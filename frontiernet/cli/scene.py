@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -76,9 +77,11 @@ def run_info(args) -> int:
 
 
 def run_topdown(args) -> int:
-    from ..io import write_image
+    from ..io import check_image_name, ensure_dir, write_image
     from ..scenes.preview import topdown_image
 
+    check_image_name(args.out)  # before the work: a bad --out fails at once
+    ensure_dir(Path(args.out).parent)
     image = topdown_image(load_scene(args.spec), pixel_size=args.pixel_size, cut_height=args.cut_height)
     write_image(args.out, image)
     print(f"wrote {args.out} ({image.shape[1]} x {image.shape[0]} px)")
