@@ -171,6 +171,7 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
     (["--starts", "0"], "at least 1"),
     (["--backend", "slurm"], "--backend must be one of local, ray"),
     (["--scenes", "procedural:9-2"], "seed range must satisfy 0 <= FIRST <= LAST"),
+    (["--model", "no/such/model.onnx"], "no/such/model.onnx: model file not found"),  # not a failed run each
 ])
 def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, message):
     code, _, stderr = bench("--scenes", plan_spec, "--max-steps", "20", "--out", tmp_path / "b", *args)

@@ -36,8 +36,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     Returns:
         ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
     Raises:
-        InputError: an unknown method or scene, a budget too small for Vox@25, a changed
-            plan in a folder that holds another benchmark's runs.
+        InputError: an unknown method or scene, a budget too small for Vox@25, a model file
+            that does not load, a changed plan in a folder that holds another benchmark's runs.
     """
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
     if budget < MIN_BUDGET:
@@ -48,6 +48,10 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     for method in methods:
         if method not in valid:
             raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
+    if model is not None:  # a file that does not load is one error now, not a failed run per run
+        from ..model import open_runtime
+
+        open_runtime(model)
     out = Path(out)
     settings = {"budget": budget, "seed": seed, "model": str(model) if model else None, "depth": depth,
                 "scene_starts": bool(scene_starts),
