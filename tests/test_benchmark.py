@@ -60,6 +60,22 @@ def test_the_summary_gives_table_one_per_scene_source_and_over_all_scenes():
     assert table.index("Summary: all scenes") < table.index("### Vox@25 (%)")  # the summary comes first
 
 
+def test_each_method_is_compared_with_classic_over_paired_runs():
+    # procedural:1 from starts 0 and 1, house from start 0; `ours` beats classic on two of three
+    vox25 = {("ours", "procedural:1", 0): 0.30, ("ours", "procedural:1", 1): 0.10, ("ours", "house.glb", 0): 0.40,
+             ("classic", "procedural:1", 0): 0.20, ("classic", "procedural:1", 1): 0.20,
+             ("classic", "house.glb", 0): 0.20, ("ours", "house.glb", 1): 0.90}  # unpaired: left out
+    rows = [{"method": method, "scene": scene, "start": start, "repeat": 0, "status": "done",
+             "vox25_shared": value, "vox50_shared": value, "vox100": value, "success": True}
+            for (method, scene, start), value in vox25.items()]
+    table = table_markdown(rows, ["procedural:1", "house.glb"], ["ours", "classic"])
+    versus = next(b for b in table.split("### ") if b.startswith("Against classic (paired runs)"))
+    # procedural: 0.2 / 0.2 with one win and one loss; house: 0.4 / 0.2; all: 0.8 / 0.6 over 3 pairs
+    assert "| ours | 1.00x (1-1) | 1.00x (1-1) | 2.00x (1-0) | 2.00x (1-0) | 1.33x (2-1) | 1.33x (2-1) |" in versus
+    assert "| classic |" not in versus
+    assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"])  # no reference, no section
+
+
 def test_the_report_plots_each_scene_and_the_mean_of_each_source_with_several(tmp_path):
     scenes = ["procedural:1", "procedural:2", "house.glb"]
     rows = []

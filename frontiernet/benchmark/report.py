@@ -8,7 +8,8 @@ that ended earlier holds its final coverage. k = 100 is the end of each run (the
 unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +- std over
 starts x repeats; the last column is the mean over scenes. The summary at the top has the
 paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
-plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes.
+plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes; then
+every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50, wins and losses).
 GLEAM's metrics come with each run (:mod:`frontiernet.exploration.surface`): surface coverage
 of Poisson-disk samples of the mesh, its AUC over the budget and the one-way Chamfer distance
 to the robot's map.
@@ -30,6 +31,7 @@ from .plan import scene_key
 from .runner import ROW_FIELDS
 
 SUCCESS_COVERAGE = 0.4
+REFERENCE = "classic"  # the paper's Table I baseline (Yamauchi), which the report compares every method with
 METRICS = (("vox25_shared", "Vox@25 (%)", 100.0), ("vox50_shared", "Vox@50 (%)", 100.0),
            ("vox100", "Vox@100 (%)", 100.0), ("success", "success (%)", 100.0),
            ("surface_coverage", "surface coverage (%, GLEAM)", 100.0), ("surface_auc", "surface coverage AUC (%)", 100.0),
@@ -107,10 +109,39 @@ def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) ->
     return lines
 
 
+def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], reference: str = REFERENCE) -> list[str]:
+    """Each method against `reference` over paired runs (same scene, start and repeat, both
+    finished), per scene source and over all scenes: the ratio of their mean Vox@25 and Vox@50
+    (the paper's Table I comparison: FrontierNet / Classic about 1.75 at both) and how many pairs
+    the method covered more (wins) and less (losses). No section unless `reference` is among `methods`."""
+    others = [m for m in methods if m != reference]
+    if reference not in methods or not others:
+        return []
+    by_run = {(r["method"], r["scene"], r["start"], r["repeat"]): r for r in done}
+    groups = _source_groups(scenes)
+    lines = [f"### Against {reference} (paired runs)", "",
+             f"Ratio of mean Vox@25 and Vox@50 to {reference}'s over the runs both finished (same scene, start, "
+             "repeat); in brackets the pairs where the method covered more - less.", "",
+             "| method | " + " | ".join(f"{name}: Vox@25 | Vox@50" for name in groups) + " |",
+             "| --- |" + " --- | --- |" * len(groups)]
+    for method in others:
+        cells = []
+        for members in groups.values():
+            pairs = [(r, by_run[(reference, *key[1:])]) for key, r in by_run.items()
+                     if key[0] == method and key[1] in members and (reference, *key[1:]) in by_run]
+            for field in ("vox25_shared", "vox50_shared"):
+                ours = np.array([float(a[field]) for a, _ in pairs])
+                theirs = np.array([float(b[field]) for _, b in pairs])
+                cells.append(f"{ours.mean() / theirs.mean():.2f}x ({(ours > theirs).sum()}-{(ours < theirs).sum()})"
+                             if len(pairs) and theirs.mean() > 0 else "--")
+        lines.append(f"| {method} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> str:
-    """The summary (:func:`summary_markdown`), then one Table I per metric: rows methods, columns
-    scenes and their mean, cells mean +- std (`pending`: runs of the plan not finished yet, said
-    at the top)."""
+    """The summary (:func:`summary_markdown`), each method against ``classic``
+    (:func:`versus_markdown`), then one Table I per metric: rows methods, columns scenes and
+    their mean, cells mean +- std (`pending`: runs of the plan not finished yet, said at the top)."""
     done = [r for r in rows if r["status"] == "done"]
     names = [scene_key(s) for s in scenes]
     lines = []
@@ -118,6 +149,7 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
         lines += [f"Interim: {len(rows)} of {len(rows) + pending} runs finished; Vox@25 and @50 thresholds are "
                   "shared among the finished runs of each comparison.", ""]
     lines += summary_markdown(done, scenes, methods)
+    lines += versus_markdown(done, scenes, methods)
     for field, title, scale in METRICS:
         lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
                   "| --- |" + " --- |" * (len(names) + 1)]
@@ -199,4 +231,5 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "coverage_at", "SUCCESS_COVERAGE"]
+__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "coverage_at",
+           "SUCCESS_COVERAGE"]
