@@ -89,8 +89,23 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
     return conf
 
 
+def _kind(value) -> str | None:
+    """What a config value is, as far as a user's value must match the default's: a section, a
+    list, a number or a true/false; None (anything goes) for text, null and open sections."""
+    if isinstance(value, dict):
+        return "a section (key: value lines)" if value else None
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return None
+
+
 def _check_keys(base: DictConfig, extra: DictConfig, source: str) -> None:
-    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings."""
+    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings,
+    or whose value is of another kind than the default's (:func:`_kind`; null is always taken)."""
     from difflib import get_close_matches
 
     def deeper(tree: dict, prefix: str):  # every dotted key below `tree`
@@ -109,6 +124,10 @@ def _check_keys(base: DictConfig, extra: DictConfig, source: str) -> None:
                     f"; keys here: {', '.join(map(str, defaults))}" if prefix else "")
                 raise InputError(f"{source}: unknown config key '{name}'{hint}")
             default = defaults[key]
+            expected = _kind(default)
+            if value is not None and expected is not None and _kind(value) != expected:
+                shown = "" if isinstance(default, dict) else f" (default {default!r})"
+                raise InputError(f"{source}: config key '{name}' takes {expected}{shown}, got {value!r}")
             if isinstance(value, dict) and isinstance(default, dict) and default:
                 walk(default, value, f"{name}.")
 

@@ -39,10 +39,24 @@ def test_a_user_file_with_an_unknown_key_is_refused_naming_the_file(tmp_path):
         load_config("explore", user)
 
 
+def test_a_value_of_another_kind_than_the_default_is_refused(tmp_path):
+    with pytest.raises(InputError, match="'planner.clearance_m' takes a number \\(default 0.3\\), got 'abc'"):
+        load_config("explore", overrides=["planner.clearance_m=abc"])
+    with pytest.raises(InputError, match="'planner.unknown_is_obstacle' takes true or false"):
+        load_config("explore", overrides=["planner.unknown_is_obstacle=1"])
+    user = tmp_path / "flat.yaml"
+    user.write_text("planner: 3\n")  # a whole section replaced by a number (was a traceback later)
+    with pytest.raises(InputError, match="flat.yaml: config key 'planner' takes a section"):
+        load_config("explore", user)
+    # null is always taken (train_tiny.yaml sets data.image_size: null), integers for floats too
+    assert load_config("explore", overrides=["planner.clearance_m=1", "run.max_steps=null"]).planner.clearance_m == 1
+
+
 def test_open_sections_and_other_configs_sections_are_accepted(tmp_path):
     # sequence.yaml's depth section is open (options of any depth model); its anchoring section
     # comes from explore.yaml
-    conf = load_sequence_config(None, ["depth.depth_anything_v2.path=/weights/vits.pth", "anchoring.hdbscan.min_cluster_size=9"])
+    conf = load_sequence_config(None, ["depth.depth_anything_v2.path=/weights/vits.pth",
+                                       "anchoring.hdbscan.min_cluster_size=9"])
     assert conf.depth.depth_anything_v2.path == "/weights/vits.pth" and conf.anchoring.hdbscan.min_cluster_size == 9
     # a training file may set the model's keys (model.yaml under `model`) and a null default
     user = tmp_path / "train.yaml"
