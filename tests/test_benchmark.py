@@ -100,6 +100,8 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     code, stdout, stderr = bench(*args)
     assert code == 0, stderr
     assert "Vox@25" in stdout and "4 runs (0 failed)" in stdout
+    # not on a terminal (a background run's log): a line per finished run
+    assert len([line for line in stderr.splitlines() if line.startswith("bench ") and "/4: " in line]) == 4
 
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert len(rows) == 4 and {r["status"] for r in rows} == {"done"}
@@ -121,6 +123,7 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     code, stdout, stderr = bench(*args)
     assert code == 0, stderr
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
+    assert "bench 1/" not in stderr  # progress counts the runs to do, none here
 
     # --report rebuilds the report from the finished runs alone (here: one run not finished yet)
     unfinished = next(r for r in plan["runs"] if r["method"] == "classic" and r["start"] == 1)
@@ -131,6 +134,8 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     assert (out / "table.md").read_text().startswith("Interim: 3 of 4 runs finished")
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert len(rows) == 3 and ("classic", "1") not in {(r["method"], r["start"]) for r in rows}
+    code, stdout, stderr = bench(*args)  # resumed again: only that run is done, and progress says so
+    assert code == 0 and f"bench 1/1: {unfinished['key']} classic done" in stderr and "4 runs (0 failed)" in stdout
 
 
 @pytest.mark.slow

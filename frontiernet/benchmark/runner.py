@@ -15,6 +15,7 @@ import json
 import logging
 import os
 import shutil
+import sys
 from pathlib import Path
 
 from ..errors import InputError
@@ -148,7 +149,12 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
     if int(workers) < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
     every = [{**run.as_dict(), "key": run.key} for run in runs]
-    tasks = [task for task in every if not task["copy_of"]]
+    done = {}  # finished before: read here, so progress (and its time left) counts only runs to do
+    for task in every:
+        row = None if task["copy_of"] else finished_row(task, settings["out"])
+        if row is not None and row["status"] == "done":
+            done[task["key"]] = row
+    tasks = [task for task in every if not task["copy_of"] and task["key"] not in done]
     settings = {**settings, "threads": max(1, (os.cpu_count() or 1) // int(workers))}
     rows: list = [None] * len(tasks)
     with _Progress(len(tasks), progress) as bar:
@@ -160,7 +166,7 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
                 bar.advance(rows[index])
         else:
             _run_processes(tasks, settings, int(workers), rows, bar)
-    return with_copies(every, {row["key"]: row for row in rows})
+    return with_copies(every, {**done, **{row["key"]: row for row in rows}})
 
 
 def _run_processes(tasks, settings, workers, rows, bar) -> None:
@@ -204,13 +210,15 @@ def _run_ray(tasks, settings, workers, rows, bar) -> None:
 
 
 class _Progress:
-    """A rich progress bar over the runs (silent when disabled)."""
+    """A rich progress bar over the runs on a terminal; elsewhere (a log file of a background
+    run) a line per finished run; silent when disabled."""
 
     def __init__(self, total: int, enabled: bool) -> None:
-        self.total, self.enabled, self._bar = total, enabled, None
+        self.total, self.enabled, self._bar, self._count = total, enabled, None, 0
+        self._lines = enabled and not sys.stderr.isatty()
 
     def __enter__(self):
-        if self.enabled:
+        if self.enabled and not self._lines:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
             self._bar = Progress(TextColumn("bench"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
@@ -220,9 +228,13 @@ class _Progress:
         return self
 
     def advance(self, row: dict) -> None:
+        self._count += 1
+        last = f"{row['method']} {row['status']}" + (f" {row.get('coverage', 0):.1%}" if row["status"] == "done" else "")
         if self._bar is not None:
-            last = f"{row['method']} {row['status']}" + (f" {row.get('coverage', 0):.1%}" if row["status"] == "done" else "")
             self._bar.update(self._task, advance=1, last=last)
+        elif self._lines:
+            took = f" in {row['wall_s']:.0f} s" if row.get("wall_s") is not None else ""
+            print(f"bench {self._count}/{self.total}: {row['key']} {last}{took}", file=sys.stderr, flush=True)
 
     def __exit__(self, *exc) -> None:
         if self._bar is not None:
