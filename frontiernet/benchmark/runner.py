@@ -229,7 +229,9 @@ class _Progress:
 
     def advance(self, row: dict) -> None:
         self._count += 1
-        last = f"{row['method']} {row['status']}" + (f" {row.get('coverage', 0):.1%}" if row["status"] == "done" else "")
+        last = f"{row['method']} {row['status']}"
+        if row["status"] == "done":
+            last += f" {row.get('coverage', 0):.1%}"
         if self._bar is not None:
             self._bar.update(self._task, advance=1, last=last)
         elif self._lines:
