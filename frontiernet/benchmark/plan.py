@@ -76,7 +76,7 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     """
     from ..config import load_config
     from ..exploration.motion import yaw_of
-    from ..exploration.run import start_sampler
+    from ..exploration.run import camera_z, start_sampler
     from ..scenes import load_scene
     from ..simulator.voxels import voxelize_scene
 
@@ -86,7 +86,7 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
     poses = []
     if scene_starts:
-        z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+        z = camera_z(scene, conf)
         for index, (x, y) in enumerate(scene.metadata.extra.get("start_xy", [])):
             yaw = float(rng.uniform(-180.0, 180.0))
             i, j = voxels.world_to_index(np.array([x, y, z]))[:2]

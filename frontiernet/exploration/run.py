@@ -36,10 +36,15 @@ def depth_source_name(depth: str | None, conf) -> str:
     return DEPTH_ALIASES.get(name, name)
 
 
+def camera_z(scene, conf) -> float:
+    """World z (metres) of the robot's camera: ``motion.camera_height_m`` above the scene's floor."""
+    return float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+
+
 def _camera_clearance(scene, voxels, conf) -> tuple[float, np.ndarray]:
-    """Camera height z (metres, ``motion.camera_height_m`` above the floor) and the (X, Y) float64
-    clearance (metres) of each column over the planning band around it."""
-    z = float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+    """Camera height z (:func:`camera_z`) and the (X, Y) float64 clearance (metres) of each
+    column over the planning band around it."""
+    z = camera_z(scene, conf)
     band = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
     return z, voxels.column_clearance(voxels.layer(z), band)
 
