@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Mapping, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -64,7 +64,7 @@ def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides:
     a key whose default is null or an empty mapping (open option sections)."""
     if user_file is not None:
         user = _read_yaml(Path(user_file))
-        _check_keys(conf, user, str(user_file))
+        check_keys(conf, user, str(user_file))
         conf = OmegaConf.merge(conf, user)
     return apply_overrides(conf, overrides)
 
@@ -81,7 +81,7 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
             extra = OmegaConf.from_dotlist(overrides)
         except OmegaConfBaseException as error:
             raise InputError(f"bad override {overrides}: {error}") from None
-        _check_keys(conf, extra, "override")
+        check_keys(conf, extra, "override")
         try:
             conf = OmegaConf.merge(conf, extra)
         except OmegaConfBaseException as error:
@@ -103,9 +103,11 @@ def _kind(value) -> str | None:
     return None
 
 
-def _check_keys(base: DictConfig, extra: DictConfig, source: str) -> None:
-    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings,
-    or whose value is of another kind than the default's (:func:`_kind`; null is always taken)."""
+def check_keys(base: DictConfig | Mapping, extra: DictConfig | Mapping, source: str, noun: str = "config key") -> None:
+    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings
+    (else the valid keys there), or whose value is of another kind than the default's
+    (:func:`_kind`; null is always taken). `source` (a file, "override", a scene spec) starts
+    the message; `noun` names what a key is to the user ("config key", "option")."""
     from difflib import get_close_matches
 
     def deeper(tree: dict, prefix: str):  # every dotted key below `tree`
@@ -120,15 +122,18 @@ def _check_keys(base: DictConfig, extra: DictConfig, source: str) -> None:
             if key not in defaults:
                 nested = [path for path in deeper(defaults, prefix) if path.rsplit(".", 1)[-1] == str(key)]
                 close = nested or [prefix + k for k in get_close_matches(str(key), [str(k) for k in defaults], n=3)]
-                hint = f"; did you mean {', '.join(close[:3])}?" if close else (
-                    f"; keys here: {', '.join(map(str, defaults))}" if prefix else "")
-                raise InputError(f"{source}: unknown config key '{name}'{hint}")
+                hint = (f"; did you mean {', '.join(close[:3])}?" if close
+                        else f"; valid: {', '.join(prefix + str(k) for k in defaults)}")
+                raise InputError(f"{source}: unknown {noun} '{name}'{hint}")
             default = defaults[key]
             expected = _kind(default)
             if value is not None and expected is not None and _kind(value) != expected:
                 shown = "" if isinstance(default, dict) else f" (default {default!r})"
-                raise InputError(f"{source}: config key '{name}' takes {expected}{shown}, got {value!r}")
+                raise InputError(f"{source}: {noun} '{name}' takes {expected}{shown}, got {value!r}")
             if isinstance(value, dict) and isinstance(default, dict) and default:
                 walk(default, value, f"{name}.")
 
-    walk(OmegaConf.to_container(base, resolve=False), OmegaConf.to_container(extra, resolve=False), "")
+    def plain(tree):
+        return OmegaConf.to_container(tree, resolve=False) if isinstance(tree, DictConfig) else dict(tree)
+
+    walk(plain(base), plain(extra), "")

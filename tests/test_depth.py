@@ -51,7 +51,7 @@ def test_whole_config_with_overrides_builds_named_source():
 
 
 def test_unknown_option_is_refused():
-    with pytest.raises(InputError, match="scale_sigmaa"):
+    with pytest.raises(InputError, match="unknown option 'scale_sigmaa'; did you mean scale_sigma"):
         make_depth_source("emulated", {"scale_sigmaa": 0.1})
 
 

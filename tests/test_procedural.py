@@ -211,5 +211,5 @@ def test_bad_options_raise_input_error_naming_the_option(option, value):
 
 
 def test_unknown_option_is_rejected():
-    with pytest.raises(InputError, match="unknown option"):
+    with pytest.raises(InputError, match="unknown procedural option 'rooms'; did you mean rooms_min, rooms_max"):
         load_scene("procedural:0?rooms=3")

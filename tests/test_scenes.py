@@ -140,7 +140,7 @@ def test_kth_floorplan_slice_matches_plan_occupancy(shared_data):
     ("missing.glb", "file not found"),
     ("scene.fbx", "unsupported scene format"),
     ("procedural:abc", "seed must be an integer"),
-    ("procedural:1?nonsense=3", "unknown option"),
+    ("procedural:1?nonsense=3", "unknown procedural option 'nonsense'; valid: floors, "),
     ("floorplan:plan.png", "needs its resolution"),
     ("floorplan:plan.png?resolution=-0.1", "positive"),
     ("floorplan:plan.png?resolution=0", "positive"),

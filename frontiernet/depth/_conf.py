@@ -7,7 +7,7 @@ from typing import Any, Mapping
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from ..config import load_config
+from ..config import check_keys, load_config
 from ..errors import InputError
 
 
@@ -25,9 +25,7 @@ def source_conf(name: str, conf: Mapping[str, Any] | DictConfig | None = None) -
         conf = OmegaConf.to_container(conf, resolve=True)
     if not isinstance(conf, Mapping):
         raise InputError(f"depth.{name}: expected a mapping of options, got {type(conf).__name__}")
-    unknown = sorted(set(conf) - set(defaults))
-    if unknown:
-        raise InputError(f"depth.{name}: unknown option(s) {unknown}; valid: {sorted(defaults)}")
+    check_keys(defaults, conf, f"depth.{name}", noun="option")
     try:
         merged = OmegaConf.merge(defaults, OmegaConf.create(dict(conf)))
     except OmegaConfBaseException as error:

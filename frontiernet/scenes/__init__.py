@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
-from ..config import load_config
+from ..config import check_keys, load_config
 from ..errors import InputError
 from .scene import Material, Scene, SceneMetadata
 from .spec import DEFAULT_SPEC, SceneSpec, parse_spec
@@ -18,10 +18,7 @@ __all__ = ["Material", "Scene", "SceneMetadata", "SceneSpec", "load_scene", "par
 def _section(conf: DictConfig | None, source: str, spec: SceneSpec) -> DictConfig:
     conf = conf if conf is not None else load_config("scenes")
     base = conf[source]
-    unknown = sorted(set(spec.options) - set(base.keys()))
-    if unknown:
-        raise InputError(f"scene spec '{spec.text}': unknown option(s) {', '.join(unknown)} "
-                         f"for {source} (valid: {', '.join(base.keys())})")
+    check_keys(base, spec.options, f"scene spec '{spec.text}'", noun=f"{source} option")
     return OmegaConf.merge(base, spec.options)
 
 

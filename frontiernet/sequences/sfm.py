@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
-from ..config import load_config
+from ..config import check_keys, load_config
 from ..errors import InputError
 from .colmap import COLMAP_PIXEL_CENTRE, sequence_from_reconstruction
 from .frames import Camera, Sequence
@@ -39,9 +39,7 @@ def sfm_config(conf=None) -> dict:
     """The ``sfm`` section of ``configs/sequence.yaml`` with `conf` (a mapping) on top; InputError
     for an unknown key or matching mode."""
     options = dict(load_config("sequence")["sfm"])
-    unknown = sorted(set(conf or {}) - set(options))
-    if unknown:
-        raise InputError(f"sfm config: unknown option(s) {', '.join(unknown)} (valid: {', '.join(options)})")
+    check_keys(options, conf or {}, "sfm config", noun="option")
     options.update(conf or {})
     if options["matching"] not in ("auto", "sequential", "exhaustive"):
         raise InputError(f"sfm.matching must be auto, sequential or exhaustive, got {options['matching']!r}")
