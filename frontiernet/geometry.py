@@ -58,6 +58,36 @@ def poses_from_headings(positions: np.ndarray, yaws: np.ndarray, pitches: np.nda
     return T
 
 
+def parse_pose_text(text: str, option: str = "--pose", pitch: bool = True) -> tuple[float, ...]:
+    """``"x,y,z,yaw[,pitch]"`` as typed on a command line -> (x, y, z, yaw, pitch) floats, with
+    angles in radians (pitch 0 when not given), or (x, y, z, yaw) when `pitch` is False.
+
+    Positions are metres in the world frame (Z up). Angles are degrees (``90``, ``90deg``) or
+    radians with a ``rad`` suffix (``1.5708rad``); yaw 0 looks along +x, pitch > 0 looks up and
+    must lie strictly between -90 and 90 degrees. Raises :class:`InputError` naming `option`
+    and the bad part.
+    """
+    form = "x,y,z,yaw[,pitch]" if pitch else "x,y,z,yaw"
+    parts = [part.strip() for part in str(text).split(",")]
+    if len(parts) not in ((4, 5) if pitch else (4,)):
+        raise InputError(f"{option} '{text}': expected {form} (metres; angles in degrees, or radians with 'rad')")
+    values = []
+    for index, part in enumerate(parts):
+        unit = part[-3:].lower() if index >= 3 and part[-3:].lower() in ("deg", "rad") else ""
+        try:
+            value = float(part[:-3] if unit else part)
+        except ValueError:
+            raise InputError(f"{option} '{text}': '{part}' is not a number") from None
+        if not np.isfinite(value):
+            raise InputError(f"{option} '{text}': '{part}' is not finite")
+        values.append(value if index < 3 or unit == "rad" else float(np.radians(value)))
+    if pitch and len(values) == 4:
+        values.append(0.0)
+    if pitch and abs(values[4]) >= np.pi / 2:
+        raise InputError(f"{option} '{text}': pitch must lie strictly between -90 and 90 degrees")
+    return tuple(values)
+
+
 def arc_lengths(points: np.ndarray) -> np.ndarray:
     """(N,) cumulative arc length (metres) along an (N, D) polyline, starting at 0."""
     points = np.asarray(points, np.float64)

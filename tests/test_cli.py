@@ -12,6 +12,7 @@ from PIL import Image
 
 from frontiernet.cli.main import main
 from frontiernet.errors import InputError
+from frontiernet.geometry import parse_pose_text
 
 
 def test_scene_info_reports_bounds_triangles_and_explorable_volume(plan_spec, capsys):
@@ -37,6 +38,20 @@ def test_render_writes_rgb_depth_in_metres_and_camera(plan_spec, tmp_path, capsy
     camera = json.loads((out / "camera.json").read_text())
     assert np.allclose(np.array(camera["T_world_cam"])[:3, 3], [2.0, 1.5, 1.2])
     assert (out / "depth.png").is_file() and (out / "normals.png").is_file()
+
+
+def test_poses_read_the_same_on_every_command():
+    # render's --pose, explore's --start and the benchmark's start poses: degrees unless 'rad'
+    assert parse_pose_text("1,2,1.2,90") == pytest.approx((1, 2, 1.2, np.pi / 2, 0.0))
+    assert parse_pose_text("1,2,1.2,90deg,-10") == pytest.approx((1, 2, 1.2, np.pi / 2, np.radians(-10)))
+    assert parse_pose_text("1,2,1.2,1.5rad, 0.1RAD") == pytest.approx((1, 2, 1.2, 1.5, 0.1))
+    assert parse_pose_text("1,2,1.2,-45", "--start", pitch=False) == pytest.approx((1, 2, 1.2, -np.pi / 4))
+    with pytest.raises(InputError, match="--start '1,2,1.2,0,5': expected x,y,z,yaw "):
+        parse_pose_text("1,2,1.2,0,5", "--start", pitch=False)
+    with pytest.raises(InputError, match="pitch must lie strictly between -90 and 90"):
+        parse_pose_text("1,2,1.2,0,1.6rad")
+    with pytest.raises(InputError, match="'2rad3' is not a number"):
+        parse_pose_text("1,2,1.2,2rad3")
 
 
 @pytest.mark.parametrize("args, message", [

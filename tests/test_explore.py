@@ -296,7 +296,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["--start", "2,2.5,9,0"], "outside the scene"),  # above the walls
     (["--max-steps", "0"], "at least 1"),
     (["--start", "2,2.5,1.2"], "x,y,z,yaw"),
-    (["--start", "2,2.5,abc,0"], "x,y,z,yaw"),
+    (["--start", "2,2.5,abc,0"], "--start '2,2.5,abc,0': 'abc' is not a number"),
     (["--method", "frontiernet", "--model", "{tmp}/missing.safetensors"], "not found"),
     (["--method", "frontiernet", "--model", "{tmp}/corrupt.safetensors"], "corrupt.safetensors"),
     (["--method", "nope"], "df-uniform, discontinuity-gain, discontinuity-uniform"),

@@ -20,7 +20,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--depth", help="depth source: gt, emulated, depth_anything_v2, metric3d_v2 "
                                         "(default: configs/explore.yaml run.depth)")
     parser.add_argument("--max-steps", type=int, help="step budget (default: run.max_steps)")
-    parser.add_argument("--start", help="start pose x,y,z,yaw (metres, degrees; default: sampled with the seed)")
+    parser.add_argument("--start", help="start pose x,y,z,yaw (metres; yaw in degrees, or radians with a "
+                                         "'rad' suffix; default: sampled with the seed)")
     parser.add_argument("--seed", type=int, help="seed (default: run.seed)")
     parser.add_argument("--map-free", action="store_true", help="plan on the frontier tree only (paper Table III)")
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")

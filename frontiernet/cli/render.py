@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import load_config
-from ..errors import InputError
-from ..geometry import pose_from_heading
+from ..geometry import parse_pose_text, pose_from_heading
 
 
 def add_parser(subparsers) -> None:
@@ -18,35 +17,13 @@ def add_parser(subparsers) -> None:
                     "depth.png (coloured, invalid black), normals.png and camera.json (T_world_cam, K).")
     parser.add_argument("spec", metavar="SPEC", help="scene spec (see `frontiernet scene --help`)")
     parser.add_argument("--pose", required=True, metavar="x,y,z,yaw[,pitch]",
-                        help="camera position (metres, world Z-up) and heading; angles in radians, "
-                             "or degrees with a 'deg' suffix (e.g. 90deg); yaw 0 looks along +x, pitch > 0 up")
+                        help="camera position (metres, world Z-up) and heading; angles in degrees, or radians with "
+                             "a 'rad' suffix (e.g. 1.57rad); yaw 0 looks along +x, pitch > 0 up")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--config", help="YAML overriding configs/sim.yaml (camera, voxels)")
     parser.add_argument("--no-check", action="store_true",
                         help="skip the check that the pose lies in the scene's free space")
     parser.set_defaults(func=run)
-
-
-def parse_pose(text: str) -> tuple[float, float, float, float, float]:
-    """``"x,y,z,yaw[,pitch]"`` -> floats; angles in radians or with a ``deg`` suffix."""
-    parts = [part.strip() for part in text.split(",")]
-    if len(parts) not in (4, 5):
-        raise InputError(f"--pose '{text}': expected x,y,z,yaw[,pitch]")
-    values = []
-    for index, part in enumerate(parts):
-        degrees = index >= 3 and part.lower().endswith("deg")
-        try:
-            value = float(part[:-3] if degrees else part)
-        except ValueError:
-            raise InputError(f"--pose '{text}': '{part}' is not a number") from None
-        if not np.isfinite(value):
-            raise InputError(f"--pose '{text}': '{part}' is not finite")
-        values.append(np.radians(value) if degrees else value)
-    if len(values) == 4:
-        values.append(0.0)
-    if abs(values[4]) >= np.pi / 2:
-        raise InputError(f"--pose '{text}': pitch must lie strictly between -90 and 90 degrees")
-    return tuple(values)
 
 
 def run(args) -> int:
@@ -55,7 +32,7 @@ def run(args) -> int:
     from ..simulator.camera import PinholeCamera, Renderer
 
     conf = load_config("sim", args.config)
-    x, y, z, yaw, pitch = parse_pose(args.pose)
+    x, y, z, yaw, pitch = parse_pose_text(args.pose)
     scene = load_scene(args.spec)
     if not args.no_check:
         from ..simulator.poses import check_pose

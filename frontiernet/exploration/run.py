@@ -14,20 +14,9 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from ..errors import InputError
-from ..geometry import pose_from_heading
+from ..geometry import parse_pose_text, pose_from_heading
 
 DEPTH_ALIASES = {"gt": "ground_truth"}
-
-
-def parse_start(text: str) -> tuple[float, float, float, float]:
-    """``"x,y,z,yaw"`` (metres, degrees) -> floats; InputError when malformed."""
-    try:
-        values = [float(v) for v in str(text).split(",")]
-    except ValueError:
-        values = []
-    if len(values) != 4 or not np.isfinite(values).all():
-        raise InputError(f"--start must be x,y,z,yaw (metres, metres, metres, degrees), got {text!r}")
-    return values[0], values[1], values[2], values[3]
 
 
 def depth_source_name(depth: str | None, conf) -> str:
@@ -118,7 +107,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         model: model file of the learned methods (None: the shipped model).
         depth: depth source (``gt`` or a source of ``configs/depth.yaml``; None: ``run.depth``).
         max_steps, seed: override ``run.max_steps`` and ``run.seed``.
-        start: ``"x,y,z,yaw"`` (metres, degrees; None: sampled with the seed).
+        start: ``"x,y,z,yaw"`` (metres; yaw in degrees or with a ``rad`` suffix, see
+            :func:`~frontiernet.geometry.parse_pose_text`; None: sampled with the seed).
         video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
     """
     from ..config import load_config
@@ -149,8 +139,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     if start is None:
         T_start = sample_start(loaded, voxels, conf, rng)
     else:
-        x, y, z, yaw = parse_start(start)
-        T_start = pose_from_heading(x, y, z, np.radians(yaw), np.radians(float(conf.motion.pitch_deg)))
+        x, y, z, yaw = parse_pose_text(start, "--start", pitch=False)
+        T_start = pose_from_heading(x, y, z, yaw, np.radians(float(conf.motion.pitch_deg)))
     depth_source = make_depth_source(depth_name, load_config("depth"))
     depth_source.reset(seed)
     exploration_method = make_method(method, model, loaded, voxels, sim, conf)
