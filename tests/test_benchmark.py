@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from frontiernet.benchmark.plan import scene_key
-from frontiernet.benchmark.report import add_shared_vox, coverage_at, table_markdown, write_report
+from frontiernet.benchmark.report import add_shared_vox, coverage_at, ratio_interval, table_markdown, write_report
 from frontiernet.cli.main import main
+from frontiernet.config import load_config
 
 
 def bench(*args) -> tuple[int, str, str]:
@@ -70,10 +71,29 @@ def test_each_method_is_compared_with_classic_over_paired_runs():
             for (method, scene, start), value in vox25.items()]
     table = table_markdown(rows, ["procedural:1", "house.glb"], ["ours", "classic"])
     versus = next(b for b in table.split("### ") if b.startswith("Against classic (paired runs)"))
-    # procedural: 0.2 / 0.2 with one win and one loss; house: 0.4 / 0.2; all: 0.8 / 0.6 over 3 pairs
-    assert "| ours | 1.00x (1-1) | 1.00x (1-1) | 2.00x (1-0) | 2.00x (1-0) | 1.33x (2-1) | 1.33x (2-1) |" in versus
+    # procedural: 0.2 / 0.2 with one win and one loss; house: 0.4 / 0.2; all: 0.8 / 0.6 over 3 pairs.
+    # Intervals resample (scene, start) clusters: procedural's ends are both draws of one start
+    # (0.1 / 0.2 and 0.3 / 0.2), all scenes' the worst and best start thrice (each 1/27 > 2.5 %);
+    # the house has one cluster, so no interval
+    assert ("| ours | 1.00x [0.50, 1.50] (1-1) | 1.00x [0.50, 1.50] (1-1) | 2.00x (1-0) | 2.00x (1-0) | "
+            "1.33x [0.50, 2.00] (2-1) | 1.33x [0.50, 2.00] (2-1) |") in versus
     assert "| classic |" not in versus
     assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"])  # no reference, no section
+
+
+def test_the_ratio_interval_resamples_starts_and_narrows_with_more_of_them():
+    conf = load_config("bench").report.interval
+    rng = np.random.default_rng(0)
+    theirs = rng.uniform(0.2, 0.4, 60)
+    ours = 1.2 * theirs * rng.normal(1.0, 0.1, 60)
+    starts = [index // 3 for index in range(60)]  # 20 starts x 3 repeats
+    low, high = ratio_interval(ours, theirs, starts, conf)
+    assert low < ours.sum() / theirs.sum() < high and 1.0 < low and high < 1.4
+    few_low, few_high = ratio_interval(ours[:9], theirs[:9], starts[:9], conf)
+    assert few_high - few_low > high - low  # 3 starts say less than 20
+    assert ratio_interval(ours, theirs, starts, conf) == (low, high)  # seeded: a rebuilt report agrees
+    assert ratio_interval(2 * theirs, theirs, starts, conf) == pytest.approx((2.0, 2.0))
+    assert ratio_interval(ours[:3], theirs[:3], starts[:3], conf) is None  # one start: no interval
 
 
 def test_the_report_plots_each_scene_and_the_mean_of_each_source_with_several(tmp_path):
@@ -242,7 +262,6 @@ def test_a_folder_of_floor_plans_is_benchmarked_plan_by_plan(tmp_path):
 
 def test_scene_starts_come_first_from_a_plan_folders_start_poses(tmp_path):
     from frontiernet.benchmark.plan import start_poses
-    from frontiernet.config import load_config
 
     spec = kth_folder(tmp_path, [[30, 30], [30, 70]])
     conf = load_config("explore")

@@ -9,7 +9,8 @@ unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +-
 starts x repeats; the last column is the mean over scenes. The summary at the top has the
 paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
 plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes; then
-every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50, wins and losses).
+every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50 with a cluster
+bootstrap interval, ``configs/bench.yaml``; wins and losses).
 GLEAM's metrics come with each run (:mod:`frontiernet.exploration.surface`): surface coverage
 of Poisson-disk samples of the mesh, its AUC over the budget and the one-way Chamfer distance
 to the robot's map.
@@ -24,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import load_config
 from ..errors import InputError
 from ..io import atomic_write
 from ..scenes.spec import parse_spec
@@ -109,19 +111,47 @@ def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) ->
     return lines
 
 
-def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], reference: str = REFERENCE) -> list[str]:
+def ratio_interval(ours: np.ndarray, theirs: np.ndarray, clusters: list, conf) -> tuple[float, float] | None:
+    """Percentile bootstrap interval of ``sum(ours) / sum(theirs)`` (the ratio of means over
+    paired runs) that resamples whole clusters with replacement (`clusters`: one hashable label
+    per pair, e.g. its (scene, start)); None with fewer than two clusters.
+
+    Args:
+        ours, theirs: (P,) float64 the paired values. conf: ``report.interval`` of
+            ``configs/bench.yaml`` (``confidence``, ``draws``, ``seed``).
+    """
+    labels = {label: index for index, label in enumerate(dict.fromkeys(clusters))}
+    if len(labels) < 2:
+        return None
+    member = np.array([labels[label] for label in clusters])
+    sums = np.stack([np.bincount(member, ours, len(labels)), np.bincount(member, theirs, len(labels))], 1)
+    rng = np.random.default_rng(int(conf.seed))
+    picks = rng.integers(len(labels), size=(int(conf.draws), len(labels)))
+    totals = sums[picks].sum(axis=1)  # (draws, 2)
+    ratios = totals[:, 0] / np.where(totals[:, 1] > 0, totals[:, 1], np.nan)
+    tail = 50.0 * (1.0 - float(conf.confidence))
+    low, high = np.nanpercentile(ratios, [tail, 100.0 - tail])
+    return float(low), float(high)
+
+
+def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], reference: str = REFERENCE,
+                    conf=None) -> list[str]:
     """Each method against `reference` over paired runs (same scene, start and repeat, both
     finished), per scene source and over all scenes: the ratio of their mean Vox@25 and Vox@50
-    (the paper's Table I comparison: FrontierNet / Classic about 1.75 at both) and how many pairs
-    the method covered more (wins) and less (losses). No section unless `reference` is among `methods`."""
+    (the paper's Table I comparison: FrontierNet / Classic about 1.75 at both) with its bootstrap
+    interval over (scene, start) clusters (:func:`ratio_interval`; `conf`: ``configs/bench.yaml``,
+    None: the shipped one), and how many pairs the method covered more (wins) and less (losses).
+    No section unless `reference` is among `methods`."""
     others = [m for m in methods if m != reference]
     if reference not in methods or not others:
         return []
+    interval = (conf if conf is not None else load_config("bench")).report.interval
     by_run = {(r["method"], r["scene"], r["start"], r["repeat"]): r for r in done}
     groups = _source_groups(scenes)
     lines = [f"### Against {reference} (paired runs)", "",
              f"Ratio of mean Vox@25 and Vox@50 to {reference}'s over the runs both finished (same scene, start, "
-             "repeat); in brackets the pairs where the method covered more - less.", "",
+             f"repeat), with its {float(interval.confidence):.0%} bootstrap interval over (scene, start) clusters "
+             "in square brackets; in round brackets the pairs where the method covered more - less.", "",
              "| method | " + " | ".join(f"{name}: Vox@25 | Vox@50" for name in groups) + " |",
              "| --- |" + " --- | --- |" * len(groups)]
     for method in others:
@@ -129,11 +159,17 @@ def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], ref
         for members in groups.values():
             pairs = [(r, by_run[(reference, *key[1:])]) for key, r in by_run.items()
                      if key[0] == method and key[1] in members and (reference, *key[1:]) in by_run]
+            clusters = [(a["scene"], a["start"]) for a, _ in pairs]
             for field in ("vox25_shared", "vox50_shared"):
                 ours = np.array([float(a[field]) for a, _ in pairs])
                 theirs = np.array([float(b[field]) for _, b in pairs])
-                cells.append(f"{ours.mean() / theirs.mean():.2f}x ({(ours > theirs).sum()}-{(ours < theirs).sum()})"
-                             if len(pairs) and theirs.mean() > 0 else "--")
+                if not len(pairs) or theirs.mean() <= 0:
+                    cells.append("--")
+                    continue
+                bounds = ratio_interval(ours, theirs, clusters, interval)
+                shown = f" [{bounds[0]:.2f}, {bounds[1]:.2f}]" if bounds is not None else ""
+                wins, losses = (ours > theirs).sum(), (ours < theirs).sum()
+                cells.append(f"{ours.mean() / theirs.mean():.2f}x{shown} ({wins}-{losses})")
         lines.append(f"| {method} | " + " | ".join(cells) + " |")
     return lines + [""]
 
@@ -231,5 +267,5 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "coverage_at",
-           "SUCCESS_COVERAGE"]
+__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "ratio_interval",
+           "coverage_at", "SUCCESS_COVERAGE"]
