@@ -81,6 +81,25 @@ def test_each_method_is_compared_with_classic_over_paired_runs():
     assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"])  # no reference, no section
 
 
+def test_the_report_gives_the_compute_of_the_runs_made_and_not_of_their_copies():
+    rows = [{"method": "ours", "scene": "house.glb", "start": 0, "repeat": 0, "status": "done", "wall_s": "100",
+             "copy_of": ""},
+            {"method": "ours", "scene": "house.glb", "start": 0, "repeat": 1, "status": "done", "wall_s": "200",
+             "copy_of": ""},
+            {"method": "classic", "scene": "house.glb", "start": 0, "repeat": 0, "status": "done", "wall_s": "36",
+             "copy_of": ""},
+            {"method": "classic", "scene": "house.glb", "start": 0, "repeat": 1, "status": "done", "wall_s": "36",
+             "copy_of": "classic/start0_repeat0"},  # reported from repeat 0, never run
+            {"method": "classic", "scene": "house.glb", "start": 1, "repeat": 0, "status": "failed", "error": "boom", "wall_s": "",
+             "copy_of": ""}]
+    for row in rows:
+        row.update(vox25_shared=0.2, vox50_shared=0.4, vox100=0.6, success=True)
+    compute = next(b for b in table_markdown(rows, ["house.glb"], ["ours", "classic"]).split("### ")
+                   if b.startswith("Compute"))
+    assert "| ours | 2 | 150 | 0.08 |" in compute and "| classic | 1 | 36 | 0.01 |" in compute
+    assert "| all | 3 | 112 | 0.09 |" in compute  # 336 s
+
+
 def test_the_ratio_interval_resamples_starts_and_narrows_with_more_of_them():
     conf = load_config("bench").report.interval
     rng = np.random.default_rng(0)

@@ -10,7 +10,8 @@ starts x repeats; the last column is the mean over scenes. The summary at the to
 paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
 plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes; then
 every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50 with a cluster
-bootstrap interval, ``configs/bench.yaml``; wins and losses).
+bootstrap interval, ``configs/bench.yaml``; wins and losses), and what the runs cost in
+worker-hours (copies of a run excluded).
 GLEAM's metrics come with each run (:mod:`frontiernet.exploration.surface`): surface coverage
 of Poisson-disk samples of the mesh, its AUC over the budget and the one-way Chamfer distance
 to the robot's map.
@@ -174,6 +175,23 @@ def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], ref
     return lines + [""]
 
 
+def compute_markdown(rows: list[dict], methods: list[str]) -> list[str]:
+    """What the finished `rows` cost: per method the runs actually made (a ``copy_of`` row took
+    no time of its own), their mean wall time and their sum, and the total in worker-hours (the
+    sum of each run's ``wall_s``, whatever the number of workers running them side by side)."""
+    made = [r for r in rows if not r.get("copy_of") and r.get("wall_s") not in (None, "")]
+    if not made:
+        return []
+    lines = ["### Compute (runs made, copies excluded)", "", "| method | runs | wall per run (s) | worker-hours |",
+             "| --- | --- | --- | --- |"]
+    for method in methods:
+        seconds = [float(r["wall_s"]) for r in made if r["method"] == method]
+        if seconds:
+            lines.append(f"| {method} | {len(seconds)} | {np.mean(seconds):.0f} | {sum(seconds) / 3600:.2f} |")
+    total = sum(float(r["wall_s"]) for r in made)
+    return lines + [f"| all | {len(made)} | {total / len(made):.0f} | {total / 3600:.2f} |", ""]
+
+
 def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> str:
     """The summary (:func:`summary_markdown`), each method against ``classic``
     (:func:`versus_markdown`), then one Table I per metric: rows methods, columns scenes and
@@ -186,6 +204,7 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
                   "shared among the finished runs of each comparison.", ""]
     lines += summary_markdown(done, scenes, methods)
     lines += versus_markdown(done, scenes, methods)
+    lines += compute_markdown(done, methods)
     for field, title, scale in METRICS:
         lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
                   "| --- |" + " --- |" * (len(names) + 1)]
@@ -268,4 +287,4 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
 
 
 __all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "ratio_interval",
-           "coverage_at", "SUCCESS_COVERAGE"]
+           "compute_markdown", "coverage_at", "SUCCESS_COVERAGE"]
