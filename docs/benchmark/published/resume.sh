@@ -7,6 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 BIN=.venv/bin
+mkdir -p runs
 [ -f runs/shipped.onnx ] || "$BIN/frontiernet" export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
     --format onnx --out runs/shipped.onnx
 KTH=../shared/data/floorplans/kth
