@@ -251,9 +251,9 @@ class Explorer:
                 self._route_failed()  # the frontier-tree edge runs into a mapped obstacle
                 return None
             target = self.motion.towards(T, waypoints[self.waypoint])
-            verdict = self._check_move(T, target)
-            if verdict == "look":  # unknown ahead: face it first, so the camera maps it
-                offset = waypoints[self.waypoint] - T[:2, 3]
+            verdict, look_xy = self._check_move(T, target)
+            if verdict == "look":  # unknown ahead or beside: face it first, so the camera maps it
+                offset = look_xy - T[:2, 3]
                 return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
             if verdict == "fail":
                 self._route_failed()
@@ -291,7 +291,7 @@ class Explorer:
             return pose
         ahead = T[:2, 3] + self.motion.max_translation * np.array([np.cos(self.vacuum_yaw), np.sin(self.vacuum_yaw)])
         target = self.motion.pose(ahead, self.vacuum_yaw)
-        if self._check_move(T, target) == "ok":
+        if self._check_move(T, target)[0] == "ok":
             return target
         self._vacuum_turn()
         return self.motion.turn_to(T, self.vacuum_yaw)[0]
@@ -300,28 +300,44 @@ class Explorer:
         current = yaw_of(self.agent.pose) if self.vacuum_yaw is None else self.vacuum_yaw
         self.vacuum_yaw = wrap_angle(current + float(self.rng.uniform(np.pi / 2, 3 * np.pi / 2)))
 
-    def _check_move(self, T: np.ndarray, target: np.ndarray) -> str:
-        """Whether the map allows the increment to `target`: ``ok`` (a turn, or a move into known
-        free space where an upright cylinder of `body_radius` over the planning band, the
-        planning grid's view of the body, touches no occupied voxel), ``look`` (the
-        target is unknown and the camera does not face it yet) or ``fail`` (occupied, or still
-        unknown when faced). `body_radius` is ``planner.clearance_m`` (kept between route cell
-        centres and occupied voxel centres) less a voxel's half diagonal and a slack for route
-        points between cell centres: a fresh route passes this check on the map it was planned
-        on, and the body checked is at least the agent's."""
+    def _check_move(self, T: np.ndarray, target: np.ndarray) -> tuple[str, np.ndarray | None]:
+        """Whether the map allows the increment to `target` ((4, 4) poses, world frame), with the
+        world point ((2,) xy, metres) to face first when it says ``look``:
+
+        - ``ok``: a turn, or a move into known free space where an upright cylinder of
+          `body_radius` over the planning band (the planning grid's view of the body) touches no
+          occupied voxel and, at the camera's height, no unknown one;
+        - ``look``: the target, or an unknown voxel at the camera's height within the body, has
+          not been faced yet (the camera maps it when it turns there);
+        - ``fail``: occupied, or still unknown once faced.
+
+        `body_radius` is ``planner.clearance_m`` (kept between route cell centres and occupied
+        voxel centres) less a voxel's half diagonal and a slack for route points between cell
+        centres: a fresh route passes the occupied test on the map it was planned on, and the
+        body checked is at least the agent's. The unknown test keeps the body off wall ends the
+        camera never saw (moves along a frontier-tree edge beyond the mapped space pass beside
+        them; walls are no thicker in the map than they are, so nothing else keeps that margin).
+        It looks at the camera's layer only: a voxel there within reach of the body is in the
+        middle of the image once faced, whereas the band's lowest and highest layers lie below
+        and above the field of view that close."""
         from ..mapping import FREE
 
         if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
-            return "ok"
-        if self.map.cylinder_touches_occupied(target[:2, 3], self.body_radius, *self._band()):
-            return "fail"
-        if self.map.state_at(target[None, :3, 3])[0] == FREE:
-            return "ok"
-        return "fail" if self._looked_at(T, target) else "look"
+            return "ok", None
+        xy = target[:2, 3]
+        if self.map.cylinder_touches_occupied(xy, self.body_radius, *self._band()):
+            return "fail", None
+        if self.map.state_at(target[None, :3, 3])[0] != FREE:
+            return ("fail" if self._looked_at(T, xy) else "look"), xy
+        unknown_xy = self.map.nearest_unknown_in_disk(xy, self.body_radius, self.motion.z)
+        if unknown_xy is None:
+            return "ok", None
+        return ("fail" if self._looked_at(T, unknown_xy) else "look"), unknown_xy
 
-    def _looked_at(self, T: np.ndarray, target: np.ndarray) -> bool:
-        """Whether the camera at `T` faces `target` (within a quarter of the field of view)."""
-        offset = target[:2, 3] - T[:2, 3]
+    def _looked_at(self, T: np.ndarray, xy: np.ndarray) -> bool:
+        """Whether the camera at `T` faces world point `xy` ((2,) metres; within a quarter of the
+        field of view)."""
+        offset = np.asarray(xy, np.float64) - T[:2, 3]
         return abs(wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw_of(T))) < np.radians(20.0)
 
     def _blocked(self, xy: np.ndarray) -> bool:

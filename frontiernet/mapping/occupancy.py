@@ -140,19 +140,49 @@ class OccupancyMap:
         voxel (exact disk-square test on the band's occupied columns, over the cylinder's
         footprint only): the planning grid's view
         of a body there, so a move it allows is one the grid could have planned."""
+        xy, radius, lo, window = self._disk_window(xy, radius_m, z_min, z_max, "cylinder_touches_occupied")
+        if window is None:
+            return False
+        occupied = np.any(self._observed[window] & (self._log_odds[window] > self.settings.occupied_threshold), axis=2)
+        return bool(disks_touch_cells(occupied, self.origin[:2] + lo * self.voxel_size, self.voxel_size,
+                                      xy[None], radius)[0])
+
+    def nearest_unknown_in_disk(self, xy: np.ndarray, radius_m: float, z: float) -> np.ndarray | None:
+        """The centre ((2,) float64 world xy, metres) of the unknown voxel nearest to `xy` among those
+        of the layer holding height `z` whose squares overlap the disk of `radius_m` around `xy`
+        ((2,) metres); None when all of them are observed (cells off the grid do not count).
+
+        The explorer's move check asks it at the camera's height: a wall end the camera never saw
+        is unknown, not occupied, and a body passing beside it would touch it."""
+        xy, radius, lo, window = self._disk_window(xy, radius_m, z, z, "nearest_unknown_in_disk")
+        if window is None:
+            return None
+        unknown = ~self._observed[window][:, :, 0]
+        if not unknown.any():
+            return None
+        cells = np.argwhere(unknown)
+        centres = self.origin[:2] + (lo + cells + 0.5) * self.voxel_size
+        gaps = np.maximum(np.abs(centres - xy) - self.voxel_size / 2, 0.0)  # point to each square
+        squared = (gaps ** 2).sum(axis=1)
+        if squared.min() >= radius ** 2:
+            return None
+        return centres[int(np.argmin(squared))]
+
+    def _disk_window(self, xy, radius_m, z_min, z_max, what: str):
+        """Checked (2,) `xy` and `radius_m`, and the index window (a tuple of slices, with its (2,)
+        xy corner index `lo`) of the map columns under the disk over the band's layers; window
+        None when the band misses the grid. A local window: no whole-map slice per query."""
         xy = np.asarray(xy, np.float64).reshape(-1)[:2]
         if xy.shape != (2,) or not np.all(np.isfinite(xy)):
-            raise InputError(f"cylinder_touches_occupied needs a finite (2,) world point, got {xy!r}")
-        radius = positive_number(scalar(radius_m), "cylinder_touches_occupied radius_m", "metres", allow_zero=True)
-        k0, k1 = self._band_layers(z_min, z_max, "cylinder_touches_occupied")
-        if k1 <= k0:
-            return False
+            raise InputError(f"{what} needs a finite (2,) world point, got {xy!r}")
+        radius = positive_number(scalar(radius_m), f"{what} radius_m", "metres", allow_zero=True)
+        k0, k1 = self._band_layers(z_min, z_max, what)
         size, origin = self.voxel_size, self.origin[:2]
         lo = np.clip(np.floor((xy - radius - origin) / size).astype(np.int64), 0, self.shape[:2])
         hi = np.clip(np.floor((xy + radius - origin) / size).astype(np.int64) + 1, 0, self.shape[:2])
-        window = (slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(k0, k1))  # local: no whole-map slice per move
-        occupied = np.any(self._observed[window] & (self._log_odds[window] > self.settings.occupied_threshold), axis=2)
-        return bool(disks_touch_cells(occupied, origin + lo * size, size, xy[None], radius)[0])
+        if k1 <= k0:
+            return xy, radius, lo, None
+        return xy, radius, lo, (slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(k0, k1))
 
     def state_at(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points (metres) -> (N,) int8 :data:`UNKNOWN` / :data:`FREE` / :data:`OCCUPIED`
