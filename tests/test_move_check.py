@@ -1,6 +1,5 @@
 """The explorer's move check (issue 5): a move may not bring the body next to a wall end that the
-camera never saw. Walls are as thick in the map as they are (a hit on a voxel boundary lands
-behind it), so an unseen wall end beside a move is unknown, not occupied: the check has the camera
+camera never saw. Such a wall end is unknown in the map, not occupied: the check has the camera
 look at it first."""
 
 from __future__ import annotations

@@ -315,8 +315,8 @@ class Explorer:
         voxel centres) less a voxel's half diagonal and a slack for route points between cell
         centres: a fresh route passes the occupied test on the map it was planned on, and the
         body checked is at least the agent's. The unknown test keeps the body off wall ends the
-        camera never saw (moves along a frontier-tree edge beyond the mapped space pass beside
-        them; walls are no thicker in the map than they are, so nothing else keeps that margin).
+        camera never saw, which a move along a frontier-tree edge beyond the mapped space may pass
+        close beside (the published benchmark's one collision, docs/benchmark.md).
         It looks at the camera's layer only: a voxel there within reach of the body is in the
         middle of the image once faced, whereas the band's lowest and highest layers lie below
         and above the field of view that close."""

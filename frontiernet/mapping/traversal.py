@@ -27,13 +27,6 @@ _INF = np.inf
 _ENTRY_NUDGE_M = 1e-6
 """Rays starting outside the box begin this far (z-depth, metres) past their entry point,
 so that rounding never puts the first voxel outside the box."""
-_HIT_NUDGE_M = 1e-4
-"""A hit counts this far (z-depth, metres) past its depth, so that a surface lying on a voxel
-boundary is registered in the voxel behind the boundary (the one the surface bounds) and not
-in the free voxel in front of it. Floor plans and procedural scenes put many wall faces
-exactly on the map's boundaries (half the vertices of a KTH plan): without the nudge those
-walls grew one voxel into free space and narrowed doors by up to 0.2 m. 0.1 mm is far above
-float32 depth rounding (~1e-6 m at 3.5 m) and far below a voxel."""
 
 
 @numba.njit(inline="always")
@@ -77,14 +70,11 @@ def _walk(px, py, pz, dx, dy, dz, end, end_is_hit, passed, ends):
     """Walk one ray (voxel units, see :func:`_start`) up to parameter `end`.
 
     Every voxel before the one holding the end point is set in `passed`; the end
-    voxel is set in `ends` when `end_is_hit`, else in `passed`. A hit's end point is taken
-    ``_HIT_NUDGE_M`` further on, so a hit on a voxel boundary falls in the voxel behind it.
-    Stops at the box border. Writers only ever store True, so rays may run in parallel.
+    voxel is set in `ends` when `end_is_hit`, else in `passed`. Stops at the box border.
+    Writers only ever store True, so rays may run in parallel.
     """
     ix, iy, iz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz = _start(px, py, pz, dx, dy, dz)
     shape = passed.shape
-    if end_is_hit:
-        end += _HIT_NUDGE_M
     while _inside(ix, iy, iz, shape):
         if min(tx, ty, tz) >= end:
             if end_is_hit:
