@@ -6,6 +6,12 @@ import contextlib
 import csv
 import io
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -320,3 +326,61 @@ def test_hot_path_benchmarks_keep_their_scene_option_beside_the_exploration_benc
     code, stdout, stderr = bench("map", "--scene", "procedural:0", "--frames", "2", "--views", "2", "--json")
     assert code == 0, stderr
     assert json.loads(stdout)["scene"] == "procedural:0"
+
+
+def _children(pid: int) -> list[int]:
+    """Worker processes (multiprocessing spawn) whose parent is `pid`, from /proc."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            command = (entry / "cmdline").read_bytes()
+        except (OSError, IndexError, ValueError):
+            continue
+        if ppid == pid and b"spawn_main" in command:
+            found.append(int(entry.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads worker processes from Linux's /proc")
+def test_stopping_the_benchmark_with_sigterm_ends_its_workers(plan_spec, tmp_path):
+    """`kill PID` of a running benchmark (SIGTERM to the main process alone) must not leave its
+    workers running their explorations unseen beside the resumed benchmark."""
+    command = [sys.executable, "-m", "frontiernet.cli.main", "bench", "--scenes", plan_spec, "--methods",
+               "classic", "--starts", "2", "--repeats", "1", "--max-steps", "2000", "--workers", "2",
+               "--out", str(tmp_path / "bench")]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    workers = []
+    try:
+        deadline = time.monotonic() + 240
+        while len(workers := _children(process.pid)) < 2 and time.monotonic() < deadline:
+            assert process.poll() is None, process.communicate()[1][-2000:]
+            time.sleep(0.5)
+        assert len(workers) == 2, "the benchmark started no workers"
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=120)
+        assert process.returncode == 130 and "interrupted" in err, err[-2000:]
+        deadline = time.monotonic() + 30
+        while _alive(workers) and time.monotonic() < deadline:
+            time.sleep(0.5)
+        assert not _alive(workers), f"workers still running after the benchmark stopped: {_alive(workers)}"
+    finally:  # a failed check leaves nothing running
+        if process.poll() is None:
+            process.kill()
+        for pid in _alive(workers):
+            os.kill(pid, signal.SIGKILL)
+
+
+def _alive(pids: list[int]) -> list[int]:
+    """The processes of `pids` that still run (neither gone nor zombies)."""
+    alive = []
+    for pid in pids:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue
+        if state != "Z":
+            alive.append(pid)
+    return alive

@@ -11,11 +11,14 @@ other run's, with its own scene, start, repeat and seed.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
 import shutil
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from ..errors import InputError
@@ -170,19 +173,49 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
 
 
 def _run_processes(tasks, settings, workers, rows, bar) -> None:
+    """Runs `tasks` in `workers` spawned processes. When the benchmark is stopped (Ctrl-C, or
+    SIGTERM to this process alone, as ``kill PID`` sends), the workers are ended with it: left
+    running, they would go on with their runs, unseen, beside the resumed benchmark."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     # spawn: torch and Open3D threads in this process must not be forked half-initialised
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {pool.submit(run_one, task, settings): index for index, task in enumerate(tasks)}
-        for future in as_completed(futures):
-            index = futures[future]
-            try:
-                rows[index] = future.result()
-            except Exception as error:  # a worker that died (killed, out of memory)
-                rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
-            bar.advance(rows[index])
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    with _sigterm_as_interrupt():
+        try:
+            futures = {pool.submit(run_one, task, settings): index for index, task in enumerate(tasks)}
+            for future in as_completed(futures):
+                index = futures[future]
+                try:
+                    rows[index] = future.result()
+                except Exception as error:  # a worker that died (killed, out of memory)
+                    rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
+                bar.advance(rows[index])
+        except BaseException:
+            for process in list((getattr(pool, "_processes", None) or {}).values()):  # no public way before 3.14
+                process.terminate()
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+    pool.shutdown(wait=True)
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Within the block, SIGTERM raises KeyboardInterrupt (as Ctrl-C does), so that cleanup runs;
+    the previous handler is restored after. Only the main thread can set handlers: elsewhere
+    (a caller's thread) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _run_ray(tasks, settings, workers, rows, bar) -> None:
