@@ -14,7 +14,7 @@ from frontiernet.config import load_config
 from frontiernet.frontiers.tracking import Frontier
 from frontiernet.geometry import arc_lengths, pose_from_heading
 from frontiernet.mapping import OccupancyMap
-from frontiernet.planning.planner import FrontierPlanner, PlanningGrid, Route, resample_route
+from frontiernet.planning.planner import FrontierPlanner, PlanningGrid, Route, approach_edge, resample_route
 from frontiernet.planning.tree import PoseGraph, edge_points, walk_back
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
@@ -280,6 +280,51 @@ def test_an_edge_passing_closer_to_an_obstacle_than_the_body_radius_counts_as_bl
     for radius, goal in ((0.0, 0), (0.14, 0), (0.22, 1)):
         route = FrontierPlanner(planner_conf(), body_radius_m=radius).best_route(goals, robot, parent, grid=grid)
         assert route.frontier_id == goal, radius
+
+
+def walled_grid() -> PlanningGrid:
+    """An open 6 m grid with a wall along y in [3.0, 3.1) and a post at x in [1.0, 1.2), y in [1.0, 2.6);
+    cells closer than 0.3 m to either are not traversable."""
+    grid = open_grid()
+    grid.occupied = np.zeros(grid.cost.shape, bool)
+    grid.occupied[:, 30] = True
+    grid.occupied[10:12, 10:26] = True
+    near = ndimage.distance_transform_edt(~grid.occupied) * grid.cell_m < 0.3
+    grid.cost[near] = np.inf
+    return grid
+
+
+def test_a_frontier_against_a_wall_is_approached_from_the_nearest_cell_that_sees_it():
+    """A map frontier lies against a wall, and the tree edge from the pose that saw it passes the
+    post: following the edge would fail. The planner approaches it from the nearest reachable cell
+    in sight of it instead, so it is neither left for last nor blacklisted on the spot."""
+    grid = walled_grid()
+    robot = np.array([2.0, 1.5])
+    labels, _ = ndimage.label(np.isfinite(grid.cost))
+    reachable = labels == labels[grid.cell(robot)]  # the wall runs across: its far side is out of reach
+    goal_xy = np.array([0.55, 2.9])  # against the wall, 0.1 m from its face
+    edge, at = approach_edge(goal_xy, grid, reachable, 1.5, 0.1)
+    cell = edge[at]
+    assert at == len(edge) - 1 and reachable[grid.cell(cell)]
+    assert len(edge) == 1  # the robot plans to the cell and looks from there: no line to follow
+    # no reachable cell in sight of the frontier is nearer (brute force over every cell in range)
+    nearest = np.linalg.norm(cell - goal_xy)
+    for other in grid.centres(np.argwhere(reachable)):
+        d = np.linalg.norm(other - goal_xy)
+        if d < nearest - 1e-9:
+            sight = edge_points(goal_xy, other, 0.1)
+            sight = sight[np.linalg.norm(sight - goal_xy, axis=1) > 0.15]
+            assert grid.touches_occupied(sight, 1e-6).any()
+    # beyond the wall nothing reachable sees it (the near side's line of sight crosses the wall)
+    assert approach_edge(np.array([2.0, 3.3]), grid, reachable, 1.5, 0.1) is None
+    # in the planner: the edge from (2.0, 1.5), the pose that saw it, passes the post
+    goal = frontier(0, goal_xy, 10.0, 0)
+    for radius, approached in ((0.0, False), (1.5, True)):
+        planner = FrontierPlanner(planner_conf(approach_radius_m=radius), body_radius_m=0.22)
+        route = planner.best_route([goal], robot, parents(robot), grid=grid)
+        assert route is not None and route.frontier_id == 0
+        beyond = route.waypoints[route.mapped_until:]
+        assert grid.touches_occupied(beyond, 0.22).any() != approached, radius
 
 
 def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_map):

@@ -14,9 +14,11 @@ DESIGN.md item 6, paper III-F. Each planning round:
 A frontier whose route fails (no reachable ``c*``, or the motion along it is blocked) gets a
 failure; after ``max_failures`` it is blacklisted and never chosen again. A frontier whose tree
 edge beyond ``c*`` already brings the body (the explorer's move check) into a mapped obstacle,
-such as a counter the camera saw over, would fail there: it ranks after every frontier with a
-clear edge, and is chosen only when none is left (the robot then goes as near as it can and
-looks, where a noisy depth prior's walls may turn out free).
+such as a counter the camera saw over, would fail there. It is approached instead from the
+reachable cell nearest to it that sees it (:func:`approach_edge`, within
+``planner.approach_radius_m``); failing that, it ranks after every frontier with a clear edge,
+and is chosen only when none is left (the robot then goes as near as it can and looks, where a
+noisy depth prior's walls may turn out free).
 """
 
 from __future__ import annotations
@@ -245,6 +247,7 @@ class FrontierPlanner:
             length = length * grid.cell_m
         spacing = float(self.conf["edge_spacing_m"])
         radius = max(self.body_radius_m, 1e-6)  # 0: the edge point's own cell
+        approach_radius = float(self.conf["approach_radius_m"])
         scored = []
         for frontier in frontiers:
             parent = parent_xy(frontier.parent_pose)
@@ -259,6 +262,12 @@ class FrontierPlanner:
             else:
                 distance = float(np.linalg.norm(frontier.position[:2] - np.asarray(robot_xy)[:2]))
             blocked = bool(at and grid.touches_occupied(edge[:at], radius).any())
+            if blocked and approach_radius > 0:  # a reachable cell that sees the frontier, instead of the edge
+                approach = approach_edge(frontier.position[:2], grid, reachable, approach_radius, spacing)
+                if approach is not None:
+                    (edge, at), blocked = approach, False
+                    if str(self.conf["distance"]) == "path":
+                        distance = float(grid.lookup(length, edge[at][None])[0])
             scored.append(_Candidate(frontier, distance, self.score(frontier, distance), (edge, at), blocked))
 
         def trace(frontier, detail):
@@ -293,6 +302,45 @@ class FrontierPlanner:
             return np.concatenate([back[1:], edge[1:]]), len(back) - 1
 
         return scored, trace
+
+
+def approach_edge(frontier_xy: np.ndarray, grid: PlanningGrid, reachable: np.ndarray, radius_m: float,
+                  spacing_m: float) -> tuple[np.ndarray, int] | None:
+    """Another way to a frontier whose tree edge is blocked: the reachable grid cell nearest to it
+    (within `radius_m`) that sees it, in the form of :func:`walk_back`'s result (an edge and its
+    ``c*`` index), here a one-point edge: the robot plans to that cell and looks from there.
+
+    A cell *sees* the frontier when the straight line from its centre to the frontier, sampled
+    every `spacing_m`, crosses no occupied cell (the frontier's own last 0.15 m excepted: it may
+    lie against a wall). The robot does not walk that line, which may pass a door jamb closer than
+    the grid's paths do. A frontier-tree edge is the line of sight from the pose that registered
+    the frontier, which may have passed over a counter or a jamb's corner that the body cannot.
+
+    Args:
+        frontier_xy: (2,) world metres. grid: the planning grid; reachable: (X, Y) bool, cells the
+            robot can reach on it. radius_m: search radius around the frontier, metres.
+    Returns:
+        ((1, 2) the cell's centre, metres; c* index 0), or None when no reachable cell within
+        `radius_m` sees the frontier.
+    """
+    frontier_xy = np.asarray(frontier_xy, np.float64)
+    lo, hi = grid.cells(np.stack([frontier_xy - radius_m, frontier_xy + radius_m]))
+    lo, hi = np.maximum(lo, 0), np.minimum(hi + 1, reachable.shape)
+    if np.any(hi <= lo) or grid.occupied is None:
+        return None
+    centres = grid.centres(np.argwhere(reachable[lo[0]:hi[0], lo[1]:hi[1]]) + lo)
+    distance = np.linalg.norm(centres - frontier_xy, axis=1)
+    order = np.argsort(distance, kind="stable")
+    centres, distance = centres[order], distance[order]
+    centres, distance = centres[distance <= radius_m], distance[distance <= radius_m]
+    if not len(centres):
+        return None
+    t = np.linspace(0.0, 1.0, int(np.ceil(radius_m / spacing_m)) + 1)  # (K,) along each line
+    lines = frontier_xy + t[None, :, None] * (centres - frontier_xy)[:, None, :]  # (N, K, 2)
+    crossed = grid.touches_occupied(lines.reshape(-1, 2), 1e-6).reshape(len(centres), len(t))
+    crossed &= (t[None, :] * distance[:, None]) > 0.15
+    sees = np.flatnonzero(~crossed.any(axis=1))
+    return (centres[sees[0]][None], 0) if len(sees) else None
 
 
 def resample_route(route: Route, start_xy: np.ndarray, spacing_m: float) -> Route:
