@@ -157,5 +157,12 @@ def disks_touch_cells(mask: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy
     inside = (cells >= 0).all(-1) & (cells[..., 0] < mask.shape[0]) & (cells[..., 1] < mask.shape[1])
     hit = np.zeros(inside.shape, bool)
     hit[inside] = mask[cells[inside][:, 0], cells[inside][:, 1]]
-    gaps = np.maximum(np.abs(origin_xy + (cells + 0.5) * cell_m - xy[:, None, :]) - cell_m / 2, 0.0)  # to each square
-    return (hit & ((gaps ** 2).sum(-1) < radius_m ** 2)).any(axis=1)
+    return (hit & (squared_distance_to_cells(cells, origin_xy, cell_m, xy[:, None, :]) < radius_m ** 2)).any(axis=1)
+
+
+def squared_distance_to_cells(cells: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy: np.ndarray) -> np.ndarray:
+    """Squared distance (metres^2) from world points `xy` (..., 2) to the squares of 2D grid cells
+    `cells` (..., 2) int (cell ``[i, j]`` spans ``origin + [i, i + 1) x [j, j + 1)`` cells, as in
+    :func:`disks_touch_cells`); 0 inside a square. The two broadcast against each other."""
+    gaps = np.maximum(np.abs(origin_xy + (cells + 0.5) * cell_m - xy) - cell_m / 2, 0.0)  # to each square
+    return (gaps ** 2).sum(-1)

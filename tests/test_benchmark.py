@@ -328,19 +328,25 @@ def test_hot_path_benchmarks_keep_their_scene_option_beside_the_exploration_benc
     assert json.loads(stdout)["scene"] == "procedural:0"
 
 
+def _stat(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after the command name (state, parent pid, ...); None if gone."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+
+
 def _children(pid: int) -> list[int]:
     """Worker processes (multiprocessing spawn) whose parent is `pid`, from /proc."""
     found = []
     for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
+        if not entry.name.isdigit() or (fields := _stat(int(entry.name))) is None or int(fields[1]) != pid:
             continue
         try:
-            ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            command = (entry / "cmdline").read_bytes()
-        except (OSError, IndexError, ValueError):
+            if b"spawn_main" in (entry / "cmdline").read_bytes():
+                found.append(int(entry.name))
+        except OSError:
             continue
-        if ppid == pid and b"spawn_main" in command:
-            found.append(int(entry.name))
     return found
 
 
@@ -375,12 +381,4 @@ def test_stopping_the_benchmark_with_sigterm_ends_its_workers(plan_spec, tmp_pat
 
 def _alive(pids: list[int]) -> list[int]:
     """The processes of `pids` that still run (neither gone nor zombies)."""
-    alive = []
-    for pid in pids:
-        try:
-            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-        except (OSError, IndexError):
-            continue
-        if state != "Z":
-            alive.append(pid)
-    return alive
+    return [pid for pid in pids if (fields := _stat(pid)) is not None and fields[0] != "Z"]

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import InputError, positive_number
 from ..io import atomic_write
 from ..simulator.voxels import VoxelGrid
-from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose
+from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
 from .checks import MapSettings, depth_image, finite_number, scalar
 from .traversal import frustum_volume, mark_depth_rays
 
@@ -160,13 +160,11 @@ class OccupancyMap:
         unknown = ~self._observed[window][:, :, 0]
         if not unknown.any():
             return None
-        cells = np.argwhere(unknown)
-        centres = self.origin[:2] + (lo + cells + 0.5) * self.voxel_size
-        gaps = np.maximum(np.abs(centres - xy) - self.voxel_size / 2, 0.0)  # point to each square
-        squared = (gaps ** 2).sum(axis=1)
+        cells = lo + np.argwhere(unknown)
+        squared = squared_distance_to_cells(cells, self.origin[:2], self.voxel_size, xy)
         if squared.min() >= radius ** 2:
             return None
-        return centres[int(np.argmin(squared))]
+        return self.origin[:2] + (cells[int(np.argmin(squared))] + 0.5) * self.voxel_size
 
     def _disk_window(self, xy, radius_m, z_min, z_max, what: str):
         """Checked (2,) `xy` and `radius_m`, and the index window (a tuple of slices, with its (2,)

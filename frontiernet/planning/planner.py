@@ -311,7 +311,7 @@ def approach_edge(frontier_xy: np.ndarray, grid: PlanningGrid, reachable: np.nda
     ``c*`` index), here a one-point edge: the robot plans to that cell and looks from there.
 
     A cell *sees* the frontier when the straight line from its centre to the frontier, sampled
-    every `spacing_m`, crosses no occupied cell (the frontier's own last 0.15 m excepted: it may
+    at most `spacing_m` apart, crosses no occupied cell (the frontier's own last 0.15 m excepted: it may
     lie against a wall). The robot does not walk that line, which may pass a door jamb closer than
     the grid's paths do. A frontier-tree edge is the line of sight from the pose that registered
     the frontier, which may have passed over a counter or a jamb's corner that the body cannot.
@@ -330,11 +330,11 @@ def approach_edge(frontier_xy: np.ndarray, grid: PlanningGrid, reachable: np.nda
         return None
     centres = grid.centres(np.argwhere(reachable[lo[0]:hi[0], lo[1]:hi[1]]) + lo)
     distance = np.linalg.norm(centres - frontier_xy, axis=1)
-    order = np.argsort(distance, kind="stable")
-    centres, distance = centres[order], distance[order]
-    centres, distance = centres[distance <= radius_m], distance[distance <= radius_m]
-    if not len(centres):
+    near = np.flatnonzero(distance <= radius_m)
+    if not len(near):
         return None
+    near = near[np.argsort(distance[near], kind="stable")]  # nearest first
+    centres, distance = centres[near], distance[near]
     t = np.linspace(0.0, 1.0, int(np.ceil(radius_m / spacing_m)) + 1)  # (K,) along each line
     lines = frontier_xy + t[None, :, None] * (centres - frontier_xy)[:, None, :]  # (N, K, 2)
     crossed = grid.touches_occupied(lines.reshape(-1, 2), 1e-6).reshape(len(centres), len(t))
