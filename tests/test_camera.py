@@ -66,6 +66,11 @@ def test_depth_is_z_depth_and_invalid_beyond_range_but_rgb_still_seen():
     centre = (23, 31)
     assert np.isnan(frame.depth[centre]) and frame.hit_mask[centre]
     assert tuple(frame.rgb[centre]) == (200, 50, 50)
+    # hit_depth has no range: what a monocular model sees (the emulated depth source's input)
+    assert frame.hit_depth[centre] == pytest.approx(9.0, abs=1e-4)
+    in_range = np.isfinite(frame.depth)
+    assert np.array_equal(frame.hit_depth[in_range], frame.depth[in_range])
+    assert np.array_equal(np.isfinite(frame.hit_depth), frame.hit_mask)
     far = PinholeCamera(64, 48, 40.0, 40.0, 31.5, 23.5, 20.0)
     frame = Renderer(scene, far).render(pose_from_heading(1.0, 0.0, 1.25, 0.0))
     assert frame.depth[centre] == pytest.approx(9.0, abs=1e-4)
@@ -97,6 +102,7 @@ def test_batched_render_equals_single_renders():
         assert np.array_equal(single.rgb, batch.rgb[i])
         assert np.array_equal(single.depth, batch.depth[i], equal_nan=True)
         assert np.array_equal(single.normals, batch[i].normals)
+        assert np.array_equal(single.hit_depth, batch[i].hit_depth, equal_nan=True)
 
 
 @pytest.mark.parametrize("kwargs", [dict(width=0), dict(fx=-1.0), dict(max_depth=0.0)])

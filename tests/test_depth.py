@@ -87,7 +87,7 @@ def test_emulated_is_deterministic_per_seed_and_seeds_differ():
 
 def test_emulated_global_scale_shows_in_median_ratio():
     gt = np.random.default_rng(1).uniform(1.0, 3.0, (H, W)).astype(np.float32)
-    conf = dict(QUIET, scale_sigma=0.2, edge_band_px=0)
+    conf = dict(QUIET, scale_sigma=0.2, edge_band_px=0, scale_per_frame=False)
     source = make_depth_source("emulated", conf)
     log_scales = []
     for seed in range(40):
@@ -145,11 +145,82 @@ def test_emulated_per_frame_scale_changes_every_frame():
     assert len(medians) == 3
 
 
+def _frame_scales(source, gt, frames):
+    """(frames,) log of the scale each consecutive frame of an episode got (median ratio to `gt`)."""
+    return np.array([np.log(np.median(source.estimate(_rgb(), K, gt) / gt)) for _ in range(frames)])
+
+
+def test_emulated_per_frame_scale_drifts_slowly_and_keeps_its_spread():
+    """Per-frame models' scale wanders with the view but barely moves between consecutive frames
+    (frame_correlation): over many episodes the spread is still scale_sigma."""
+    gt = np.full((H, W), 2.0, np.float32)
+    conf = dict(QUIET, scale_per_frame=True, scale_sigma=0.1, edge_band_px=0)
+    jumps = {}
+    for rho in (0.0, 0.97):
+        source = make_depth_source("emulated", dict(conf, frame_correlation=rho))
+        episodes = []
+        for seed in range(60):
+            source.reset(seed)
+            episodes.append(_frame_scales(source, gt, 30))
+        episodes = np.array(episodes)
+        assert np.std(episodes[:, -1]) == pytest.approx(0.1, rel=0.3)  # stationary: the spread stays
+        jumps[rho] = np.mean(np.abs(np.diff(episodes, axis=1)))
+    assert jumps[0.0] == pytest.approx(0.8 * np.sqrt(2) * 0.1, rel=0.2)  # independent frames
+    assert jumps[0.97] == pytest.approx(0.8 * np.sqrt(2 * 0.03) * 0.1, rel=0.2)  # ~2 %: a TAE of per-frame models
+
+
+def test_emulated_noise_of_consecutive_frames_is_correlated_as_configured():
+    gt = np.full((H, W), 2.0, np.float32)
+    conf = dict(QUIET, noise_sigma=0.05, noise_smooth_px=0.0, edge_band_px=0)
+    for rho in (0.0, 0.9):
+        source = make_depth_source("emulated", dict(conf, frame_correlation=rho))
+        first, second = (source.estimate(_rgb(), K, gt).ravel() - 2.0 for _ in range(2))
+        assert np.corrcoef(first, second)[0, 1] == pytest.approx(rho, abs=0.08)
+
+
+def test_emulated_far_wall_is_far_and_leaves_no_phantom_wall_in_the_map():
+    """A wall 9 m down a corridor, beyond the 3.5 m sensor range: the emulated source degrades its
+    true far depth (the renderer's hit_depth), so the map carves free space to its range and marks
+    no wall there; degrading the range-clipped depth with beyond-range pixels at 3.5 m (the old
+    emulation) put a wall across the corridor at the range limit."""
+    from conftest import box_scene, room_boxes
+
+    from frontiernet.geometry import pose_from_heading
+    from frontiernet.mapping import OccupancyMap
+    from frontiernet.simulator.camera import PinholeCamera, Renderer
+
+    scene = box_scene(*room_boxes(10.0, 2.0, 2.5), "corridor")
+    camera = PinholeCamera(96, 72, 60.0, 60.0, 47.5, 35.5, 3.5)
+    T = pose_from_heading(1.0, 1.0, 1.25, 0.0)
+    frame = Renderer(scene, camera).render(T)
+    centre = (35, 47)
+    assert np.isnan(frame.depth[centre]) and frame.hit_depth[centre] == pytest.approx(9.0, abs=1e-3)
+    source = make_depth_source("emulated")
+    assert source.sees_past_range
+    source.reset(0)
+    far = source.estimate(frame.rgb, frame.K, frame.hit_depth)
+    assert far[centre] > 5.0  # far, wrong by the error model
+
+    def phantom_voxels(depth) -> int:  # occupied voxels in the corridor's open middle, away from walls
+        occupancy = OccupancyMap.from_bounds(np.array([[-0.5, -0.5, -0.5], [10.5, 2.5, 3.0]]))
+        occupancy.integrate(depth, frame.K, T)
+        centres = occupancy.index_to_world(np.argwhere(occupancy.occupied_mask()))
+        middle = (np.abs(centres[:, 1] - 1.0) < 0.6) & (centres[:, 2] > 0.5) & (centres[:, 2] < 2.0)
+        return int(middle.sum())
+
+    assert phantom_voxels(far) == 0
+    old = make_depth_source("emulated", {"fill_depth": 3.5, "scale_per_frame": False, "frame_correlation": 0.0})
+    old.reset(0)
+    assert phantom_voxels(old.estimate(frame.rgb, frame.K, frame.depth)) > 20
+
+
 def test_emulated_bad_config_value_names_key():
     with pytest.raises(InputError, match="fill_invalid"):
         make_depth_source("emulated", {"fill_invalid": "zero"})
     with pytest.raises(InputError, match="scale_sigma"):
         make_depth_source("emulated", {"scale_sigma": -1})
+    with pytest.raises(InputError, match=r"frame_correlation: must be in \[0, 1\)"):
+        make_depth_source("emulated", {"frame_correlation": 1.0})
 
 
 # ---------------------------------------------------------------- Depth Anything V2

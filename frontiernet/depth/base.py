@@ -26,6 +26,10 @@ class DepthSource(ABC):
     name: str = "depth"
     #: True when :meth:`estimate` needs ``gt_depth`` (simulation only).
     requires_ground_truth: bool = False
+    #: True when ``gt_depth`` should reach past the depth sensor's range (every surface hit at any
+    #: distance, NaN only where nothing is hit; the simulator's ``Frame.hit_depth``): a monocular
+    #: model sees far surfaces too. False: the range-limited sensor depth (``Frame.depth``).
+    sees_past_range: bool = False
     #: True when the output depends on the seed given to :meth:`reset` (emulated noise): runs
     #: that differ only in their seed differ.
     seeded: bool = False

@@ -140,7 +140,10 @@ class Explorer:
         """Render at the current pose and update map and frontiers; returns (frame, perception result)."""
         T = self.agent.pose
         frame = self._timed("render", self.renderer.render, T)
-        depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, frame.depth)
+        # a monocular source degrades the depth of every hit, far ones included; the map keeps its range
+        far = self.depth_source.sees_past_range and frame.hit_depth is not None
+        ground_truth = frame.hit_depth if far else frame.depth
+        depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, ground_truth)
         self._timed("map", self._integrate, depth, frame, T)
         if self.method.source is None:
             observations, seen = [], plain_view(frame, depth)

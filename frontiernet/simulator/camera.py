@@ -84,6 +84,9 @@ class Frame:
             there even beyond the depth sensor's range).
         T_world_cam: (4, 4) float64 camera pose.
         K: (3, 3) float64 intrinsics.
+        hit_depth: (H, W) float32 metres, z-depth of every hit at any distance (no
+            sensor range); NaN only where no surface is hit. What a monocular depth
+            model sees (the emulated depth source degrades it); None if not rendered.
     """
 
     rgb: np.ndarray
@@ -92,11 +95,12 @@ class Frame:
     hit_mask: np.ndarray
     T_world_cam: np.ndarray
     K: np.ndarray = field(repr=False)
+    hit_depth: np.ndarray | None = field(default=None, repr=False)
 
     def __getitem__(self, index: int) -> "Frame":
         """The `index`-th frame of a batch."""
         return Frame(self.rgb[index], self.depth[index], self.normals[index], self.hit_mask[index],
-                     self.T_world_cam[index], self.K)
+                     self.T_world_cam[index], self.K, None if self.hit_depth is None else self.hit_depth[index])
 
 
 class _Shader:
@@ -138,19 +142,23 @@ class _Shader:
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
 def _shade_hits(t_hit, prim, bary, face_normals, rays, max_depth, tri_texture, tri_uv, texels,
-                tri_vertex_colored, triangle_colors, background, depth, rgb, normals, hit):  # pragma: no cover
-    """One pass over N rays (N, 6): depth with range limit, texture/colour lookup, normals facing the camera."""
+                tri_vertex_colored, triangle_colors, background, depth, hit_depth, rgb, normals,
+                hit):  # pragma: no cover
+    """One pass over N rays (N, 6): depth with range limit (and without: `hit_depth`), texture/colour
+    lookup, normals facing the camera."""
     invalid = np.uint32(INVALID_ID)
     for i in numba.prange(t_hit.shape[0]):
         p = prim[i]
         if p == invalid:
             hit[i] = False
             depth[i] = np.nan
+            hit_depth[i] = np.nan
             for c in range(3):
                 rgb[i, c] = background[c]
                 normals[i, c] = 0.0
             continue
         hit[i] = True
+        hit_depth[i] = t_hit[i]
         depth[i] = t_hit[i] if t_hit[i] <= max_depth else np.nan
         b1, b2 = bary[i, 0], bary[i, 1]
         if tri_vertex_colored[p]:
@@ -223,6 +231,7 @@ class Renderer:
         B, H, W = len(T), self.camera.height, self.camera.width
         n = H * W
         depth = np.empty((B, n), np.float32)
+        hit_depth = np.empty((B, n), np.float32)
         rgb = np.empty((B, n, 3), np.uint8)
         normals = np.empty((B, n, 3), np.float32)
         hit = np.empty((B, n), bool)
@@ -237,8 +246,8 @@ class Renderer:
                         answer["primitive_uvs"].reshape(m, 2), answer["primitive_normals"].reshape(m, 3),
                         rays, np.float32(self.camera.max_depth), shader.tri_texture,
                         shader.tri_uv, shader.texels, shader.tri_vertex_colored, shader.triangle_colors,
-                        self.background, depth[chunk].reshape(m), rgb[chunk].reshape(m, 3),
-                        normals[chunk].reshape(m, 3), hit[chunk].reshape(m))
+                        self.background, depth[chunk].reshape(m), hit_depth[chunk].reshape(m),
+                        rgb[chunk].reshape(m, 3), normals[chunk].reshape(m, 3), hit[chunk].reshape(m))
         return Frame(rgb=rgb.reshape(B, H, W, 3), depth=depth.reshape(B, H, W),
                      normals=normals.reshape(B, H, W, 3), hit_mask=hit.reshape(B, H, W), T_world_cam=T,
-                     K=self.camera.K)
+                     K=self.camera.K, hit_depth=hit_depth.reshape(B, H, W))
