@@ -17,6 +17,9 @@ def load_train_config(user_file: str | Path | None = None, overrides: Iterable[s
     conf = merge_user(OmegaConf.merge({"model": load_config("model")}, load_config("train")), user_file, overrides)
     if not conf.data.path:
         raise InputError("data.path is not set: give the dataset folder (data.path=DIR)")
+    from .losses import loss_settings
+
+    loss_settings(conf.loss)  # a bad loss option fails here, before any data is read
     return conf
 
 

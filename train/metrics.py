@@ -5,10 +5,11 @@ processes (DDP). Images are (B, H, W); distances in pixels.
 
 - :class:`DistanceError`: mean |D_pred - D| in pixels over all pixels (Table II's DF error)
   and over the band D < r.
-- :class:`GainDice`: hard Dice per gain class over the whole set (argmax vs label), and its
-  mean over the foreground classes 1..K-1 that occur in labels or predictions (our Table II
-  gain Dice; class 0, 90 % of the pixels, would swamp it), and the mean with class 0 included
-  (the paper does not say which it reports).
+- :class:`GainDice`: confusion matrices of the gain classes (argmax vs label) over the whole
+  set, over the labelled band D < r and over the label's frontier pixels F, and from them: hard
+  Dice per class; its macro mean over the classes present with class 0 included (the
+  paper-comparable gain Dice, see docs/model.md) and over the foreground classes 1..K-1 only;
+  the Dice at frontier pixels (where the gain is read); how often the band is one class off.
 - :class:`FrontierCurves`: precision/recall of frontier masks with a 1-pixel tolerance (a
   predicted pixel is right when a label pixel is in its 3 x 3 neighbourhood; a label pixel is
   found when a predicted one is in its 3 x 3 neighbourhood), for the model's ``D_pred < l``
@@ -24,6 +25,7 @@ import torch.nn.functional as F
 from torch import nn
 from torchmetrics import Metric
 
+from frontiernet.frontiers.gain import class_offsets, dice_per_class, mean_dice
 from frontiernet.model import decode_distance
 
 MODEL_THRESHOLDS_PX = (0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
@@ -54,29 +56,52 @@ class DistanceError(Metric):
 
 
 class GainDice(Metric):
-    full_state_update = False
+    """Gain-class agreement, accumulated as (K, K) confusion matrices (rows label, columns
+    prediction) over all pixels, the labelled band D < r and the label's frontier pixels F.
 
-    def __init__(self, num_classes: int):
+    ``update(predicted_class, target_class, distance_px=None, frontier=None)``: (B, H, W) int64
+    classes; the label's D in pixels and F (bool), when given, fill the band and frontier
+    matrices. The scores come from :mod:`frontiernet.frontiers.gain` (the same ones the label
+    consistency check of ``frontiernet datagen consistency`` uses).
+    """
+
+    full_state_update = False
+    REGIONS = ("all", "band", "frontier")
+
+    def __init__(self, num_classes: int, truncation_px: float = 10.0):
         super().__init__()
         self.num_classes = int(num_classes)
-        for name in ("intersection", "predicted", "target"):
-            self.add_state(name, default=torch.zeros(self.num_classes, dtype=torch.float64), dist_reduce_fx="sum")
+        self.truncation_px = float(truncation_px)
+        for region in self.REGIONS:
+            self.add_state(f"confusion_{region}", default=torch.zeros(self.num_classes, self.num_classes,
+                                                                      dtype=torch.float64), dist_reduce_fx="sum")
 
-    def update(self, predicted_class: torch.Tensor, target_class: torch.Tensor) -> None:
+    def _add(self, region: str, predicted: torch.Tensor, target: torch.Tensor) -> None:
         K = self.num_classes
-        self.predicted += torch.bincount(predicted_class.reshape(-1), minlength=K).double()
-        self.target += torch.bincount(target_class.reshape(-1), minlength=K).double()
-        same = predicted_class == target_class
-        self.intersection += torch.bincount(target_class[same], minlength=K).double()
+        counts = torch.bincount((target.reshape(-1) * K + predicted.reshape(-1)).long(), minlength=K * K)
+        getattr(self, f"confusion_{region}").add_(counts.reshape(K, K).double())
+
+    def update(self, predicted_class: torch.Tensor, target_class: torch.Tensor,
+               distance_px: torch.Tensor | None = None, frontier: torch.Tensor | None = None) -> None:
+        self._add("all", predicted_class, target_class)
+        if distance_px is not None:
+            band = distance_px < self.truncation_px
+            self._add("band", predicted_class[band], target_class[band])
+        if frontier is not None:
+            self._add("frontier", predicted_class[frontier], target_class[frontier])
 
     def compute(self) -> dict:
-        total = self.predicted + self.target
-        dice = torch.where(total > 0, 2.0 * self.intersection / total.clamp(min=1), torch.nan)
-        foreground = dice[1:][total[1:] > 0]
-        present = dice[total > 0]
-        return {"gain_dice": float(foreground.mean()) if foreground.numel() else float("nan"),
-                "gain_dice_with_class_0": float(present.mean()) if present.numel() else float("nan"),
-                "gain_dice_per_class": [float(v) for v in dice]}
+        confusion = {region: getattr(self, f"confusion_{region}").cpu().numpy() for region in self.REGIONS}
+        band, at_frontier = class_offsets(confusion["band"]), class_offsets(confusion["frontier"])
+        return {"gain_dice": mean_dice(confusion["all"], include_class_0=False),
+                "gain_dice_with_class_0": mean_dice(confusion["all"], include_class_0=True),
+                "gain_dice_per_class": [float(v) for v in dice_per_class(confusion["all"])],
+                "gain_dice_frontier": mean_dice(confusion["frontier"], include_class_0=True),
+                "gain_band_exact": band["exact"], "gain_band_one_off": band["one_off"],
+                "gain_band_mean_abs_offset": band["mean_abs_offset"],
+                "gain_frontier_exact": at_frontier["exact"], "gain_frontier_one_off": at_frontier["one_off"],
+                "gain_offsets": {"band": band, "frontier": at_frontier},
+                "gain_confusion": {region: matrix.astype(np.int64).tolist() for region, matrix in confusion.items()}}
 
 
 def depth_jump_score(depth: torch.Tensor, min_jump_m: float = 0.1, relative_jump: float = 0.1) -> torch.Tensor:
@@ -180,13 +205,13 @@ class FrontierMetrics(nn.Module):
         super().__init__()
         self.labels = dict(labels_conf)
         self.distance_error = DistanceError(self.labels["truncation_px"])
-        self.gain_dice = GainDice(self.labels["num_classes"])
+        self.gain_dice = GainDice(self.labels["num_classes"], self.labels["truncation_px"])
         self.frontier_curves = FrontierCurves()
 
     def update(self, distance: torch.Tensor, logits: torch.Tensor, batch: dict) -> None:
         predicted_px = decode_distance(distance[:, 0].float(), self.labels)
         self.distance_error.update(predicted_px, batch["distance"])
-        self.gain_dice.update(logits.argmax(1), batch["gain_class"])
+        self.gain_dice.update(logits.argmax(1), batch["gain_class"], batch["distance"], batch["frontier"])
         self.frontier_curves.update(predicted_px, batch["frontier"], batch["depth"])
 
     def compute(self) -> dict:

@@ -95,3 +95,64 @@ def decode_gain(gain_class: np.ndarray, bin_edges, bin_unit_m3: float = 0.01,
         raise InputError(f"gain classes must lie in [0, {len(values) - 1}], got values in "
                          f"[{classes.min()}, {classes.max()}]")
     return values[classes]
+
+
+# -- agreement between two gain-class maps (model vs label, or label vs label) ----------------------
+
+def class_confusion(predicted: np.ndarray, target: np.ndarray, num_classes: int,
+                    mask: np.ndarray | None = None) -> np.ndarray:
+    """(K, K) int64 confusion matrix: row = target class, column = predicted class.
+
+    Args:
+        predicted, target: integer class maps of one shape (any), values in [0, K - 1].
+        mask: optional bool array of that shape: only these pixels count.
+    """
+    predicted, target = np.asarray(predicted).reshape(-1), np.asarray(target).reshape(-1)
+    if mask is not None:
+        keep = np.asarray(mask, bool).reshape(-1)
+        predicted, target = predicted[keep], target[keep]
+    K = int(num_classes)
+    return np.bincount(target.astype(np.int64) * K + predicted, minlength=K * K).reshape(K, K)
+
+
+def dice_per_class(confusion: np.ndarray) -> np.ndarray:
+    """(K,) float64 hard Dice per class from a (K, K) confusion matrix (rows target, columns
+    predicted): ``2 TP / (predicted + target)``; NaN for a class in neither."""
+    confusion = np.asarray(confusion, np.float64)
+    total = confusion.sum(0) + confusion.sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(total > 0, 2.0 * np.diag(confusion) / total, np.nan)
+
+
+def mean_dice(confusion: np.ndarray, include_class_0: bool = True) -> float:
+    """Macro mean of :func:`dice_per_class` over the classes present in the target or the
+    prediction (a class predicted but never labelled scores 0; one in neither is left out,
+    the ``torchmetrics`` macro convention); NaN when no class is present.
+
+    ``include_class_0=True`` over all pixels of a set is this project's paper-comparable gain
+    Dice (docs/model.md says why); ``False`` averages the gain classes 1..K-1 only.
+    """
+    dice = dice_per_class(confusion)
+    dice = dice if include_class_0 else dice[1:]
+    dice = dice[np.isfinite(dice)]
+    return float(dice.mean()) if dice.size else float("nan")
+
+
+def class_offsets(confusion: np.ndarray) -> dict:
+    """How far off the predicted class is, over the pixels of a confusion matrix (the gain
+    classes are ordered bins of volume, so one class off is a near miss).
+
+    Returns ``exact``, ``one_off`` and ``further`` (fractions of the pixels: |predicted -
+    target| = 0, 1, >= 2), ``mean_abs_offset`` (classes) and ``pixels``; NaN without pixels.
+    """
+    confusion = np.asarray(confusion, np.float64)
+    K = confusion.shape[0]
+    offset = np.abs(np.arange(K)[:, None] - np.arange(K)[None, :])
+    pixels = confusion.sum()
+    if pixels == 0:
+        return {"exact": float("nan"), "one_off": float("nan"), "further": float("nan"),
+                "mean_abs_offset": float("nan"), "pixels": 0}
+    return {"exact": float(confusion[offset == 0].sum() / pixels),
+            "one_off": float(confusion[offset == 1].sum() / pixels),
+            "further": float(confusion[offset >= 2].sum() / pixels),
+            "mean_abs_offset": float((confusion * offset).sum() / pixels), "pixels": int(pixels)}
