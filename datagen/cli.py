@@ -7,6 +7,7 @@ point (``frontiernet`` itself never imports ``datagen``).
                       [--workers W] [--backend local|ray] [--seed S] [--resume] [--config FILE]
   frontiernet datagen preview DIR [--n 16] [--out DIR/preview]
   frontiernet datagen bench [--scene SPEC] [--views N]
+  frontiernet datagen consistency --scenes SPEC [SPEC ...] [--views-per-scene N] [--json FILE]
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "datagen", help="generate training data (frontier distance fields, gain classes) from scenes",
         description="Generate a sharded FrontierNet dataset from scenes (DESIGN.md section 3). "
-                    "Subcommands: 'preview DIR' draws contact sheets, 'bench' times one view.")
+                    "Subcommands: 'preview DIR' draws contact sheets, 'bench' times one view, "
+                    "'consistency' measures how well the gain labels agree with themselves.")
     parser.add_argument("--scenes", nargs="+", metavar="SPEC",
                         help="scene specs: files, hm3d:/floorplan: folders, procedural:SEED, seed ranges "
                              "procedural:0-199, quoted globs, folders of scene folders")
@@ -47,6 +49,22 @@ def add_parser(subparsers) -> None:
     bench.add_argument("--views", type=int, default=20, help="views to time (default 20)")
     bench.add_argument("--json", action="store_true", help="print JSON only")
     bench.set_defaults(func=run_bench)
+    consistency = actions.add_parser(
+        "consistency", help="the gain labels' own agreement (resampled gain, nearby views): the ceiling of any Dice",
+        description="Label views as datagen does, then label each view again with a different random "
+                    "generator (the gain is measured at sampled frontier voxels) and label a view a small step "
+                    "away (configs/label_consistency.yaml); report the Dice between the labelings, computed "
+                    "as frontiernet evaluate computes a model's.")
+    consistency.add_argument("--scenes", nargs="+", required=True, metavar="SPEC", help="scene specs (as datagen's)")
+    consistency.add_argument("--views-per-scene", type=int, default=24, metavar="N",
+                             help="views per scene (default 24)")
+    consistency.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    consistency.add_argument("--config", metavar="FILE",
+                             help="YAML overriding sim.yaml, datagen.yaml and label_consistency.yaml")
+    consistency.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                             help="config overrides, e.g. consistency.translation_m=0.2")
+    consistency.add_argument("--json", metavar="FILE", help="also write the figures (confusion matrices too) as JSON")
+    consistency.set_defaults(func=run_consistency)
 
 
 def run_generate(args) -> int:
@@ -119,4 +137,22 @@ def run_bench(args) -> int:
           f"({result['threads']} thread(s) on {result['cores']} core(s))")
     print(f"  scene setup (load, voxels, generator) {result['setup_s']:.2f} s; "
           f"peak memory of this process {result['peak_rss_mb']:.0f} MB")
+    return 0
+
+
+def run_consistency(args) -> int:
+    from rich.progress import Progress
+
+    from frontiernet.io import write_json
+
+    from .consistency import format_consistency, label_consistency, load_consistency_config
+
+    conf = load_consistency_config(args.config, args.set)
+    with Progress(transient=True) as bar:
+        task = bar.add_task("labelling", total=None)
+        result = label_consistency(args.scenes, args.views_per_scene, conf, seed=args.seed,
+                                   progress=lambda done, total: bar.update(task, completed=done, total=total))
+    print(format_consistency(result))
+    if args.json:
+        write_json(args.json, result)
     return 0
