@@ -19,7 +19,6 @@ from frontiernet.errors import InputError
 from frontiernet.model import load_model
 
 from .data import TrainingSamples, open_training_data
-from .transforms import network_batch
 from .metrics import FrontierMetrics, GainDice
 
 
@@ -74,7 +73,6 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
     with torch.inference_mode():
         batches = []
         for batch in loader:
-            batch = network_batch(batch, conf)
             distance, logits = model(batch["image"])
             metrics.update(distance, logits, batch)
             zero_dice.update(torch.zeros_like(batch["gain_class"]), batch["gain_class"], batch["distance"],
