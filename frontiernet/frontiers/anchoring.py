@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import hdbscan
 import numpy as np
 
 from ..errors import InputError
@@ -109,6 +108,8 @@ def cluster_labels(features: np.ndarray, settings: AnchoringSettings, fraction: 
     min_samples = max(1, round(settings.min_samples * fraction))
     if len(features) < max(min_cluster_size, min_samples):
         return np.full(len(features), -1, np.intp)
+    import hdbscan  # here, not at the top: training imports this package (gain classes) without hdbscan
+
     clusterer = hdbscan.HDBSCAN(min_cluster_size=min_cluster_size, min_samples=min_samples,
                                 cluster_selection_epsilon=settings.cluster_selection_epsilon,
                                 allow_single_cluster=settings.allow_single_cluster, metric="euclidean",
