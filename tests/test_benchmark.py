@@ -238,10 +238,39 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
     (["--backend", "slurm"], "--backend must be one of local, ray"),
     (["--scenes", "procedural:9-2"], "seed range must satisfy 0 <= FIRST <= LAST"),
     (["--model", "no/such/model.onnx"], "no/such/model.onnx: model file not found"),  # not a failed run each
+    (["--set", "depth.emulated.fill_dept=20"], "unknown config key 'depth.emulated.fill_dept'"),
+    (["--set", "sim.camera.max_dept=5"], "unknown config key 'sim.camera.max_dept'"),
 ])
 def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, message):
     code, _, stderr = bench("--scenes", plan_spec, "--max-steps", "20", "--out", tmp_path / "b", *args)
     assert code == 2 and message in stderr and stderr.count("\n") == 1
+
+
+def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):
+    """`--set` (and --config) set sim.yaml and depth.yaml keys for the whole benchmark: the plan
+    records them (a resumed benchmark with other values is refused) and every run uses them."""
+    import yaml
+
+    out = tmp_path / "bench"
+    args = ["--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "1", "--max-steps", "4",
+            "--depth", "emulated", "--out", out, "--set", "depth.emulated.scale_per_frame=false",
+            "sim.camera.max_depth=3.0"]
+    code, stdout, stderr = bench(*args)
+    assert code == 0 and "1 runs (0 failed)" in stdout, stderr
+    conf = json.loads((out / "plan.json").read_text())["settings"]["conf"]
+    assert conf["depth"]["emulated"]["scale_per_frame"] is False and conf["sim"]["camera"]["max_depth"] == 3.0
+    used = yaml.safe_load(next((out / "runs").rglob("config.yaml")).read_text())
+    assert used["depth"]["emulated"]["scale_per_frame"] is False and used["sim"]["camera"]["max_depth"] == 3.0
+    code, _, stderr = bench(*args[:-1], "sim.camera.max_depth=2.0")
+    assert code == 2 and "other settings" in stderr and stderr.count("\n") == 1
+    # a plan made before runs had sim and depth sections used the shipped files: it resumes without --set
+    plan = json.loads((out / "plan.json").read_text())
+    for section in ("sim", "depth"):
+        del plan["settings"]["conf"][section]
+    (out / "plan.json").write_text(json.dumps(plan))
+    assert bench(*args)[0] == 2
+    code, stdout, stderr = bench(*args[:-3])
+    assert code == 0 and "1 runs (0 failed)" in stdout, stderr
 
 
 def test_report_of_a_folder_without_a_benchmark_says_so(tmp_path, one_line_error):

@@ -303,6 +303,12 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["planner.mode=bogus"], "planner.mode"),
     (["planner.clearance_m=0.2"], "planner.clearance_m = 0.2 is too small for the agent radius"),
     (["tracking.gain_reduction=sometimes"], "beyond_frame, absolute or none"),
+    # the run's config holds sim.yaml and depth.yaml too: their keys are checked like the others
+    (["--depth", "emulated", "depth.emulated.fill_dept=20"],
+     "override: unknown config key 'depth.emulated.fill_dept'; did you mean depth.emulated.fill_depth"),
+    (["depth.source=emulated"], "unknown config key 'depth.source'"),  # the source is --depth / run.depth
+    (["--depth", "emulated", "depth.emulated.fill_invalid=zero"], "depth.emulated.fill_invalid"),
+    (["sim.camera.max_depth=-1"], "camera max_depth must be positive"),
 ])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
     (tmp_path / "corrupt.safetensors").write_bytes(b"\x08\x00\x00\x00\x00\x00\x00\x00{broken}" + bytes(64))
@@ -314,6 +320,28 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path,
     assert message in stderr and stderr.count("\n") == 1 and "Traceback" not in stderr
     assert stderr.startswith("frontiernet explore: error:")
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_sim_and_depth_keys_reach_the_run_and_its_config_file_repeats_it(plan_spec, tmp_path):
+    """`key=value` sets sim.yaml and depth.yaml keys for one run; config.yaml records the run's
+    whole config, and --config with it gives the same run."""
+    import yaml
+
+    args = explore_args(plan_spec, tmp_path / "a", 4, "--no-video", "--depth", "emulated", "--seed", "3",
+                        "depth.emulated.fill_depth=20", "depth.emulated.scale_per_frame=false",
+                        "sim.camera.max_depth=3.0")
+    code, _, stderr = run_cli(args)
+    assert code == 0, stderr
+    used = yaml.safe_load((tmp_path / "a" / "config.yaml").read_text())
+    assert used["depth"]["emulated"]["fill_depth"] == 20 and used["depth"]["emulated"]["scale_per_frame"] is False
+    assert used["sim"]["camera"]["max_depth"] == 3.0 and used["sim"]["camera"]["width"] == 480
+    assert used["run"] == {**used["run"], "depth": "emulated", "seed": 3, "max_steps": 4}
+    code, _, stderr = run_cli(explore_args(plan_spec, tmp_path / "b", 4, "--no-video", "--config",
+                                           tmp_path / "a" / "config.yaml"))
+    assert code == 0, stderr
+    first, again = load(tmp_path / "a"), load(tmp_path / "b")
+    assert again["depth"] == "emulated" and again["seed"] == 3
+    assert again["coverage_per_step"] == first["coverage_per_step"] and again["start"] == first["start"]
 
 
 @pytest.mark.slow

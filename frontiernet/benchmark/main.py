@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 
 from ..errors import InputError
 from ..exploration.methods import method_names
-from ..exploration.run import depth_source_name
+from ..exploration.run import RUN_SECTIONS, depth_source_name, load_run_config
 from ..io import ensure_dir, write_json
 from ..scenes.spec import expand_specs
 from .plan import MIN_BUDGET, plan_runs
@@ -24,7 +24,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     """Run every method on every scene from shared start poses and write the report to `out`.
 
     Args:
-        conf: ``configs/explore.yaml`` (with the user's overrides); scenes: scene specs,
+        conf: the run config (:func:`~frontiernet.exploration.run.load_run_config`: explore.yaml
+            with sections sim and depth, and the user's overrides); scenes: scene specs,
             expanded as datagen's (``procedural:1000-1009``, globs, a folder of KTH plans or
             HM3D scenes: :func:`~frontiernet.scenes.spec.expand_specs`);
         methods: method names (:mod:`frontiernet.exploration.methods`).
@@ -60,6 +61,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     poses = None
     if plan_path.is_file():  # resuming: the same settings, the same start poses
         previous = json.loads(plan_path.read_text())
+        shipped = OmegaConf.to_container(load_run_config(), resolve=True)
+        for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
+            previous["settings"]["conf"].setdefault(section, shipped[section])
         if previous["settings"] != settings:
             raise InputError(f"{out} holds a benchmark with other settings (budget, seed, model, depth or config); "
                              "use another --out or remove it")

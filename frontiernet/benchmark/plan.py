@@ -74,14 +74,13 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     Raises:
         InputError: an unknown or unreadable scene, or one without free space to start from.
     """
-    from ..config import load_config
     from ..exploration.motion import yaw_of
-    from ..exploration.run import camera_z, start_sampler
+    from ..exploration.run import camera_z, run_section, start_sampler
     from ..scenes import load_scene
     from ..simulator.voxels import voxelize_scene
 
     scene = load_scene(spec)
-    voxels = voxelize_scene(scene, load_config("sim").voxels)
+    voxels = voxelize_scene(scene, run_section(conf, "sim").voxels)
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
     poses = []

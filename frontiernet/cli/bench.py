@@ -76,14 +76,16 @@ def _exploration_options(parser) -> None:
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
     group.add_argument("--model", help="model file of the learned methods (default: the shipped model)")
     group.add_argument("--depth", help="depth source of every run (default: run.depth)")
-    group.add_argument("--config", help="YAML overriding configs/explore.yaml")
-    group.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="config overrides")
+    group.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml and depth.yaml under "
+                                        "sections sim: and depth:")
+    group.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                       help="config overrides, e.g. planner.clearance_m=0.3 depth.emulated.scale_per_frame=false")
 
 
 def run_exploration_benchmark(args) -> int:
     from ..benchmark import main, report
-    from ..config import load_config
     from ..errors import InputError
+    from ..exploration.run import load_run_config
 
     if args.report:
         if not args.out:
@@ -97,7 +99,7 @@ def run_exploration_benchmark(args) -> int:
         raise InputError("give a benchmark (render, map, explore, ...) or --scenes for the exploration benchmark")
     if not args.out:
         raise InputError("the exploration benchmark needs --out DIR")
-    conf = load_config("explore", args.config, args.set)
+    conf = load_run_config(args.config, args.set)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,

@@ -21,13 +21,10 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from omegaconf import OmegaConf
-
-    from ..config import load_config, merge_user
-    from ..exploration.run import main
+    from ..exploration.run import load_run_config, main
     from .explore import summary_line
 
-    conf = merge_user(OmegaConf.merge(load_config("explore"), load_config("demo")), args.config)
+    conf = load_run_config(args.config, names=("explore", "demo"))
     scene = args.scene or str(conf.pop("scene"))
     record = main(conf, scene, args.out, model=args.model, max_steps=args.max_steps)
     print(summary_line(record, args.out))

@@ -27,9 +27,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")
     parser.add_argument("--rerun", action="store_true", help="also write recording.rrd for the Rerun viewer "
                                                              "(needs rerun-sdk)")
-    parser.add_argument("--config", help="YAML overriding configs/explore.yaml")
+    parser.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml and depth.yaml under "
+                                         "sections sim: and depth:")
     parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. planner.clearance_m=0.3")
+    parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. planner.clearance_m=0.3, "
+                                                              "sim.camera.max_depth=5, depth.emulated.fill_depth=20")
     parser.set_defaults(func=run)
 
 
@@ -45,10 +47,9 @@ def summary_line(record: dict, out) -> str:
 
 
 def run(args) -> int:
-    from ..config import load_config
-    from ..exploration.run import main
+    from ..exploration.run import load_run_config, main
 
-    conf = load_config("explore", args.config, args.overrides)
+    conf = load_run_config(args.config, args.overrides)
     if args.map_free:
         conf.planner.mode = "map_free"
     record = main(conf, args.scene, args.out, method=args.method, model=args.model, depth=args.depth,

@@ -18,6 +18,40 @@ from ..geometry import parse_pose_text, pose_from_heading
 
 DEPTH_ALIASES = {"gt": "ground_truth"}
 
+RUN_SECTIONS = ("sim", "depth")
+"""Shipped configs a run's config holds as sections beside ``configs/explore.yaml``'s, so that
+``--config`` and ``key=value`` reach them (``sim.camera.max_depth=5``,
+``depth.emulated.fill_depth=20``)."""
+
+
+def load_run_config(user_file=None, overrides=(), names=("explore",)):
+    """The whole config of an exploration run, resolved once at the top.
+
+    ``configs/<name>.yaml`` of `names` merged in order (``("explore", "demo")``: the demo's keys
+    win), with sections ``sim`` (``configs/sim.yaml``) and ``depth`` (``configs/depth.yaml``, less
+    its ``source`` key: the run's source is ``--depth`` or ``run.depth``), then the user's YAML
+    `user_file` and ``key=value`` `overrides` on top.
+
+    Raises:
+        InputError: an unreadable file, an unknown key (one line naming it) or a value of the
+            wrong kind.
+    """
+    from ..config import load_config, merge_user
+
+    conf = load_config(tuple(names))
+    sections = {section: load_config(section) for section in RUN_SECTIONS}
+    sections["depth"].pop("source")
+    conf = OmegaConf.merge(conf, sections)
+    return merge_user(conf, user_file, overrides)
+
+
+def run_section(conf, section: str):
+    """Section `section` (one of :data:`RUN_SECTIONS`) of a run config; the shipped file when the
+    config has no such section (an ``explore.yaml``-only config)."""
+    from ..config import load_config
+
+    return conf[section] if section in conf else load_config(section)
+
 
 def depth_source_name(depth: str | None, conf) -> str:
     """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``)."""
@@ -99,8 +133,14 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
          rerun: bool = False, progress: bool = True) -> dict:
     """Explore `scene` (a scene spec) and write the run's outputs to `out`; returns the metrics.
 
+    Beside the outputs of :func:`~frontiernet.exploration.outputs.write_run`, ``config.yaml`` holds
+    the run's whole config as used (``run.seed``, ``run.max_steps`` and ``run.depth`` resolved):
+    ``--config config.yaml`` repeats the run.
+
     Args:
-        conf: ``configs/explore.yaml`` (merged with the user's file and overrides).
+        conf: the run's config (:func:`load_run_config`: ``configs/explore.yaml`` with sections
+            ``sim`` and ``depth``, merged with the user's file and overrides; without those
+            sections the shipped sim.yaml and depth.yaml apply).
         method: an exploration method (:mod:`frontiernet.exploration.methods`: ``frontiernet``,
             ``oracle``, the ablations, ``classic``, ``gain-distance``, ``random-frontier``,
             ``vacuum``, plugins).
@@ -111,9 +151,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
             :func:`~frontiernet.geometry.parse_pose_text`; None: sampled with the seed).
         video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
     """
-    from ..config import load_config
     from ..depth import make_depth_source
-    from ..io import ensure_dir
+    from ..io import atomic_write, ensure_dir
     from ..scenes import load_scene
     from ..simulator.camera import PinholeCamera, Renderer
     from ..simulator.voxels import voxelize_scene
@@ -127,9 +166,10 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     if budget < 1:
         raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
     seed = int(conf.run.seed if seed is None else seed)
-    conf = OmegaConf.merge(conf, {"run": {"seed": seed}})  # the explorer's own draws read run.seed
     depth_name = depth_source_name(depth, conf)
-    sim = load_config("sim")
+    # the explorer's own draws read run.seed; config.yaml records what the run used
+    conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
+    sim = run_section(conf, "sim")
     clock = time.perf_counter()
     loaded = load_scene(scene)
     voxels = voxelize_scene(loaded, sim.voxels)
@@ -141,7 +181,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     else:
         x, y, z, yaw = parse_pose_text(start, "--start", pitch=False)
         T_start = pose_from_heading(x, y, z, yaw, np.radians(float(conf.motion.pitch_deg)))
-    depth_source = make_depth_source(depth_name, load_config("depth"))
+    depth_source = make_depth_source(depth_name, run_section(conf, "depth"))
     depth_source.reset(seed)
     exploration_method = make_method(method, model, loaded, voxels, sim, conf)
     renderer = Renderer(loaded, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
@@ -170,6 +210,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
             "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),
             "wall_s": round(time.perf_counter() - clock, 2)}
     record = write_run(out, result, budget, info, explorer.tracker)
+    atomic_write(out / "config.yaml", lambda tmp: tmp.write_text(OmegaConf.to_yaml(conf)))
     if writer is not None:
         record["video"] = str(out / "exploration.mp4")
     if recorder is not None:
