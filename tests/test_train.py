@@ -25,7 +25,8 @@ from frontiernet.model import encode_distance, load_model
 from train.data import split_scenes
 from train.losses import dice_loss, frontier_loss
 from train.metrics import DistanceError, FrontierCurves, GainDice, depth_jump_score
-from train.transforms import horizontal_flip, random_crop, resample_mask, training_sample
+from train.cache import pack_sample, unpack_distance
+from train.transforms import resample_mask, training_item, training_sample
 
 REPO = Path(__file__).resolve().parents[1]
 LABELS = OmegaConf.to_container(load_config("model").labels)
@@ -68,15 +69,24 @@ def test_resampled_labels_are_recomputed_in_pixels_of_the_new_size(tiny_dataset)
 
 def test_flip_and_crop_keep_labels_consistent(tiny_dataset):
     ts = training_sample(frontier_sample(open_dataset(tiny_dataset)), None, LABELS)
-    flipped = horizontal_flip(ts)
-    assert np.allclose(flipped["distance"], distance_field(flipped["frontier"], LABELS["truncation_px"]))
-    assert np.array_equal(flipped["gain_class"][:, ::-1], ts["gain_class"])
-    crop = random_crop(ts, 48, np.random.default_rng(1))
+    view = pack_sample(ts, LABELS["truncation_px"])
+    augment = {**OmegaConf.to_container(load_config("train").augment), "crop_size": 48, "hflip": 1.0}
+    item = training_item(view, augment, np.random.default_rng(1))
     rng = np.random.default_rng(1)
     top, left = int(rng.integers(0, 96 - 48 + 1)), int(rng.integers(0, 96 - 48 + 1))
-    # a crop keeps pixel scale: its distances are the full image's (F outside the crop still counts)
-    assert np.array_equal(crop["distance"], ts["distance"][top:top + 48, left:left + 48])
-    assert np.array_equal(crop["gain_class"], ts["gain_class"][top:top + 48, left:left + 48])
+    window = (slice(top, top + 48), slice(left, left + 48))
+    distance = unpack_distance(item["distance_sq"].numpy(), LABELS["truncation_px"])
+    # a crop keeps pixel scale: its distances are the full image's (F outside the crop still counts),
+    # and a flip mirrors image and labels together
+    assert np.allclose(distance, ts["distance"][window][:, ::-1])
+    assert np.array_equal(item["gain_class"].numpy(), ts["gain_class"][window][:, ::-1])
+    assert np.array_equal(item["rgb"].numpy().transpose(1, 2, 0), ts["rgb"][window][:, ::-1])
+    assert np.allclose(item["depth"].numpy(), ts["depth"][window][:, ::-1], atol=5e-4)
+    frontier = (item["masks"].numpy() & 1) > 0
+    assert np.array_equal(frontier, ts["frontier"][window][:, ::-1])
+    # without augmentation the item is the whole view, unflipped, with neutral jitter
+    plain = training_item(view)
+    assert np.array_equal(plain["gain_class"].numpy(), ts["gain_class"]) and (plain["jitter"] == 1).all()
 
 
 def test_resample_mask_sets_the_pixel_each_centre_falls_in():

@@ -1,4 +1,10 @@
-"""Datasets and the Lightning DataModule over ``datagen.open_dataset``.
+"""Training items and the Lightning DataModule over a ``frontiernet datagen`` dataset.
+
+Training reads the dataset's training cache (:mod:`train.cache`, built on first use): loader
+workers only copy a crop window and draw the view's augmentation factors
+(:func:`train.transforms.training_item`); the per-pixel augmentation and the input normalisation
+run batched on the training device (:func:`train.transforms.network_batch`, the DataModule's
+``on_after_batch_transfer``). ``data.cache: null`` decodes the dataset on every read instead.
 
 The validation split is held out *by scene* (paper: Table II is on validation scenes): no
 view of a validation scene is ever trained on.
@@ -6,6 +12,7 @@ view of a validation scene is ever trained on.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import lightning as L
@@ -15,9 +22,9 @@ from torch.utils.data import DataLoader, Dataset
 
 from datagen import DatasetError, FrontierDataset, open_dataset
 from frontiernet.errors import InputError
-from frontiernet.model import normalise_batch
 
-from .transforms import augment, training_sample
+from .cache import TrainingCache, ensure_cache, pack_sample
+from .transforms import network_batch, training_item, training_sample
 
 
 def split_scenes(scenes: list[str], val_scenes, val_fraction: float, seed: int) -> tuple[list[str], list[str]]:
@@ -46,25 +53,17 @@ def split_scenes(scenes: list[str], val_scenes, val_fraction: float, seed: int) 
     return train, val
 
 
-class TrainingSamples(Dataset):
-    """Training samples of a :class:`datagen.FrontierDataset`, labels at ``size``, augmented or not.
+class _Items(Dataset):
+    """Shared by both sources of training items: per-view random generator and depth prior.
 
-    ``samples[i]`` is a dict of tensors: ``image`` (C, H, W) float32 normalised network input,
-    ``distance`` (H, W) float32 px, ``gain_class`` (H, W) int64, ``frontier`` (H, W) bool,
-    ``depth`` (H, W) float32 metres (0 invalid, before jitter) and ``discontinuity`` (H, W) bool.
-    A `depth_source` (``frontiernet.depth``) replaces the rendered depth before anything else, so
-    the network and the F_d baseline both see that prior (labels stay those of the scene).
-    Augmentation draws from torch's generator (seeded per worker and epoch by the DataLoader,
-    and by ``seed_everything`` in the main process), so a seeded run is reproducible.
+    Augmentation draws from a generator seeded by (seed, index, a draw of torch's generator), and
+    torch's generator is seeded per worker and epoch by the DataLoader (and by ``seed_everything``
+    in the main process), so a seeded run is reproducible. With ``augment.emulated_depth_fraction``,
+    that fraction of views gets the emulated monocular depth of ``configs/depth.yaml`` as its prior.
     """
 
-    def __init__(self, dataset: FrontierDataset, model_conf, size: int | None, augment_conf=None, seed: int = 0,
-                 depth_source=None):
-        self.dataset, self.model_conf, self.size = dataset, model_conf, size
+    def __init__(self, augment_conf=None, seed: int = 0, depth_source=None):
         self.augment_conf, self.seed, self.depth_source = augment_conf, int(seed), depth_source
-
-    def __len__(self) -> int:
-        return len(self.dataset)
 
     def _emulated(self):
         """The emulated monocular depth source of ``configs/depth.yaml`` (made once per process)."""
@@ -75,29 +74,53 @@ class TrainingSamples(Dataset):
             self._emulated_source = make_depth_source("emulated", load_config("depth"))
         return self._emulated_source
 
-    def __getitem__(self, index: int) -> dict:
-        sample = self.dataset[index]
+    def _item(self, view: dict, index: int) -> dict:
         rng = None
         if self.augment_conf is not None:
             rng = np.random.default_rng([self.seed, int(index), int(torch.randint(2**31 - 1, ()))])
         source = self.depth_source
         if source is None and rng is not None and rng.random() < float(self.augment_conf["emulated_depth_fraction"]):
             source = self._emulated()
-        if source is not None:  # e.g. emulated monocular depth in place of the rendered one
+        if source is not None:
             source.reset(self.seed * 1_000_003 + int(index) if rng is None else int(rng.integers(2**31)))
-            sample["depth"] = source.estimate(sample["rgb"], sample["K"], sample["depth"])
-        sample = training_sample(sample, self.size, self.model_conf["labels"])
-        clean_depth = sample["depth"]
-        if rng is not None:
-            sample = augment(sample, self.augment_conf, rng)
-            clean_depth = sample.pop("clean_depth", sample["depth"])
-        inputs = self.model_conf["network"]["inputs"]
-        image = normalise_batch(sample["rgb"][None], sample["depth"][None], inputs, self.model_conf["input"])[0]
-        return {"image": torch.from_numpy(image), "distance": torch.from_numpy(sample["distance"]),
-                "gain_class": torch.from_numpy(sample["gain_class"]),
-                "frontier": torch.from_numpy(sample["frontier"]),
-                "depth": torch.from_numpy(np.ascontiguousarray(clean_depth)),
-                "discontinuity": torch.from_numpy(sample["discontinuity"])}
+        return training_item(view, self.augment_conf, rng, source)
+
+
+class TrainingSamples(_Items):
+    """Training items (:func:`train.transforms.training_item`) decoded from a dataset on every read.
+
+    ``samples[i]``: dataset view i with its labels recomputed at ``size`` (``training_sample``);
+    collate, then :func:`train.transforms.network_batch` makes the network's batch. What
+    ``frontiernet evaluate`` reads, and training with ``data.cache: null``; training otherwise
+    reads :class:`CachedSamples` (the same items, decoded once).
+    """
+
+    def __init__(self, dataset: FrontierDataset, model_conf, size: int | None, augment_conf=None, seed: int = 0,
+                 depth_source=None):
+        super().__init__(augment_conf, seed, depth_source)
+        self.dataset, self.model_conf, self.size = dataset, model_conf, size
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, index: int) -> dict:
+        labels = self.model_conf["labels"]
+        sample = training_sample(self.dataset[index], self.size, labels)
+        return self._item(pack_sample(sample, float(labels["truncation_px"])), index)
+
+
+class CachedSamples(_Items):
+    """Training items read from a :class:`train.cache.TrainingCache` (views `indices` of it)."""
+
+    def __init__(self, cache: TrainingCache, indices, augment_conf=None, seed: int = 0, depth_source=None):
+        super().__init__(augment_conf, seed, depth_source)
+        self.cache, self.indices = cache, np.asarray(indices, np.int64)
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, index: int) -> dict:
+        return self._item(self.cache.view(int(self.indices[index])), index)
 
 
 def open_training_data(path: str | Path) -> FrontierDataset:
@@ -114,20 +137,42 @@ def open_training_data(path: str | Path) -> FrontierDataset:
     return dataset
 
 
-def _limit(dataset: FrontierDataset, limit, seed: int) -> FrontierDataset:
-    """At most `limit` samples, spread over the dataset (a fixed, seeded choice)."""
-    if not limit or len(dataset) <= int(limit):
-        return dataset
+def _limit(indices: list[int], limit, seed: int) -> list[int]:
+    """At most `limit` of `indices`, spread over them (a fixed, seeded choice)."""
+    if not limit or len(indices) <= int(limit):
+        return list(indices)
     rng = np.random.default_rng(seed)
-    return dataset.subset(sorted(rng.choice(len(dataset), size=int(limit), replace=False).tolist()))
+    return [indices[i] for i in sorted(rng.choice(len(indices), size=int(limit), replace=False).tolist())]
+
+
+def view_size(dataset: FrontierDataset) -> int:
+    """The side of a dataset's (square) views, for ``data.image_size: null``."""
+    height, width = (int(dataset.info.get("config", {}).get("camera", {}).get(key, 0)) for key in ("height", "width"))
+    if not height:
+        first = dataset[0]["depth"].shape
+        height, width = first
+    if height != width:
+        raise InputError(f"data.image_size: null keeps the dataset's {width} x {height} views, but training "
+                         f"needs square ones; set data.image_size=PX")
+    return height
+
+
+def worker_count(value) -> int:
+    """``data.num_workers`` / ``data.cache_workers``: a count, or ``auto`` (the machine's cores, at most 16)."""
+    if str(value) == "auto":
+        return min(os.cpu_count() or 1, 16)
+    count = int(value)
+    if count < 0:
+        raise InputError(f"data: worker count must be >= 0 or auto, got {value}")
+    return count
 
 
 class FrontierDataModule(L.LightningDataModule):
     """Train/validation loaders over one dataset folder, split by scene (``train.yaml: data``)."""
 
-    def __init__(self, conf):
+    def __init__(self, conf, progress: bool = True):
         super().__init__()
-        self.conf = conf
+        self.conf, self.progress = conf, progress
         self.train_set = self.val_set = None
         self.train_scenes = self.val_scenes = []
 
@@ -135,17 +180,23 @@ class FrontierDataModule(L.LightningDataModule):
         if self.train_set is not None:
             return
         data, seed = self.conf["data"], int(self.conf["seed"])
+        model_conf, augment_conf = self.conf["model"], self.conf["augment"]
         dataset = open_training_data(data["path"])
         self.train_scenes, self.val_scenes = split_scenes(dataset.scenes, data["val_scenes"],
                                                           float(data["val_fraction"]), seed)
-        train = _limit(dataset.subset(dataset.indices_for_scenes(self.train_scenes)), data["max_train_samples"], seed)
-        val = _limit(dataset.subset(dataset.indices_for_scenes(self.val_scenes)), data["max_val_samples"], seed)
-        size = data["image_size"]
-        self.train_set = TrainingSamples(train, self.conf["model"], size, self.conf["augment"], seed)
-        self.val_set = TrainingSamples(val, self.conf["model"], size, None, seed)
+        train = _limit(dataset.indices_for_scenes(self.train_scenes), data["max_train_samples"], seed)
+        val = _limit(dataset.indices_for_scenes(self.val_scenes), data["max_val_samples"], seed)
+        if not data["cache"]:
+            size = data["image_size"]
+            self.train_set = TrainingSamples(dataset.subset(train), model_conf, size, augment_conf, seed)
+            self.val_set = TrainingSamples(dataset.subset(val), model_conf, size, None, seed)
+            return
+        cache = open_training_cache(data, model_conf, dataset, self.progress)
+        self.train_set = CachedSamples(cache, train, augment_conf, seed)
+        self.val_set = CachedSamples(cache, val, None, seed)
 
-    def _loader(self, samples: TrainingSamples, shuffle: bool) -> DataLoader:
-        workers = int(self.conf["data"]["num_workers"])
+    def _loader(self, samples: Dataset, shuffle: bool) -> DataLoader:
+        workers = worker_count(self.conf["data"]["num_workers"])
         return DataLoader(samples, batch_size=int(self.conf["data"]["batch_size"]), shuffle=shuffle,
                           num_workers=workers, persistent_workers=workers > 0, drop_last=shuffle,
                           pin_memory=torch.cuda.is_available(), worker_init_fn=_one_thread)
@@ -156,6 +207,24 @@ class FrontierDataModule(L.LightningDataModule):
     def val_dataloader(self) -> DataLoader:
         return self._loader(self.val_set, shuffle=False)
 
+    def on_after_batch_transfer(self, batch: dict, dataloader_idx: int) -> dict:
+        """Augment (training batches only) and normalise on the training device."""
+        training = self.trainer is not None and self.trainer.training
+        return network_batch(batch, self.conf["model"], self.conf["augment"] if training else None)
+
+
+def open_training_cache(data_conf, model_conf, dataset: FrontierDataset, progress: bool = True) -> TrainingCache:
+    """The training cache of ``data.path`` at ``data.image_size`` (``data.cache``), built when missing."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    size = int(data_conf["image_size"] or view_size(dataset))
+    columns = (TextColumn("training cache"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, transient=True, disable=not progress) as bar:
+        task = bar.add_task("cache", total=len(dataset))
+        return ensure_cache(data_conf["path"], data_conf["cache"], size, model_conf["labels"],
+                            worker_count(data_conf["cache_workers"]),
+                            lambda done, total: bar.update(task, completed=done, total=total))
+
 
 def _one_thread(worker_id: int) -> None:
-    torch.set_num_threads(1)  # loader workers decode PNGs; the model's threads do the maths
+    torch.set_num_threads(1)  # loader workers copy crops (or decode PNGs); the model's threads do the maths

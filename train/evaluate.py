@@ -20,6 +20,7 @@ from frontiernet.model import load_model
 
 from .data import TrainingSamples, open_training_data
 from .metrics import FrontierMetrics, GainDice
+from .transforms import network_batch
 
 
 def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_scenes: bool = False,
@@ -73,6 +74,7 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
     with torch.inference_mode():
         batches = []
         for batch in loader:
+            batch = network_batch(batch, conf)
             distance, logits = model(batch["image"])
             metrics.update(distance, logits, batch)
             zero_dice.update(torch.zeros_like(batch["gain_class"]), batch["gain_class"], batch["distance"],

@@ -27,6 +27,7 @@ import lightning as L
 import torch
 from lightning.pytorch.callbacks import Callback, LearningRateMonitor, ModelCheckpoint
 from lightning.pytorch.loggers import CSVLogger
+from lightning.fabric.utilities.exceptions import MisconfigurationException
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
@@ -76,6 +77,38 @@ def _initial_weights(conf) -> FrontierNet | None:
     return model
 
 
+def check_loop_settings(conf, train_samples: int) -> None:
+    """Refuse, naming the key, the settings Lightning would only reject with a traceback mid-run."""
+    batch_size = conf.data.batch_size
+    if not isinstance(batch_size, int) or batch_size < 1:
+        raise InputError(f"data.batch_size: must be a whole number >= 1, got {batch_size}")
+    batches = train_samples // batch_size  # the training loader drops the last partial batch
+    if batches < 1:
+        raise InputError(f"data.batch_size: {batch_size} is more than the {train_samples} training views")
+    for key in ("lr", "weight_decay"):
+        value = conf.optim[key]
+        if not isinstance(value, (int, float)) or not value >= (1e-300 if key == "lr" else 0):
+            raise InputError(f"optim.{key}: must be a number {'> 0' if key == 'lr' else '>= 0'}, got {value}")
+    interval = conf.trainer.val_check_interval
+    if isinstance(interval, int) and not isinstance(interval, bool) and not 1 <= interval <= batches \
+            and conf.trainer.check_val_every_n_epoch is not None:
+        raise InputError(f"trainer.val_check_interval: {interval} steps, but an epoch has {batches} batches "
+                         f"({train_samples} views / batch {batch_size}); give at most {batches} or a fraction "
+                         f"of an epoch (e.g. 1.0)")
+    if isinstance(interval, float) and not 0.0 < interval <= 1.0:
+        raise InputError(f"trainer.val_check_interval: a fraction of an epoch must be in (0, 1], got {interval}")
+
+
+def _check_checkpoint(path: str) -> None:
+    """A checkpoint to resume from must load as one (plain data only: no code runs)."""
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
+        raise InputError(f"{path}: not a training checkpoint ({type(error).__name__})") from None
+    if not isinstance(state, dict) or "state_dict" not in state:
+        raise InputError(f"{path}: not a training checkpoint (no state_dict)")
+
+
 def run_dir(conf) -> Path:
     return Path(conf.out) / str(conf.name)
 
@@ -98,15 +131,12 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         raise InputError(f"{resume}: checkpoint to resume from not found")
     elif resume is None and last.exists():
         raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
-    if resume is not None and (out / "metrics.csv").is_file():
-        # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
-        part = 1 + len(list(out.glob("metrics-part*.csv")))
-        (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
+    if resume is not None:
+        _check_checkpoint(resume)
     init = _initial_weights(conf) if resume is None else None
-    datamodule = FrontierDataModule(conf)
+    datamodule = FrontierDataModule(conf, progress)
     datamodule.setup()
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
+    check_loop_settings(conf, len(datamodule.train_set))
 
     L.seed_everything(int(conf.seed), workers=True, verbose=False)
     if conf.trainer.threads:
@@ -125,9 +155,19 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
                                 every_n_epochs=int(conf.trainer.checkpoint_every_n_epochs),
                                 save_on_train_epoch_end=True)
     callbacks = [best, periodic, epoch_end, LastCheckpoint(last), LearningRateMonitor("step")]
-    trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
-                        logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
-                        enable_model_summary=False, deterministic=False)
+    try:
+        trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
+                            logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
+                            enable_model_summary=False, deterministic=False)
+    except (ValueError, TypeError, ImportError, MisconfigurationException) as error:
+        raise InputError(f"trainer: {str(error).splitlines()[0]}") from None
+    # every check passed: only now is anything written to the run folder
+    if resume is not None and (out / "metrics.csv").is_file():
+        # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
+        part = 1 + len(list(out.glob("metrics-part*.csv")))
+        (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
     started = time.time()
     try:
         trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code

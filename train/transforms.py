@@ -73,60 +73,105 @@ def training_sample(sample: dict, size: int | None, labels_conf) -> dict:
             "distance": distance.astype(np.float32), "gain_class": gain_class, "discontinuity": discontinuity}
 
 
-def random_crop(sample: dict, crop: int, rng: np.random.Generator) -> dict:
-    """The same random ``crop x crop`` window of every array of a training sample."""
-    height, width = sample["depth"].shape
-    if crop >= min(height, width):
-        return sample
-    top, left = int(rng.integers(0, height - crop + 1)), int(rng.integers(0, width - crop + 1))
-    return {key: np.ascontiguousarray(value[top:top + crop, left:left + crop]) for key, value in sample.items()}
+JITTER_NAMES = ("brightness", "contrast", "saturation", "gamma", "depth_scale")
+"""Per-view augmentation factors, in the order of a training item's ``jitter`` vector."""
 
 
-def horizontal_flip(sample: dict) -> dict:
-    """Mirror every array left-right (both heads' labels flip with the image)."""
-    return {key: np.ascontiguousarray(value[:, ::-1]) for key, value in sample.items()}
+def _draw_jitter(conf, rng: np.random.Generator | None) -> np.ndarray:
+    """(5,) float32 factors (``JITTER_NAMES``): photometric ones uniform in ``[1 - a, 1 + a]`` for
+    ``a = conf.<name>``, the depth prior's global scale ``exp(N(0, conf.depth_scale_sigma))``
+    (a monocular model's scale error); all 1 without augmentation."""
+    factors = np.ones(len(JITTER_NAMES), np.float32)
+    if rng is None:
+        return factors
+    for i, name in enumerate(JITTER_NAMES[:4]):
+        amount = float(conf[name])
+        factors[i] = rng.uniform(1.0 - amount, 1.0 + amount) if amount > 0 else 1.0
+    factors[4] = np.exp(rng.normal(0.0, float(conf["depth_scale_sigma"])))
+    return factors
 
 
-def photometric(rgb: np.ndarray, conf, rng: np.random.Generator) -> np.ndarray:
-    """Brightness, contrast, saturation and gamma jitter of an (H, W, 3) uint8 image.
+def training_item(view: dict, augment_conf=None, rng: np.random.Generator | None = None,
+                  depth_source=None) -> dict:
+    """One loader item from a view's cache arrays (``train.cache.pack_sample`` layout, full size).
 
-    Each factor is drawn uniformly in ``[1 - a, 1 + a]`` for ``a = conf.<name>``; labels are
-    unchanged (they depend on geometry only).
+    With `rng` (training): a random ``augment_conf.crop_size`` window (pixel scale kept: D near a
+    crop border still counts F outside it), a horizontal flip with probability
+    ``augment_conf.hflip`` (both heads' labels flip with the image), and the view's jitter factors;
+    the per-pixel part of the augmentation runs batched on the training device
+    (:func:`network_batch`). `view` may hold memory-mapped arrays: only the window is read.
+    `depth_source` (``frontiernet.depth``, e.g. emulated monocular depth) replaces the depth prior of
+    the window (labels stay the scene's).
+
+    Returns a dict of tensors (h, w = the window): ``rgb`` (3, h, w) uint8, ``depth`` (h, w) float32
+    metres (0 invalid), ``distance_sq``, ``gain_class``, ``masks`` (h, w) uint8 (cache encoding),
+    ``jitter`` (5,) float32.
     """
-    image = rgb.astype(np.float32) / 255.0
+    import torch
 
-    def factor(amount: float) -> float:
-        return float(rng.uniform(1.0 - amount, 1.0 + amount)) if amount > 0 else 1.0
+    height, width = view["depth_mm"].shape
+    rows, cols, flip = slice(None), slice(None), False
+    if rng is not None:
+        crop = augment_conf["crop_size"]
+        if crop and int(crop) < min(height, width):
+            crop = int(crop)
+            top, left = int(rng.integers(0, height - crop + 1)), int(rng.integers(0, width - crop + 1))
+            rows, cols = slice(top, top + crop), slice(left, left + crop)
+        flip = bool(rng.random() < float(augment_conf["hflip"]))
 
-    image = image * factor(float(conf["brightness"]))
-    mean = image.mean()
-    image = (image - mean) * factor(float(conf["contrast"])) + mean
-    grey = image.mean(axis=2, keepdims=True)
-    image = (image - grey) * factor(float(conf["saturation"])) + grey
-    image = np.clip(image, 0.0, 1.0) ** factor(float(conf["gamma"]))
-    return (image * 255.0 + 0.5).astype(np.uint8)
+    def window(array: np.ndarray) -> np.ndarray:  # a copy: `array` may be a read-only memory map
+        part = array[rows, cols]
+        return np.array(part[:, ::-1] if flip else part, order="C")
+
+    rgb = window(view["rgb"])
+    depth = window(view["depth_mm"]).astype(np.float32) * np.float32(1e-3)
+    if depth_source is not None:
+        estimate = depth_source.estimate(rgb, None, np.where(depth > 0, depth, np.nan))
+        depth = invalid_to_zero(estimate)
+    item = {"rgb": np.ascontiguousarray(rgb.transpose(2, 0, 1)), "depth": depth,
+            "distance_sq": window(view["distance_sq"]), "gain_class": window(view["gain_class"]),
+            "masks": window(view["masks"]), "jitter": _draw_jitter(augment_conf, rng)}
+    return {key: torch.from_numpy(value) for key, value in item.items()}
 
 
-def depth_jitter(depth: np.ndarray, conf, rng: np.random.Generator) -> np.ndarray:
-    """A depth prior as a monocular model would give it: a global log-normal scale error and
-    multiplicative per-pixel noise (``conf.depth_scale_sigma``, ``conf.depth_noise_sigma``)."""
-    valid = depth > 0
-    scale = float(np.exp(rng.normal(0.0, float(conf["depth_scale_sigma"]))))
-    noise_sigma = float(conf["depth_noise_sigma"])
-    noise = 1.0 + rng.normal(0.0, noise_sigma, depth.shape).astype(np.float32) if noise_sigma > 0 else 1.0
-    return np.where(valid, depth * scale * noise, 0.0).astype(np.float32)
+def network_batch(batch: dict, model_conf, augment_conf=None) -> dict:
+    """The training batch of a collated batch of :func:`training_item`, on the batch's device.
 
+    Augmentation (with `augment_conf`): each view's brightness, contrast, saturation and gamma
+    factors on its RGB in [0, 1] (clipped before the gamma), its depth-prior scale, and
+    multiplicative per-pixel depth noise ``N(0, augment_conf.depth_noise_sigma)`` drawn from torch's
+    generator (seeded by ``seed_everything``). Then the network's normalisation
+    (``frontiernet.model.normalise_images``).
 
-def augment(sample: dict, conf, rng: np.random.Generator) -> dict:
-    """Crop, flip, photometric and depth jitter of a training sample (``train.yaml: augment``).
+    Returns ``image`` (B, C, h, w) float32, ``distance`` (B, h, w) float32 px, ``gain_class``
+    (B, h, w) int64, ``frontier`` and ``discontinuity`` (B, h, w) bool, ``depth`` (B, h, w) float32
+    metres before jitter (the F_d baseline of the metrics reads it).
+    """
+    import torch
 
-    The depth before jitter is kept as ``clean_depth`` (the F_d baseline of the metrics uses it)."""
-    if conf["crop_size"]:
-        sample = random_crop(sample, int(conf["crop_size"]), rng)
-    if rng.random() < float(conf["hflip"]):
-        sample = horizontal_flip(sample)
-    sample = dict(sample)
-    sample["rgb"] = photometric(sample["rgb"], conf, rng)
-    sample["clean_depth"] = sample["depth"]
-    sample["depth"] = depth_jitter(sample["depth"], conf, rng)
-    return sample
+    from frontiernet.model import normalise_images
+
+    from .cache import DISCONTINUITY_BIT, FRONTIER_BIT, unpack_distance
+
+    inputs = model_conf["network"]["inputs"]
+    rgb = batch["rgb"].float() / 255.0
+    depth = batch["depth"].float()
+    prior = depth
+    if augment_conf is not None:
+        factor = batch["jitter"].float()[:, :, None, None, None]  # (B, 5, 1, 1, 1)
+        rgb = rgb * factor[:, 0]
+        mean = rgb.mean(dim=(1, 2, 3), keepdim=True)
+        rgb = (rgb - mean) * factor[:, 1] + mean
+        grey = rgb.mean(dim=1, keepdim=True)
+        rgb = (rgb - grey) * factor[:, 2] + grey
+        rgb = rgb.clamp(0.0, 1.0) ** factor[:, 3]
+        prior = depth * factor[:, 4, 0]
+        sigma = float(augment_conf["depth_noise_sigma"])
+        if sigma > 0:
+            prior = prior * (1.0 + sigma * torch.randn_like(prior))
+        prior = torch.where(depth > 0, prior, torch.zeros_like(prior))
+    masks = batch["masks"]
+    return {"image": normalise_images(rgb, prior, inputs, model_conf["input"]),
+            "distance": unpack_distance(batch["distance_sq"], float(model_conf["labels"]["truncation_px"])),
+            "gain_class": batch["gain_class"].long(), "frontier": (masks & FRONTIER_BIT) > 0,
+            "discontinuity": (masks & DISCONTINUITY_BIT) > 0, "depth": depth}

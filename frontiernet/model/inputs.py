@@ -105,15 +105,30 @@ def network_input(rgb: np.ndarray | None, depth: np.ndarray | None, inputs: str,
 
 def normalise_batch(rgb: np.ndarray | None, depth: np.ndarray | None, inputs: str, input_conf) -> np.ndarray:
     """(B, C, H, W) float32 from (B, H, W, 3) uint8 RGB and (B, H, W) float depth (unchecked)."""
+    rgb01 = None if rgb is None else torch.from_numpy(np.ascontiguousarray(rgb)).permute(0, 3, 1, 2).float() / 255.0
+    depth = None if depth is None else torch.from_numpy(np.asarray(depth, np.float32))
+    return np.ascontiguousarray(normalise_images(rgb01, depth, inputs, input_conf).numpy())
+
+
+def normalise_images(rgb: torch.Tensor | None, depth: torch.Tensor | None, inputs: str, input_conf) -> torch.Tensor:
+    """(B, C, H, W) float32 network input, on the inputs' device (training normalises on the GPU).
+
+    Args:
+        rgb: (B, 3, H, W) float RGB in [0, 1] (ignored for depth-only models).
+        depth: (B, H, W) float metres, 0 = invalid (ignored for RGB-only models).
+        inputs: ``rgbd`` | ``rgb`` | ``depth``.
+        input_conf: the ``input`` section of ``configs/model.yaml``: RGB ``(x - rgb_mean) / rgb_std``
+            (ImageNet statistics), depth ``clip(d, 0, max_depth_m) / max_depth_m``.
+    """
     channels = []
     if inputs in ("rgbd", "rgb"):
-        mean = np.asarray(input_conf["rgb_mean"], np.float32)
-        std = np.asarray(input_conf["rgb_std"], np.float32)
-        channels.append(((rgb.astype(np.float32) / 255.0 - mean) / std).transpose(0, 3, 1, 2))
+        mean = torch.tensor(input_conf["rgb_mean"], dtype=torch.float32, device=rgb.device)[:, None, None]
+        std = torch.tensor(input_conf["rgb_std"], dtype=torch.float32, device=rgb.device)[:, None, None]
+        channels.append((rgb.float() - mean) / std)
     if inputs in ("rgbd", "depth"):
         max_depth = float(input_conf["max_depth_m"])
-        channels.append((np.clip(depth, 0.0, max_depth) / max_depth)[:, None].astype(np.float32))
-    return np.ascontiguousarray(np.concatenate(channels, axis=1), dtype=np.float32)
+        channels.append((depth.float().clamp(0.0, max_depth) / max_depth)[:, None])
+    return torch.cat(channels, dim=1).contiguous()
 
 
 def encode_distance(distance_px: torch.Tensor, labels_conf) -> torch.Tensor:

@@ -1,0 +1,323 @@
+"""The training cache: a dataset's training samples at the training resolution, decoded once.
+
+A ``frontiernet datagen`` dataset stores 480 px views as PNGs and bit-packed masks in zip
+shards; turning one into a 320 px training sample (decode, resample F, exact distance
+transform, gain band) costs ~28 ms of a core. The cache does that once per view and keeps the
+result as fixed-size arrays in ``.npy`` files, memory-mapped by every loader worker: a training
+crop is then five window copies, no decoding, and the OS page cache shares the bytes between
+workers. Plain ``.npy`` needs nothing but numpy on a GPU node and is random-access by index;
+streaming formats (WebDataset, LitData) pay off for data on object stores or larger than a node's
+disk and memory, which a 15k-view cache (~11 GB at 320 px) is not.
+
+Layout of a cache folder (``S`` = training size, ``N`` = views of the dataset, in its order)::
+
+    cache.json        format, version, size, labels, the dataset's fingerprint, N, scene per view
+    rgb.npy           (N, S, S, 3) uint8
+    depth_mm.npy      (N, S, S) uint16 millimetres, 0 = invalid
+    distance_sq.npy   (N, S, S) uint8: D^2 in px^2 below the truncation r, 255 where D = r
+                      (D is a distance between pixel centres, so D^2 < r^2 is an integer: exact)
+    gain_class.npy    (N, S, S) uint8
+    masks.npy         (N, S, S) uint8: bit 0 frontier F, bit 1 depth discontinuity F_d
+
+A cache is built in ``<folder>.partial/`` (resumable: views done so far are recorded in
+``progress.npy`` every few seconds) and renamed into place when complete, so a finished folder
+is always whole. Opening checks it against its dataset (``dataset.json`` and the shards' names,
+sizes and view counts) and the training config (size, label encoding): a mismatch, or a
+truncated array, is an :class:`InputError` naming the file; nothing is rebuilt over it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from frontiernet.errors import InputError
+from frontiernet.io import write_json
+
+log = logging.getLogger(__name__)
+
+CACHE_FORMAT = "frontiernet-training-cache"
+CACHE_VERSION = 1
+INFO_NAME = "cache.json"
+PROGRESS_NAME = "progress.npy"
+TRUNCATED = 255
+"""``distance_sq`` value of a pixel at the truncation distance (D = r)."""
+FRONTIER_BIT, DISCONTINUITY_BIT = 1, 2
+
+
+def array_specs(size: int) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """Per-view shape and dtype of each cache array at training size `size`."""
+    return {"rgb": ((size, size, 3), np.dtype(np.uint8)), "depth_mm": ((size, size), np.dtype(np.uint16)),
+            "distance_sq": ((size, size), np.dtype(np.uint8)), "gain_class": ((size, size), np.dtype(np.uint8)),
+            "masks": ((size, size), np.dtype(np.uint8))}
+
+
+def label_encoding(labels_conf) -> dict:
+    """The parts of ``model.labels`` that a cache's labels depend on (plain values)."""
+    return {"truncation_px": float(labels_conf["truncation_px"]), "num_classes": int(labels_conf["num_classes"]),
+            "bin_edges": [float(edge) for edge in labels_conf["bin_edges"]],
+            "bin_unit_m3": float(labels_conf["bin_unit_m3"])}
+
+
+def pack_sample(sample: dict, truncation_px: float) -> dict[str, np.ndarray]:
+    """Cache arrays (module docstring) of one training sample (``train.transforms.training_sample``)."""
+    distance = sample["distance"]
+    distance_sq = np.where(distance >= truncation_px, TRUNCATED, np.rint(np.square(distance)))
+    masks = sample["frontier"].astype(np.uint8) * FRONTIER_BIT | sample["discontinuity"].astype(np.uint8) * DISCONTINUITY_BIT
+    return {"rgb": sample["rgb"], "depth_mm": np.rint(sample["depth"] * 1000.0).clip(0, 65535).astype(np.uint16),
+            "distance_sq": distance_sq.astype(np.uint8), "gain_class": sample["gain_class"].astype(np.uint8),
+            "masks": masks}
+
+
+def unpack_distance(distance_sq, truncation_px: float):
+    """D in pixels (float32, numpy array or torch tensor) from ``distance_sq`` values."""
+    if isinstance(distance_sq, np.ndarray):
+        distance = np.sqrt(distance_sq.astype(np.float32))
+        return np.where(distance_sq == TRUNCATED, np.float32(truncation_px), distance)
+    distance = distance_sq.float().sqrt()
+    return distance.masked_fill(distance_sq == TRUNCATED, float(truncation_px))
+
+
+def dataset_fingerprint(root: Path) -> str:
+    """SHA-256 of a dataset folder's ``dataset.json`` and its shards' names, sizes and view counts.
+
+    A regenerated dataset changes it (new config or seed, other shards); reading it opens no
+    shard's contents beyond what ``open_dataset`` reads anyway."""
+    from datagen.dataset import open_dataset
+
+    digest = hashlib.sha256()
+    info_file = root / "dataset.json"
+    digest.update(info_file.read_bytes() if info_file.is_file() else b"")
+    dataset = open_dataset(root)
+    for shard, meta in zip(dataset.shards, dataset._metas):
+        digest.update(f"{shard.name}:{shard.stat().st_size}:{len(meta['samples'])};".encode())
+    return digest.hexdigest()
+
+
+def default_cache_dir(dataset_root: Path, size: int, labels_conf) -> Path:
+    """``<dataset>/cache/<S>px-<hash of the label encoding>``: one cache per size and encoding."""
+    key = hashlib.sha256(json.dumps(label_encoding(labels_conf), sort_keys=True).encode()).hexdigest()[:8]
+    return Path(dataset_root) / "cache" / f"{int(size)}px-{key}"
+
+
+@dataclass
+class TrainingCache:
+    """An open cache: memory-mapped arrays (read-only) and one scene spec per view."""
+
+    path: Path
+    size: int
+    labels: dict
+    scenes: list[str]
+    arrays: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.scenes)
+
+    def view(self, index: int) -> dict[str, np.ndarray]:
+        """The cache arrays of view `index` (memory-mapped windows: slicing copies only what it reads)."""
+        return {name: array[index] for name, array in self.arrays.items()}
+
+    def __getstate__(self) -> dict:  # loader workers reopen the maps instead of pickling their bytes
+        return {**self.__dict__, "arrays": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.arrays = _map_arrays(self.path, self.size, len(self.scenes))
+
+
+def _map_arrays(path: Path, size: int, count: int, mode: str = "r") -> dict[str, np.ndarray]:
+    arrays = {}
+    for name, (shape, dtype) in array_specs(size).items():
+        file = path / f"{name}.npy"
+        try:
+            array = np.load(file, mmap_mode=mode)
+        except FileNotFoundError:
+            raise InputError(f"{file}: missing from the training cache (delete {path} to rebuild it)") from None
+        except (ValueError, OSError, EOFError) as error:
+            raise InputError(f"{file}: truncated or corrupt cache array ({error}); delete {path} to rebuild it") from None
+        if array.shape != (count, *shape) or array.dtype != dtype:
+            raise InputError(f"{file}: holds {array.shape} {array.dtype}, expected {(count, *shape)} {dtype}; "
+                             f"delete {path} to rebuild it")
+        arrays[name] = array
+    return arrays
+
+
+def _read_info(path: Path) -> dict:
+    file = path / INFO_NAME
+    try:
+        info = json.loads(file.read_text())
+    except FileNotFoundError:
+        raise InputError(f"{file}: not found ({path} is not a training cache)") from None
+    except (OSError, ValueError) as error:
+        raise InputError(f"{file}: unreadable ({error})") from None
+    if not isinstance(info, dict) or info.get("format") != CACHE_FORMAT:
+        raise InputError(f"{file}: not a training cache description")
+    if info.get("version") != CACHE_VERSION:
+        raise InputError(f"{file}: cache version {info.get('version')}, this code reads {CACHE_VERSION}; "
+                         f"delete {path} to rebuild it")
+    return info
+
+
+def open_cache(path: str | Path, dataset_root: str | Path, size: int, labels_conf) -> TrainingCache:
+    """Open the cache at `path`, checked against its dataset and the training size and labels."""
+    path, dataset_root = Path(path), Path(dataset_root)
+    info = _read_info(path)
+    file = path / INFO_NAME
+    wanted = {"size": int(size), "labels": label_encoding(labels_conf)}
+    for key, value in wanted.items():
+        if info.get(key) != value:
+            raise InputError(f"{file}: built for {key} {info.get(key)}, the config asks for {value} "
+                             f"(data.cache names another folder, or delete {path} to rebuild it)")
+    if info.get("dataset_fingerprint") != dataset_fingerprint(dataset_root):
+        raise InputError(f"{file}: built from another version of the dataset {dataset_root} "
+                         f"(it was regenerated or changed); delete {path} to rebuild it")
+    scenes = list(info["scenes"])
+    return TrainingCache(path, int(size), wanted["labels"], scenes, _map_arrays(path, int(size), len(scenes)))
+
+
+class _PackedViews:
+    """Map-style dataset of ``(index, cache arrays)`` for the views to build (loader workers decode)."""
+
+    def __init__(self, dataset, indices: np.ndarray, size: int, labels_conf):
+        self.dataset, self.indices, self.size, self.labels_conf = dataset, indices, size, labels_conf
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, item: int):
+        from .transforms import training_sample
+
+        index = int(self.indices[item])
+        sample = training_sample(self.dataset[index], self.size, self.labels_conf)
+        return index, pack_sample(sample, float(self.labels_conf["truncation_px"]))
+
+
+def build_cache(dataset_root: str | Path, path: str | Path, size: int, labels_conf, workers: int = 0,
+                progress=None, flush_seconds: float = 5.0) -> TrainingCache:
+    """Write the cache of every view of the dataset at `dataset_root` to `path`, then open it.
+
+    Decoding runs in `workers` loader processes (0: in this process); the main process writes.
+    An interrupted build resumes from ``<path>.partial`` (views recorded as done are not redone).
+
+    Args:
+        size: training resolution S (labels recomputed at S x S, ``training_sample``).
+        labels_conf: ``model.labels`` of the training config.
+        progress: optional callable ``progress(done, total)``.
+    """
+    import torch
+    from torch.utils.data import DataLoader
+
+    from datagen.dataset import open_dataset
+
+    dataset_root, path, size = Path(dataset_root), Path(path), int(size)
+    labels = label_encoding(labels_conf)
+    if labels["truncation_px"] ** 2 >= TRUNCATED:
+        raise InputError(f"model.labels.truncation_px: {labels['truncation_px']} px is too large for the training "
+                         f"cache (D^2 is stored in a byte: at most 15.9 px)")
+    dataset = open_dataset(dataset_root)
+    count = len(dataset)
+    info = {"format": CACHE_FORMAT, "version": CACHE_VERSION, "size": size, "labels": labels,
+            "dataset": str(dataset_root.resolve()), "dataset_fingerprint": dataset_fingerprint(dataset_root),
+            "num_samples": count, "scenes": [record["scene"] for record in dataset.records]}
+    partial = path.with_name(path.name + ".partial")
+    arrays, done = _open_partial(partial, info, size, count)
+    todo = np.flatnonzero(~done)
+    if len(todo) < count:
+        log.info("resuming the training cache %s: %d of %d views done", path, count - len(todo), count)
+    loader = DataLoader(_PackedViews(dataset, todo, size, labels_conf), batch_size=None, shuffle=False,
+                        num_workers=int(workers), worker_init_fn=_one_thread if workers else None)
+    last_flush = time.monotonic()
+    finished = count - len(todo)
+    if progress:
+        progress(finished, count)
+    threads = torch.get_num_threads()
+    try:
+        if not workers:
+            torch.set_num_threads(1)
+        for index, packed in loader:
+            for name, array in arrays.items():
+                array[index] = packed[name].numpy() if hasattr(packed[name], "numpy") else packed[name]
+            done[index] = True
+            finished += 1
+            if progress:
+                progress(finished, count)
+            if time.monotonic() - last_flush > flush_seconds:
+                _flush(partial, arrays, done)
+                last_flush = time.monotonic()
+    finally:
+        torch.set_num_threads(threads)
+        _flush(partial, arrays, done)
+    del arrays
+    write_json(partial / INFO_NAME, info)
+    (partial / PROGRESS_NAME).unlink()
+    (partial / "partial.json").unlink()
+    if path.exists():  # a finished cache of the same key appeared meanwhile (another process): keep it
+        shutil.rmtree(partial)
+    else:
+        os.replace(partial, path)
+    return open_cache(path, dataset_root, size, labels_conf)
+
+
+def _open_partial(partial: Path, info: dict, size: int, count: int) -> tuple[dict, np.ndarray]:
+    """The arrays and done flags of a partial build: resumed when it was for the same dataset and
+    config, else started afresh (a partial folder is this module's scratch, never a result)."""
+    description = partial / "partial.json"
+    if partial.is_dir():
+        try:
+            same = json.loads(description.read_text()) == info
+            done = np.load(partial / PROGRESS_NAME)
+            arrays = _map_arrays(partial, size, count, mode="r+")
+            if same and done.shape == (count,) and done.dtype == bool:
+                return arrays, done.copy()
+        except (OSError, ValueError, InputError):
+            pass
+        log.info("%s: an unfinished cache of another dataset or config; starting it again", partial)
+        shutil.rmtree(partial)
+    partial.mkdir(parents=True)
+    arrays = {name: np.lib.format.open_memmap(partial / f"{name}.npy", mode="w+", dtype=dtype, shape=(count, *shape))
+              for name, (shape, dtype) in array_specs(size).items()}
+    done = np.zeros(count, bool)
+    write_json(description, info)
+    _flush(partial, arrays, done)
+    return arrays, done
+
+
+def _flush(partial: Path, arrays: dict, done: np.ndarray) -> None:
+    """Arrays to disk first, then the done flags (atomically): a flag never claims unwritten bytes."""
+    for array in arrays.values():
+        array.flush()
+    temporary = partial / f"{PROGRESS_NAME}.tmp-{os.getpid()}"
+    with open(temporary, "wb") as handle:
+        np.save(handle, done)
+    os.replace(temporary, partial / PROGRESS_NAME)
+
+
+def _one_thread(worker_id: int) -> None:
+    import torch
+
+    torch.set_num_threads(1)  # each worker decodes one view at a time; processes give the parallelism
+
+
+def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, workers: int = 0,
+                 progress=None) -> TrainingCache:
+    """The cache named by ``data.cache`` (``auto``: :func:`default_cache_dir`; or a folder), built
+    from the dataset when it does not exist yet, else opened and checked."""
+    dataset_root = Path(dataset_root)
+    path = default_cache_dir(dataset_root, size, labels_conf) if str(cache) == "auto" else Path(str(cache))
+    if path.exists():
+        return open_cache(path, dataset_root, size, labels_conf)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InputError(f"{path.parent}: cannot create the training cache folder ({error.strerror}); "
+                         f"set data.cache=FOLDER to put it elsewhere") from None
+    log.info("building the training cache %s (%d px)", path, size)
+    return build_cache(dataset_root, path, size, labels_conf, workers, progress)
