@@ -154,22 +154,22 @@ def network_batch(batch: dict, model_conf, augment_conf=None) -> dict:
     from .cache import DISCONTINUITY_BIT, FRONTIER_BIT, unpack_distance
 
     inputs = model_conf["network"]["inputs"]
-    rgb = batch["rgb"].float() / 255.0
+    rgb = batch["rgb"].float().div_(255.0)  # a new tensor: the in-place steps below touch no input
     depth = batch["depth"].float()
     prior = depth
     if augment_conf is not None:
         factor = batch["jitter"].float()[:, :, None, None, None]  # (B, 5, 1, 1, 1)
-        rgb = rgb * factor[:, 0]
+        rgb.mul_(factor[:, 0])
         mean = rgb.mean(dim=(1, 2, 3), keepdim=True)
-        rgb = (rgb - mean) * factor[:, 1] + mean
+        rgb.sub_(mean).mul_(factor[:, 1]).add_(mean)
         grey = rgb.mean(dim=1, keepdim=True)
-        rgb = (rgb - grey) * factor[:, 2] + grey
-        rgb = rgb.clamp(0.0, 1.0) ** factor[:, 3]
+        rgb.sub_(grey).mul_(factor[:, 2]).add_(grey)
+        rgb.clamp_(0.0, 1.0).pow_(factor[:, 3])
         prior = depth * factor[:, 4, 0]
         sigma = float(augment_conf["depth_noise_sigma"])
         if sigma > 0:
-            prior = prior * (1.0 + sigma * torch.randn_like(prior))
-        prior = torch.where(depth > 0, prior, torch.zeros_like(prior))
+            prior.mul_(torch.randn_like(prior).mul_(sigma).add_(1.0))
+        prior.masked_fill_(depth <= 0, 0.0)
     masks = batch["masks"]
     return {"image": normalise_images(rgb, prior, inputs, model_conf["input"]),
             "distance": unpack_distance(batch["distance_sq"], float(model_conf["labels"]["truncation_px"])),

@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# From nothing to a trained FrontierNet on one GPU node: install, generate the data on the node's
+# cores, build the training cache, train on the GPU, evaluate on the held-out scenes.
+#
+#   scripts/train_on_gpu.sh WORK [key=value ...]       (docs/model.md, "Training on a GPU node")
+#
+# WORK holds the dataset (WORK/data), the run (WORK/runs/<name>) and stages.tsv (seconds per
+# stage). Every stage resumes: run the same command again after an interruption (a fresh node
+# regenerates the same dataset bytes from the same seed). key=value pairs go to `frontiernet train`.
+# Environment: SCENES (procedural:0-199: training scenes only, never the published or development
+# ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20), BATCH (64), PYTHON (python3),
+# SITE (/tmp/site: where the package and the wheels in .whl/ are installed when missing).
+set -euo pipefail
+WORK=${1:?usage: scripts/train_on_gpu.sh WORK [key=value ...]}
+shift
+REPO=$(cd "$(dirname "$0")/.." && pwd)
+PYTHON=${PYTHON:-python3}
+SITE=${SITE:-/tmp/site}
+SCENES=${SCENES:-procedural:0-199}
+VIEWS=${VIEWS:-75}
+NAME=${NAME:-rgbd}
+EPOCHS=${EPOCHS:-20}
+BATCH=${BATCH:-64}
+CORES=$(nproc)
+mkdir -p "$WORK"
+STAGES="$WORK/stages.tsv"
+stage() {  # stage NAME COMMAND...: run it, append "NAME<TAB>seconds" to stages.tsv
+    local name=$1 start=$SECONDS
+    shift
+    echo "== $name: $*" >&2
+    "$@"
+    printf '%s\t%d\n' "$name" $((SECONDS - start)) >> "$STAGES"
+}
+
+install() {
+    # carried wheels (embreex, omegaconf, antlr4: what a torch-only GPU image lacks; see docs/model.md)
+    if compgen -G "$REPO/.whl/*.whl" > /dev/null; then
+        "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$SITE" "$REPO"/.whl/*.whl
+    fi
+    PYTHONPATH="$SITE" "$PYTHON" -m pip install -q --no-index --no-deps --no-build-isolation --no-cache-dir --upgrade \
+        --target "$SITE" "$REPO"
+}
+export PYTHONPATH="$SITE${PYTHONPATH:+:$PYTHONPATH}"
+FRONTIERNET=("$PYTHON" "$SITE/bin/frontiernet")
+stage install install  # every time: the checkout may have changed since the last run
+"$PYTHON" -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" >&2
+
+DATA="$WORK/data"
+DATAGEN=(datagen --scenes "$SCENES" --views-per-scene "$VIEWS" --seed 0 --out "$DATA" --workers "$CORES" --no-progress)
+if [ ! -f "$DATA/summary.json" ]; then  # datagen writes summary.json last
+    [ -f "$DATA/dataset.json" ] && DATAGEN+=(--resume)
+    stage datagen "${FRONTIERNET[@]}" "${DATAGEN[@]}"
+fi
+
+RUN="$WORK/runs/$NAME"
+TRAIN=(train data.path="$DATA" out="$WORK/runs" name="$NAME" trainer.accelerator=gpu trainer.devices=1
+       trainer.precision=bf16-mixed data.batch_size="$BATCH" data.num_workers=auto trainer.max_epochs="$EPOCHS"
+       optim.warmup_steps=500 data.max_val_samples=1024 "$@" --no-progress)
+if [ -f "$RUN/summary.json" ]; then
+    :  # trained
+elif [ -f "$RUN/checkpoints/last.ckpt" ]; then
+    stage train "${FRONTIERNET[@]}" "${TRAIN[@]}" --resume
+else
+    stage train "${FRONTIERNET[@]}" "${TRAIN[@]}"
+fi
+
+stage evaluate "${FRONTIERNET[@]}" evaluate "$RUN/model.safetensors" --data "$DATA" --json "$RUN/evaluate.json"
+cat "$STAGES" >&2
