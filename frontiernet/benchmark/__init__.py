@@ -7,12 +7,15 @@ paper's Table I for any scene set. Steps, one module each (hloc style):
 * :mod:`.runner`: the runs, in parallel (local processes or Ray), resumable, failures recorded;
 * :mod:`.report`: ``results.csv``, ``table.md`` (Vox@25/50/100 with shared step thresholds,
   success) and coverage curves per scene; :func:`report` rebuilds it from the runs finished so
-  far (``--report``).
+  far (``--report``);
+* :mod:`.store`: the finished runs' records, one ``metrics.json`` per run as they finish, or
+  packed into one compressed file per (scene, method) by :func:`pack` (``--pack``).
 """
 
 from .main import main, report
 from .plan import RunSpec, plan_runs, start_poses
 from .report import write_report
 from .runner import run_all
+from .store import pack
 
-__all__ = ["main", "report", "RunSpec", "plan_runs", "start_poses", "run_all", "write_report"]
+__all__ = ["main", "report", "RunSpec", "plan_runs", "start_poses", "run_all", "write_report", "pack"]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -16,6 +15,7 @@ from ..scenes.spec import expand_specs
 from .plan import MIN_BUDGET, plan_runs
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
+from .store import FinishedRuns, read_plan
 
 
 def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
@@ -60,7 +60,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     plan_path = out / "plan.json"
     poses = None
     if plan_path.is_file():  # resuming: the same settings, the same start poses
-        previous = json.loads(plan_path.read_text())
+        previous = read_plan(out)
         shipped = OmegaConf.to_container(load_run_config(), resolve=True)
         for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
             previous["settings"]["conf"].setdefault(section, shipped[section])
@@ -81,25 +81,24 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
 
 
 def report(out: str | Path) -> dict:
-    """Rebuild the report of benchmark folder `out` from the runs finished so far; runs nothing,
-    so it is safe while the benchmark runs (``frontiernet bench --report --out DIR``).
+    """Rebuild the report of benchmark folder `out` from the runs finished so far (per run or
+    packed: :mod:`.store`); runs nothing, so it is safe while the benchmark runs
+    (``frontiernet bench --report --out DIR``).
 
     Returns:
         as :func:`main`, plus ``pending`` (planned runs not finished yet) and no ``wall_s``.
     Raises:
-        InputError: `out` holds no benchmark (no ``plan.json``).
+        InputError: `out` holds no benchmark (no ``plan.json``), or a run's record is corrupt.
     """
     out = Path(out)
-    if not (out / "plan.json").is_file():
-        raise InputError(f"{out}: no benchmark here (no plan.json); run frontiernet bench --scenes ... --out {out}")
-    plan = json.loads((out / "plan.json").read_text())
-    runs = plan["runs"]
-    own = (finished_row(run, out) for run in runs if not run.get("copy_of"))
+    plan = read_plan(out)
+    runs, finished = plan["runs"], FinishedRuns(out)
+    own = (finished_row(run, finished) for run in runs if not run.get("copy_of"))
     rows = with_copies(runs, {row["key"]: row for row in own if row is not None})
-    finished = [row for row in rows if row is not None]
-    pending = len(rows) - len(finished)
+    reported = [row for row in rows if row is not None]
+    pending = len(rows) - len(reported)
     scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
-    return {"rows": finished, **write_report(out, finished, scenes, methods, pending), "pending": pending}
+    return {"rows": reported, **write_report(out, reported, scenes, methods, pending, finished), "pending": pending}
 
 
 __all__ = ["main", "report"]

@@ -20,7 +20,6 @@ to the robot's map.
 from __future__ import annotations
 
 import csv
-import json
 from collections import defaultdict
 from pathlib import Path
 
@@ -32,6 +31,7 @@ from ..io import atomic_write
 from ..scenes.spec import parse_spec
 from .plan import scene_key
 from .runner import ROW_FIELDS
+from .store import FinishedRuns
 
 SUCCESS_COVERAGE = 0.4
 REFERENCE = "classic"  # the paper's Table I baseline (Yamauchi), which the report compares every method with
@@ -258,15 +258,18 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
                    for name, members in _source_groups(scenes).items() if len(members) > 1 and reported & set(members)]
 
 
-def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> dict:
+def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
+                 finished: FinishedRuns | None = None) -> dict:
     """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
     ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
-    `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not."""
+    `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not;
+    `finished`: the runs' records (per run or packed; None: read from `out`)."""
     out = Path(out)
+    finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
     for index, row in enumerate(rows):
         if row["status"] == "done":
-            metrics = json.loads((out / "runs" / (row.get("copy_of") or row["key"]) / "metrics.json").read_text())
+            metrics = finished.metrics(row.get("copy_of") or row["key"])
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
     add_shared_vox(rows, curves)
     fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]

@@ -2,9 +2,10 @@
 
 :func:`run_one` never raises: a run that fails comes back as a row with its error (and
 ``failed/<key>.json`` records it; a later invocation tries it again), so one bad run never
-stops a benchmark. A finished run (``runs/<key>/metrics.json``) is never redone: an
-interrupted benchmark resumes where it stopped. Runs write into ``<key>.partial`` and are
-renamed when complete, so a half-written run is never taken for a finished one. A run marked
+stops a benchmark. A finished run (``runs/<key>/metrics.json``, or its line in a pack:
+:mod:`.store`) is never redone: an interrupted benchmark resumes where it stopped. Runs write
+into ``<key>.partial`` and are renamed when complete, so a half-written run is never taken for a
+finished one. A run marked
 ``copy_of`` another (a repeat that would be identical, :mod:`.plan`) is not run: its row is the
 other run's, with its own scene, start, repeat and seed.
 """
@@ -22,6 +23,7 @@ import threading
 from pathlib import Path
 
 from ..errors import InputError
+from .store import FinishedRuns, read_metrics
 
 log = logging.getLogger(__name__)
 
@@ -67,13 +69,13 @@ def _failed_path(out: Path, key: str) -> Path:
     return Path(out) / "failed" / (key.replace("/", "__") + ".json")
 
 
-def finished_row(run: dict, out: str | Path) -> dict | None:
-    """The row of `run` (a plan's run dict) if it finished or failed in benchmark folder `out`,
-    else None (not run yet). Runs nothing."""
-    final = Path(out) / "runs" / run["key"]
-    if (final / "metrics.json").is_file():
-        return _row(run, "done", json.loads((final / "metrics.json").read_text()))
-    failed = _failed_path(out, run["key"])
+def finished_row(run: dict, finished: FinishedRuns) -> dict | None:
+    """The row of `run` (a plan's run dict) if it finished (`finished`: the runs of its benchmark
+    folder, per run or packed) or failed, else None (not run yet). Runs nothing."""
+    record = finished.metrics(run["key"])
+    if record is not None:
+        return _row(run, "done", record)
+    failed = _failed_path(finished.out, run["key"])
     if failed.is_file():
         return _row(run, "failed", error=json.loads(failed.read_text())["error"])
     return None
@@ -110,8 +112,8 @@ def run_one(run: dict, settings: dict) -> dict:
 
     out = Path(settings["out"])
     final, failed = out / "runs" / run["key"], _failed_path(out, run["key"])
-    if (final / "metrics.json").is_file():
-        return _row(run, "done", json.loads((final / "metrics.json").read_text()))
+    if (final / "metrics.json").is_file():  # (run_all leaves out the runs finished before, packed ones too)
+        return _row(run, "done", read_metrics(final / "metrics.json"))
     partial = final.with_name(final.name + ".partial")
     shutil.rmtree(partial, ignore_errors=True)
     _limit_threads(int(settings["threads"]))
@@ -153,8 +155,9 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
         raise InputError(f"--workers must be at least 1, got {workers}")
     every = [{**run.as_dict(), "key": run.key} for run in runs]
     done = {}  # finished before: read here, so progress (and its time left) counts only runs to do
+    finished = FinishedRuns(settings["out"])
     for task in every:
-        row = None if task["copy_of"] else finished_row(task, settings["out"])
+        row = None if task["copy_of"] else finished_row(task, finished)
         if row is not None and row["status"] == "done":
             done[task["key"]] = row
     tasks = [task for task in every if not task["copy_of"] and task["key"] not in done]

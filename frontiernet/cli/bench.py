@@ -71,6 +71,10 @@ def _exploration_options(parser) -> None:
     group.add_argument("--report", action="store_true",
                        help="with --out only: rebuild results.csv, table.md and the plots from the runs finished "
                             "so far, running nothing (safe while the benchmark runs)")
+    group.add_argument("--pack", action="store_true",
+                       help="with --out only: move the finished runs' metrics.json into one compressed file per "
+                            "scene and method (runs/<scene>/<method>.jsonl.gz), which --report and a resumed "
+                            "benchmark read; runs nothing (before --report when both are given)")
     group.add_argument("--workers", type=int, default=1, help="parallel runs")
     group.add_argument("--backend", default="local", help="local (processes) or ray")
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
@@ -83,10 +87,18 @@ def _exploration_options(parser) -> None:
 
 
 def run_exploration_benchmark(args) -> int:
-    from ..benchmark import main, report
+    from ..benchmark import main, pack, report
     from ..errors import InputError
     from ..exploration.run import load_run_config
 
+    if args.pack:
+        if not args.out:
+            raise InputError("--pack needs --out DIR, the benchmark folder")
+        packed = pack(args.out)
+        print(f"bench: packed {packed['runs']} run(s) into {len(packed['packs'])} file(s); "
+              f"{packed['packed']} runs packed in {args.out}/runs")
+        if not args.report:
+            return 0
     if args.report:
         if not args.out:
             raise InputError("--report needs --out DIR, the benchmark folder")

@@ -1,0 +1,184 @@
+"""Finished runs of a benchmark folder, one file per run or packed per (scene, method).
+
+Two layouts hold a finished run's record (the ``metrics.json`` record of
+:func:`frontiernet.exploration.outputs.metrics_record`: every metric and the coverage per step);
+both are read everywhere (report, resume):
+
+* **per run**, as each run finishes (:mod:`.runner`: written into ``<key>.partial`` and renamed):
+  ``runs/<key>/metrics.json`` beside the run's other outputs, where the key is
+  ``<scene key>/<method>/start<i>_repeat<r>`` (:attr:`.plan.RunSpec.key`);
+* **packed** (``frontiernet bench --pack --out DIR``, :func:`pack`): one file per (scene, method),
+  ``runs/<scene key>/<method>.jsonl.gz``: gzip (no timestamp, so packing the same runs again
+  gives the same bytes) of UTF-8 JSON lines, one per run, in start and repeat order::
+
+      {"key": "<scene key>/<method>/start0_repeat0", "metrics": {...the run's metrics.json...}}
+
+  ``zcat FILE`` shows it. The records are the same values as the per-run files (JSON writes a
+  float as its shortest round-tripping repr), so a report rebuilt from either layout is
+  byte-identical. The published run's 1,035 ``metrics.json`` (14.6 MB) pack into 135 files of
+  1.7 MB (docs/benchmark.md).
+
+A run in both layouts (a pack made, then the per-run file written again) is read from its
+per-run file, which the next pack moves in.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import os
+import re
+import zlib
+from collections import defaultdict
+from pathlib import Path
+
+from ..errors import InputError
+from ..io import atomic_write
+
+PACK_SUFFIX = ".jsonl.gz"
+COMPRESS_LEVEL = 9  # gzip's smallest; a format choice, not a tunable: packs are small and written rarely
+
+
+def read_plan(out: str | Path) -> dict:
+    """The ``plan.json`` of benchmark folder `out` (settings, start poses, runs with their keys).
+
+    Raises:
+        InputError: `out` holds no benchmark, or its plan.json is not JSON.
+    """
+    path = Path(out) / "plan.json"
+    if not path.is_file():
+        raise InputError(f"{out}: no benchmark here (no plan.json); run frontiernet bench --scenes ... --out {out}")
+    try:
+        return json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as error:
+        raise InputError(f"{path}: not a benchmark plan ({error})") from None
+
+
+def pack_path(out: str | Path, key: str) -> Path:
+    """The pack of run `key`: ``runs/<scene key>/<method>.jsonl.gz`` in benchmark folder `out`."""
+    return Path(out) / "runs" / (key.rsplit("/", 1)[0] + PACK_SUFFIX)
+
+
+def read_metrics(path: Path) -> dict:
+    """A per-run ``metrics.json``; InputError naming it when it is not a JSON object."""
+    try:
+        record = json.loads(Path(path).read_text())
+    except (ValueError, UnicodeDecodeError) as error:
+        raise InputError(f"{path}: not a run's metrics ({error}); remove the run's folder to run it again") from None
+    if not isinstance(record, dict):
+        raise InputError(f"{path}: not a run's metrics (not a JSON object); remove the run's folder to run it again")
+    return record
+
+
+def read_pack(path: Path) -> dict[str, dict]:
+    """Run key -> metrics record of pack `path`, in the file's order.
+
+    Raises:
+        InputError: the file is not a pack (not gzip, truncated, a line that is not
+            ``{"key", "metrics"}`` JSON, a key of another scene or method, a key twice).
+    """
+    group = f"{Path(path).parent.name}/{Path(path).name[:-len(PACK_SUFFIX)]}"  # <scene key>/<method>
+    records = {}
+
+    def corrupt(reason: str) -> InputError:
+        return InputError(f"{path}: not a packed benchmark file ({reason}); restore it (git checkout, a copy) "
+                          "or remove it to run its runs again")
+
+    try:
+        text = gzip.decompress(Path(path).read_bytes()).decode("utf-8")
+    except (OSError, EOFError, zlib.error, UnicodeDecodeError) as error:  # BadGzipFile is an OSError
+        raise corrupt(str(error) or type(error).__name__) from None
+    for number, line in enumerate(text.splitlines(), 1):
+        try:
+            entry = json.loads(line)
+        except ValueError as error:
+            raise corrupt(f"line {number}: {error}") from None
+        if not (isinstance(entry, dict) and isinstance(entry.get("key"), str) and isinstance(entry.get("metrics"), dict)):
+            raise corrupt(f'line {number} is not {{"key": ..., "metrics": {{...}}}}')
+        key = entry["key"]
+        if key.rsplit("/", 1)[0] != group or key in records:
+            raise corrupt(f"line {number}: run {key} " + ("twice" if key in records else "of another method or scene"))
+        records[key] = entry["metrics"]
+    return records
+
+
+def _natural(key: str) -> list:
+    """Sort key of a run key with its numbers compared as numbers (start2 before start10)."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", key)]
+
+
+def write_pack(path: Path, records: dict[str, dict]) -> Path:
+    """Write `records` (run key -> metrics record) as pack `path`, atomically, keys in natural order."""
+    lines = [json.dumps({"key": key, "metrics": records[key]}, separators=(",", ":")) for key in sorted(records, key=_natural)]
+    data = gzip.compress(("\n".join(lines) + "\n").encode("utf-8"), COMPRESS_LEVEL, mtime=0)
+    return atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+
+class FinishedRuns:
+    """The metrics records of the finished runs of benchmark folder `out`, from either layout
+    (module docstring); each pack is read once, when one of its runs is first asked for."""
+
+    def __init__(self, out: str | Path) -> None:
+        self.out = Path(out)
+        self._packs: dict[Path, tuple] = {}  # pack path -> (its stat when read, key -> record)
+
+    def _pack(self, path: Path) -> dict[str, dict]:
+        try:
+            stamp = path.stat()
+        except FileNotFoundError:
+            return {}
+        stamp = (stamp.st_mtime_ns, stamp.st_size)
+        if path not in self._packs or self._packs[path][0] != stamp:  # new, or repacked since (a --pack beside)
+            self._packs[path] = (stamp, read_pack(path))
+        return self._packs[path][1]
+
+    def metrics(self, key: str) -> dict | None:
+        """The record of run `key` (``<scene key>/<method>/start<i>_repeat<r>``), None if not finished.
+
+        Raises:
+            InputError: its metrics.json or its pack is corrupt (named).
+        """
+        try:
+            return read_metrics(self.out / "runs" / key / "metrics.json")
+        except FileNotFoundError:
+            return self._pack(pack_path(self.out, key)).get(key)
+
+
+def pack(out: str | Path) -> dict:
+    """Move the ``metrics.json`` of every finished run of the plan in benchmark folder `out` into
+    its (scene, method) pack (module docstring), then remove those files; a run's other outputs
+    (trajectory.json, frontiers.json, coverage.png, config.yaml) stay. Runs nothing; safe beside a
+    running benchmark (it packs the runs finished when it starts), not beside another pack.
+
+    Returns:
+        ``{"runs": runs packed now, "packs": [pack paths written], "packed": runs in packs in all}``.
+    Raises:
+        InputError: no benchmark in `out`, or a corrupt metrics.json or pack (nothing removed then).
+    """
+    out = Path(out)
+    plan = read_plan(out)
+    fresh = defaultdict(dict)  # pack path -> key -> record, of the per-run files
+    for run in plan["runs"]:
+        path = out / "runs" / run["key"] / "metrics.json"
+        if not run.get("copy_of") and path.is_file():
+            fresh[pack_path(out, run["key"])][run["key"]] = read_metrics(path)
+    written = []
+    for path, records in fresh.items():
+        merged = {**(read_pack(path) if path.is_file() else {}), **records}
+        write_pack(path, merged)
+        if set(read_pack(path)) != set(merged):  # read back before anything is removed
+            raise InputError(f"{path}: the pack written does not read back; per-run files kept")
+        written.append(path)
+        for key in records:
+            folder = out / "runs" / key
+            (folder / "metrics.json").unlink()
+            for empty in (folder, folder.parent):  # the run's folder and its method's, once empty
+                try:
+                    empty.rmdir()
+                except OSError:
+                    break
+    total = sum(len(read_pack(path)) for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")))
+    return {"runs": sum(len(records) for records in fresh.values()), "packs": written, "packed": total}
+
+
+__all__ = ["FinishedRuns", "pack", "read_plan", "read_pack", "write_pack", "read_metrics", "pack_path", "PACK_SUFFIX"]
