@@ -3,7 +3,10 @@
 # root: exports the shipped model to ONNX if runs/shipped.onnx is missing (plan.json pins that
 # path), then runs the protocol's command; finished runs are kept, the rest are run. Pass 1 was
 # `--repeats 1`; REPEATS=3 (the default) is pass 2 and the full protocol. Needs `make install`.
-# Stop it with Ctrl-C (or kill it): runs in progress are lost, finished ones are not.
+# Stop it with Ctrl-C (or kill it): runs in progress are lost, finished ones are not. When the
+# benchmark ends, its new runs' metrics.json are packed into runs/<scene>/<method>.jsonl.gz, the
+# form the repository keeps (docs/benchmark.md, "Packed runs"); before committing while it runs:
+# .venv/bin/frontiernet bench --pack --out docs/benchmark/published
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 BIN=.venv/bin
@@ -11,8 +14,9 @@ mkdir -p runs
 [ -f runs/shipped.onnx ] || "$BIN/frontiernet" export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
     --format onnx --out runs/shipped.onnx
 KTH=../shared/data/floorplans/kth
-exec "$BIN/frontiernet" bench --scenes ../shared/data/scenes/aws_small_house.glb procedural:1000-1009 \
+"$BIN/frontiernet" bench --scenes ../shared/data/scenes/aws_small_house.glb procedural:1000-1009 \
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods frontiernet,oracle,classic,gain-distance,df-uniform,discontinuity-gain,discontinuity-uniform,random-frontier,vacuum \
     --starts 3 --repeats "${REPEATS:-3}" --max-steps 500 --scene-starts --model runs/shipped.onnx \
     --workers "${WORKERS:-2}" --out docs/benchmark/published
+exec "$BIN/frontiernet" bench --pack --out docs/benchmark/published
