@@ -6,6 +6,11 @@ drawn the way ``frontiernet datagen`` draws them (same sampler, same frontier/no
 - **resampled**: the same view labelled twice with different random generators. The image, F and
   D are the same; the gain is not, because it is measured at a random ~10 % of the frontier voxels
   (``ground_truth.gain.sample_fraction``) and blended to the rest.
+- **consensus**: the per-pixel majority class of ``consistency.resampled_labelings`` further
+  labelings of the view against the original one. Two noisy labelings agree less often than the
+  best possible predictor (the per-pixel most likely class) agrees with one of them, so
+  ``resampled`` understates the ceiling; the majority of several labelings estimates that
+  predictor, and approaches the ceiling as their number grows.
 - **nearby**: the view and a second one a small step away (``consistency.translation_m`` in a
   random horizontal direction, ``consistency.rotation_deg`` of yaw), labelled independently; the
   second view's labels are carried into the first view's pixels through the first view's depth
@@ -28,7 +33,7 @@ import numpy as np
 from frontiernet.errors import InputError, positive_number
 from frontiernet.frontiers.gain import class_confusion, class_offsets, dice_per_class, mean_dice
 
-KINDS = ("resampled", "nearby")
+KINDS = ("resampled", "consensus", "nearby")
 REGIONS = ("all", "band", "frontier")
 
 
@@ -90,6 +95,12 @@ def warp_to_view(depth_a: np.ndarray, K_a: np.ndarray, T_a: np.ndarray, depth_b:
     return rows, cols, seen
 
 
+def majority_class(classes: np.ndarray, num_classes: int) -> np.ndarray:
+    """(H, W) int64 per-pixel most frequent class of (N, H, W) integer class maps (ties: the lower class)."""
+    counts = np.stack([(classes == k).sum(0) for k in range(int(num_classes))])
+    return counts.argmax(0)
+
+
 class Agreement:
     """Confusion matrices (rows: the first labeling, columns: the second) over all compared
     pixels, the first labeling's band D < r and its frontier pixels F, plus the distance-field
@@ -132,10 +143,11 @@ def _settings(conf) -> dict:
     section = conf.consistency
     settings = {key: positive_number(section[key], f"consistency.{key}", allow_zero=True)
                 for key in ("translation_m", "rotation_deg", "depth_tolerance", "depth_tolerance_m")}
-    tries = section.max_tries
-    if not isinstance(tries, int) or tries < 1:
-        raise InputError(f"consistency.max_tries must be a positive integer, got {tries!r}")
-    settings["max_tries"] = tries
+    for key in ("max_tries", "resampled_labelings"):
+        value = section[key]
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise InputError(f"consistency.{key} must be a positive integer, got {value!r}")
+        settings[key] = value
     return settings
 
 
@@ -174,9 +186,12 @@ def scene_consistency(spec: str, views: int, conf, seed: int = 0, on_view=None) 
     agreement = {kind: Agreement(K) for kind in KINDS}
     skipped = 0
     for truth, _kind in drawn:
-        again = generator(truth.T_world_cam, rng)  # the same pose, the gain sampled afresh
-        agreement["resampled"].add(truth, again.gain_class, again.distance_field,
-                                   np.ones(truth.gain_class.shape, bool), truncation)
+        # the same pose, the gain sampled afresh: one labeling, then the majority of all of them
+        again = [generator(truth.T_world_cam, rng) for _ in range(settings["resampled_labelings"])]
+        everywhere = np.ones(truth.gain_class.shape, bool)
+        agreement["resampled"].add(truth, again[0].gain_class, again[0].distance_field, everywhere, truncation)
+        majority = majority_class(np.stack([labels.gain_class for labels in again]), K)
+        agreement["consensus"].add(truth, majority, again[0].distance_field, everywhere, truncation)
         T_near = _nearby_view(generator, truth.T_world_cam, settings, float(conf.poses.min_clearance_m), rng)
         if T_near is None:
             skipped += 1

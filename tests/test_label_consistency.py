@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.consistency import label_consistency, load_consistency_config, nearby_pose, warp_to_view
+from datagen.consistency import label_consistency, load_consistency_config, majority_class, nearby_pose, warp_to_view
 from frontiernet.cli.main import main
 
 SMALL = ["camera.width=96", "camera.height=96", "camera.focal_px=60"]
@@ -39,6 +39,11 @@ def test_nearby_pose_moves_and_turns_by_the_asked_amounts():
     assert np.isclose(np.degrees(np.arctan2(forward[1], forward[0])), 5.0) and np.isclose(forward[2], 0)
 
 
+def test_majority_class_per_pixel():
+    maps = np.array([[[1, 2]], [[1, 3]], [[4, 3]]])
+    assert majority_class(maps, 5).tolist() == [[1, 3]]
+
+
 @pytest.mark.slow
 def test_labels_measured_at_every_voxel_agree_with_themselves_and_sampled_ones_do_not():
     exact = load_consistency_config(overrides=SMALL + [
@@ -47,14 +52,15 @@ def test_labels_measured_at_every_voxel_agree_with_themselves_and_sampled_ones_d
     result = label_consistency(["procedural:12"], 4, exact, seed=0)["total"]
     # gain measured at every frontier voxel is deterministic: the same pose gives the same labels,
     # and a 'nearby' view 0 m and 0 deg away is carried over pixel for pixel
-    for kind in ("resampled", "nearby"):
+    for kind in ("resampled", "consensus", "nearby"):
         assert result[kind]["pairs"] == 4 and result[kind]["pixels"] == 4 * 96 * 96
         assert result[kind]["gain_dice_with_class_0"] == 1.0 and result[kind]["gain_band_exact"] == 1.0
         assert result[kind]["df_error_px"] == 0.0
-    sampled = load_consistency_config(overrides=SMALL)
+    sampled = load_consistency_config(overrides=SMALL + ["consistency.resampled_labelings=3"])
     noisy = label_consistency(["procedural:12"], 4, sampled, seed=0)["total"]
     assert noisy["resampled"]["df_error_px"] == 0.0  # F and D do not depend on the gain samples ...
     assert noisy["resampled"]["gain_band_exact"] < 1.0  # ... the gain classes do
+    assert noisy["consensus"]["gain_band_exact"] < 1.0
     assert 0 < noisy["nearby"]["gain_dice_with_class_0"] < 1 and noisy["nearby"]["df_error_px"] > 0
 
 
@@ -63,6 +69,9 @@ def test_bad_consistency_input_is_one_line_exit_2(one_line_error):
     assert "--views-per-scene must be a positive integer" in one_line_error()
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set", "consistency.max_tries=0"]) == 2
     assert "consistency.max_tries" in one_line_error()
+    assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set",
+                 "consistency.resampled_labelings=1.5"]) == 2
+    assert "consistency.resampled_labelings must be a positive integer" in one_line_error()
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set",
                  "consistency.translation_m=-1"]) == 2
     assert "consistency.translation_m" in one_line_error()
