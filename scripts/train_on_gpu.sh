@@ -7,6 +7,8 @@
 # WORK holds the dataset (WORK/data), the run (WORK/runs/<name>) and stages.tsv (seconds per
 # stage). Every stage resumes: run the same command again after an interruption (a fresh node
 # regenerates the same dataset bytes from the same seed). key=value pairs go to `frontiernet train`.
+# RESULTS=DIR also packs the run's logs and metrics (run.tar.gz) and the float16 model, split into
+# 15 MB parts (cat DIR/model_fp16.safetensors.part* > model.safetensors), into DIR.
 # Environment: SCENES (procedural:0-199: training scenes only, never the published or development
 # ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20), BATCH (64), PYTHON (python3),
 # SITE (/tmp/site: where the package and the wheels in .whl/ are installed when missing).
@@ -34,8 +36,15 @@ stage() {  # stage NAME COMMAND...: run it, append "NAME<TAB>seconds" to stages.
 
 install() {
     # carried wheels (embreex, omegaconf, antlr4: what a torch-only GPU image lacks; see docs/model.md)
-    if compgen -G "$REPO/.whl/*.whl" > /dev/null; then
-        "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$SITE" "$REPO"/.whl/*.whl
+    local wheel name missing=()
+    for wheel in "$REPO"/.whl/*.whl; do  # only those whose distribution is not installed already
+        [ -e "$wheel" ] || continue
+        name=$(basename "$wheel"); name=${name%%-*}
+        PYTHONPATH="$SITE" "$PYTHON" -c "import importlib.metadata as m, sys; m.version(sys.argv[1])" "$name" \
+            2> /dev/null || missing+=("$wheel")
+    done
+    if [ ${#missing[@]} -gt 0 ]; then
+        "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$SITE" "${missing[@]}"
     fi
     PYTHONPATH="$SITE" "$PYTHON" -m pip install -q --no-index --no-deps --no-build-isolation --no-cache-dir --upgrade \
         --target "$SITE" "$REPO"
@@ -65,4 +74,15 @@ else
 fi
 
 stage evaluate "${FRONTIERNET[@]}" evaluate "$RUN/model.safetensors" --data "$DATA" --json "$RUN/evaluate.json"
+# the shippable file: float16 weights, the frontier threshold l = the held-out best-F1 one
+THRESHOLD=$("$PYTHON" -c "import json, sys; print(json.load(open(sys.argv[1]))['best_f1_threshold_px'])" "$RUN/evaluate.json")
+rm -f "$RUN/model_fp16.safetensors"
+stage export "${FRONTIERNET[@]}" export "$RUN/model.safetensors" --format safetensors --half \
+    --frontier-threshold "$THRESHOLD" --out "$RUN/model_fp16.safetensors"
 cat "$STAGES" >&2
+if [ -n "${RESULTS:-}" ]; then  # e.g. a lent machine's $OUT: at most 8 files of 16 MiB come back
+    mkdir -p "$RESULTS"
+    tar -C "$WORK" -czf "$RESULTS/run.tar.gz" stages.tsv "runs/$NAME/metrics.csv" "runs/$NAME/summary.json" \
+        "runs/$NAME/evaluate.json" "runs/$NAME/config.yaml" data/summary.json
+    split -b 15M -d "$RUN/model_fp16.safetensors" "$RESULTS/model_fp16.safetensors.part"  # cat *.part* > file
+fi
