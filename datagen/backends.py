@@ -20,6 +20,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
+from frontiernet.simulator.raycast import select_backend
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +83,7 @@ def run_shard_task(task: dict, conf_dict: dict, info: dict) -> dict:
     name = os.path.basename(task["path"])
     try:
         conf = OmegaConf.create(conf_dict)
+        raycast = select_backend(conf.raycast.backend)
         scene, voxels, generator = _scene_state(task["spec"], conf)
         loaded = time.perf_counter()
         rng = np.random.default_rng(task["seed"])
@@ -100,7 +102,7 @@ def run_shard_task(task: dict, conf_dict: dict, info: dict) -> dict:
         write_shard(task["path"], samples, meta, conf.writer)
         return {"task": name, "spec": task["spec"], "ok": True, "views": len(views), "candidates": tried,
                 "seconds": time.perf_counter() - start, "load_seconds": loaded - start, "timings": timings,
-                "pid": os.getpid()}
+                "pid": os.getpid(), "raycast_backend": raycast}
     except InputError as error:
         message = str(error)
     except Exception as error:  # a failing scene is reported, never kills the run

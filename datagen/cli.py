@@ -6,7 +6,7 @@ point (``frontiernet`` itself never imports ``datagen``).
   frontiernet datagen --scenes SPEC [SPEC ...] --views-per-scene N --out DIR
                       [--workers W] [--backend local|ray] [--seed S] [--resume] [--config FILE]
   frontiernet datagen preview DIR [--n 16] [--out DIR/preview]
-  frontiernet datagen bench [--scene SPEC] [--views N]
+  frontiernet datagen bench [--scene SPEC] [--views N] [--raycast ENGINE ...]
   frontiernet datagen consistency --scenes SPEC [SPEC ...] [--views-per-scene N] [--json FILE]
 """
 
@@ -47,6 +47,8 @@ def add_parser(subparsers) -> None:
     bench.add_argument("--scene", default=None, help="scene spec (default: the shared house when present, "
                                                      "else procedural:0)")
     bench.add_argument("--views", type=int, default=20, help="views to time (default 20)")
+    bench.add_argument("--raycast", nargs="+", metavar="ENGINE", choices=("open3d", "embree"),
+                       help="ray-cast engines to time, the first is the baseline (default: every one importable)")
     bench.add_argument("--json", action="store_true", help="print JSON only")
     bench.set_defaults(func=run_bench)
     consistency = actions.add_parser(
@@ -123,20 +125,32 @@ def run_preview(args) -> int:
 def run_bench(args) -> int:
     from .bench import bench_ground_truth
 
-    result = bench_ground_truth(args.scene, args.views)
+    result = bench_ground_truth(args.scene, args.views, args.raycast)
     if args.json:
         print(json.dumps(result))
         return 0
+    base = result["baseline"]
     print(f"bench datagen: {result['scene']}, {result['resolution'][0]}x{result['resolution'][1]}, "
-          f"{result['views']} views (median per view)")
-    print(f"  depth render             {result['render_ms']:8.1f} ms   1.00x (baseline)")
-    print(f"  ground-truth view        {result['view_ms']:8.1f} ms   {result['view_in_renders']:.2f}x   goal < 10x")
-    for stage, ms in result["stages_ms"].items():
-        print(f"    {stage:<22} {ms:8.1f} ms   {ms / result['render_ms']:.2f}x")
-    print(f"  views per second per core {result['views_per_second_per_core']:.2f} "
-          f"({result['threads']} thread(s) on {result['cores']} core(s))")
-    print(f"  scene setup (load, voxels, generator) {result['setup_s']:.2f} s; "
-          f"peak memory of this process {result['peak_rss_mb']:.0f} MB")
+          f"{result['views']} views (median per view); baseline: a bare {base} cast_rays")
+    for name, figures in result["backends"].items():
+        render = figures["render_ms"]
+        print(f"  [{name}] ray cast (depth render) {render:8.1f} ms   {figures['render_over_baseline']:.2f}x")
+        print(f"  [{name}] ground-truth view       {figures['view_ms']:8.1f} ms   "
+              f"{figures['view_in_baseline_renders']:.2f}x   ({figures['view_in_renders']:.2f}x its own cast; "
+              "goal < 10x)")
+        for stage, ms in figures["stages_ms"].items():
+            print(f"      {stage:<22} {ms:8.1f} ms   {ms / render:.2f}x its cast")
+        print(f"  [{name}] distance_to_surface x{result['distance_queries']} {figures['distance_ms']:6.2f} ms; "
+              f"engine build {figures['build_s']:.2f} s")
+        print(f"  [{name}] views per second per core {figures['views_per_second_per_core']:.2f}   "
+              f"{figures['views_per_second_per_core_over_baseline']:.2f}x")
+    agreement = result["agreement"]
+    if agreement["compared"]:
+        print(f"  {agreement['compared']}: {agreement['hit_mask_mismatched_pixels']} of {agreement['pixels']} "
+              f"pixels differ in the hit mask; hit distances within "
+              f"{agreement['max_hit_distance_difference_mm']:.4f} mm")
+    print(f"  {result['threads']} thread(s) on {result['cores']} core(s); scene setup (load, voxels, generator) "
+          f"{result['setup_s']:.2f} s; peak memory of this process {result['peak_rss_mb']:.0f} MB")
     return 0
 
 

@@ -23,6 +23,7 @@ from frontiernet import __version__
 from frontiernet.errors import InputError
 from frontiernet.io import write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
+from frontiernet.simulator.raycast import resolve_backend
 
 from .config import config_hash
 from .shards import (INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
@@ -80,6 +81,7 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
         raise InputError(f"--views-per-scene must be a positive integer, got {views_per_scene!r}")
     if not isinstance(seed, int) or seed < 0:
         raise InputError(f"--seed must be an integer >= 0, got {seed!r}")
+    resolve_backend(conf.raycast.backend)  # an unknown or absent ray-cast engine fails before any work
     shard_size = conf.writer.shard_size
     if not isinstance(shard_size, int) or shard_size < 1:
         raise InputError(f"writer.shard_size must be a positive integer, got {shard_size!r}")

@@ -58,4 +58,5 @@ def summarise(out, tasks, results: list[dict], elapsed_s: float, done_before: in
         "seconds": elapsed_s,
         "views_per_second": made_views / elapsed_s if elapsed_s > 0 else 0.0,
         "seconds_per_stage_per_view": {k: v / made_views for k, v in stages.items()} if made_views else {},
+        "raycast_backends": sorted({r["raycast_backend"] for r in made if "raycast_backend" in r}),
     }

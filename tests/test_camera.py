@@ -11,7 +11,7 @@ from frontiernet.geometry import pose_from_heading, poses_from_headings
 from frontiernet.scenes import Material, SceneMetadata
 from frontiernet.scenes.builder import MeshBuilder
 from frontiernet.simulator.camera import PinholeCamera, Renderer
-from frontiernet.simulator.raycast import raycasting_scene
+from frontiernet.simulator.raycast import ray_caster
 
 
 def _corridor(length=10.0):
@@ -45,7 +45,7 @@ def test_house_living_room_depth_matches_a_direct_open3d_cast(shared_data):
     K_open3d[:2, 2] += 0.5
     rays = o3d.t.geometry.RaycastingScene.create_rays_pinhole(
         o3d.core.Tensor(K_open3d), o3d.core.Tensor(np.linalg.inv(T)), camera.width, camera.height)
-    direct = raycasting_scene(scene).cast_rays(rays)["t_hit"].numpy()  # z-depth: directions have z = 1
+    direct = ray_caster(scene, "open3d").scene.cast_rays(rays)["t_hit"].numpy()  # z-depth: directions have z = 1
     direct = np.where(direct <= camera.max_depth, direct, np.nan)
     assert np.array_equal(np.isnan(frame.depth), np.isnan(direct))
     assert np.nanmax(np.abs(frame.depth - direct)) < 1e-3

@@ -2,8 +2,8 @@
 
 Machines are noisy and absolute times drift, so every figure is also given relative
 to a baseline measured alongside it. ``bench render``: the full render (RGB + depth +
-normals + hit mask) against a bare Open3D ``cast_rays`` of the same rays (goal <= 1.5x),
-plus scene loading and voxelisation, expressed in the same unit. ``bench map``: the
+normals + hit mask) against a bare ``cast_rays`` of the same rays and ray-cast engine (goal
+<= 1.5x), plus scene loading and voxelisation, expressed in the same unit. ``bench map``: the
 occupancy map's update per frame (ray strides 1, 2, 4) and one known-volume query for
 many frontier views, against a render of the same frames (goal: update < 1x).
 """
@@ -43,6 +43,8 @@ def add_parser(subparsers) -> None:
     render = _scene_bench(actions, "render", "render time per frame vs a bare cast_rays", run_render)
     render.add_argument("--repeats", type=int, default=20, help="timed repetitions (median is reported)")
     render.add_argument("--batch", type=int, default=8, help="poses per batched render")
+    render.add_argument("--raycast", choices=("auto", "open3d", "embree"),
+                        help="ray-cast engine (default: raycast.backend of configs/sim.yaml)")
     occupancy = _scene_bench(actions, "map", "occupancy map update per frame vs a render", run_map)
     occupancy.add_argument("--frames", type=int, default=20, help="frames rendered and integrated (median is reported)")
     occupancy.add_argument("--views", type=int, default=50, help="frontier views of one visible_known_volume call")
@@ -158,36 +160,35 @@ def median_each(function, items: list) -> tuple[float, list]:
 
 
 def run_render(args) -> int:
-    import open3d as o3d
-
     from ..scenes import load_scene
     from ..simulator.camera import PinholeCamera, Renderer
     from ..simulator.poses import sample_poses
-    from ..simulator.raycast import raycasting_scene
+    from ..simulator.raycast import active_backend, ray_caster, select_backend
     from ..simulator.voxels import voxelize_scene
 
+    if args.raycast:
+        select_backend(args.raycast)
     spec = default_bench_scene(args.scene)
     sim = load_config("sim")
     start = time.perf_counter()
     scene = load_scene(spec)
     load_s = time.perf_counter() - start
     start = time.perf_counter()
-    raycasting_scene(scene)
+    caster = ray_caster(scene)  # sim.yaml's raycast.backend
     bvh_s = time.perf_counter() - start
     start = time.perf_counter()
     voxels = voxelize_scene(scene, sim.voxels)
     voxel_s = time.perf_counter() - start
     renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
     poses = sample_poses(scene, voxels, max(args.batch, 1), 0, sim.poses)
-    rays = o3d.core.Tensor.from_numpy(renderer.rays(poses[:1]))
-    batch_rays = o3d.core.Tensor.from_numpy(renderer.rays(poses))
-    rcs = raycasting_scene(scene)
-    cast = median_seconds(lambda: rcs.cast_rays(rays), args.repeats)
+    rays = renderer.rays(poses[:1]).reshape(-1, 6)
+    batch_rays = renderer.rays(poses).reshape(-1, 6)
+    cast = median_seconds(lambda: caster.cast_rays(rays), args.repeats)
     render = median_seconds(lambda: renderer.render(poses[0]), args.repeats)
-    cast_batch = median_seconds(lambda: rcs.cast_rays(batch_rays), max(args.repeats // 4, 3)) / len(poses)
+    cast_batch = median_seconds(lambda: caster.cast_rays(batch_rays), max(args.repeats // 4, 3)) / len(poses)
     render_batch = median_seconds(lambda: renderer.render_batch(poses), max(args.repeats // 4, 3)) / len(poses)
     result = {
-        "scene": spec, "triangles": scene.num_triangles,
+        "scene": spec, "triangles": scene.num_triangles, "raycast_backend": active_backend(),
         "resolution": [renderer.camera.width, renderer.camera.height],
         "cast_rays_ms": round(cast * 1e3, 2),
         "render_ms": round(render * 1e3, 2),
@@ -206,7 +207,7 @@ def run_render(args) -> int:
         return 0
     print(f"bench render: {spec} ({scene.num_triangles} triangles), "
           f"{renderer.camera.width}x{renderer.camera.height}, median of {args.repeats}")
-    print(f"  bare cast_rays        {result['cast_rays_ms']:8.2f} ms   1.00x (baseline)")
+    print(f"  bare cast_rays ({result['raycast_backend']:6s}) {result['cast_rays_ms']:5.2f} ms   1.00x (baseline)")
     print(f"  render (rgb+depth+n)  {result['render_ms']:8.2f} ms   {result['render_over_cast']:.2f}x   goal <= 1.5x")
     print(f"  batched x{len(poses)} per frame  {result['batched_render_ms_per_frame']:8.2f} ms   "
           f"{result['batched_render_over_cast']:.2f}x of a batched cast")
