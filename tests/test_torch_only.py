@@ -31,12 +31,12 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
-def frontiernet_torch_only(*args: str) -> subprocess.CompletedProcess:
+def frontiernet_torch_only(*args: str, exit_code: int = 0) -> subprocess.CompletedProcess:
     """Run `frontiernet ARGS` in a fresh Python where the packages of ABSENT cannot be imported."""
     done = subprocess.run([sys.executable, "-c", TORCH_ONLY, *args], cwd=REPO, capture_output=True, text=True,
                           timeout=900)
     assert "failed to load" not in done.stderr, done.stderr  # every command module imported
-    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.returncode == exit_code, done.stderr[-3000:]
     return done
 
 
@@ -48,6 +48,12 @@ def test_datagen_runs_on_embree_without_open3d_and_labels_as_open3d_does(tmp_pat
                            "--no-progress", "--set", *settings)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["raycast_backends"] == ["embree"] and summary["views"] == 4
+    # a mesh file needs trimesh: that scene fails with a line that says so, the run goes on (exit 1)
+    mesh = tmp_path / "triangle.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    failed = frontiernet_torch_only("datagen", "--scenes", str(mesh), "--views-per-scene", "1", "--out",
+                                    str(tmp_path / "mesh"), "--no-progress", exit_code=1)
+    assert "loading mesh files needs trimesh (pip install trimesh)" in failed.stdout
     if importlib.util.find_spec("open3d") is not None:  # the same dataset here, on Open3D: the same labels
         from datagen import open_dataset
         from datagen.config import load_datagen_config

@@ -119,7 +119,10 @@ def load_mesh_file(path: str | Path, spec_text: str, *, up: str = "z", scale: fl
         max_texture_size: textures are downscaled to at most this many pixels a side.
         geometry_only: drop textures and colours (grey materials).
     """
-    import trimesh
+    try:
+        import trimesh
+    except ImportError:  # a torch-only GPU node: procedural and floor-plan scenes need no trimesh
+        raise InputError(f"{spec_text}: loading mesh files needs trimesh (pip install trimesh)") from None
 
     path = Path(path)
     if not path.is_file():
