@@ -32,7 +32,8 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--depth", metavar="D", help="depth map: .npy metres, or an image (integer images "
                                                       "are divided by --depth-scale)")
     predict.add_argument("--model", metavar="M", help="model file, checkpoint, .onnx or TorchScript .pt "
-                                                      "(default: the shipped model)")
+                                                      "(default: the shipped model for the inputs given: RGB + depth, or RGB "
+                                                      "only for --image alone)")
     predict.add_argument("--out", required=True, metavar="DIR", help="output folder")
     predict.add_argument("--size", type=int, metavar="PX", help="network input size: the short side is resized "
                                                                 "to PX and centre-cropped (default: the model's, "

@@ -43,6 +43,10 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         The arrays (see :meth:`frontiernet.model.Runtime.predict_at_size`), with ``frontiers``
         when `intrinsics` were given.
     """
+    if model is None:  # the shipped model that takes what was given: RGB + depth, or an RGB photo alone
+        from frontiernet.model import shipped_model_path
+
+        model = shipped_model_path("rgb" if image is not None and depth is None else "rgbd")
     runtime = load_runtime(model, threads=threads)
     needs_rgb, needs_depth = runtime.inputs in ("rgbd", "rgb"), runtime.inputs in ("rgbd", "depth")
     if needs_rgb and image is None:

@@ -167,3 +167,36 @@ def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_pat
                  "--frontier-threshold", "0"]) == 2
     assert "--frontier-threshold must be a positive number of pixels" in one_line_error()
     assert not (tmp_path / "bad.onnx").exists()
+
+
+def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypatch, capsys, one_line_error):
+    """--image alone takes the shipped RGB-only model (the public demo's single-image inference),
+    --image with --depth the RGB + depth one; a missing shipped file is one line naming it."""
+    import frontiernet.model.checkpoint as checkpoint
+
+    weights = tmp_path / "weights"
+    weights.mkdir()
+    torch.manual_seed(0)
+    small = dict(decoder_channels=(32, 16, 16, 8, 8), head_channels=8)
+    save_model(weights / checkpoint.SHIPPED_MODELS["rgbd"], FrontierNet(NetworkConfig(**small)).eval(), MODEL_CONF)
+
+    class Files:  # importlib.resources.files("frontiernet") with the weights folder in tmp_path
+        def __init__(self, root):
+            self.root = root
+
+        def joinpath(self, *parts):
+            return self.root.joinpath(*parts[1:]) if parts[0] == "weights" else self.root.joinpath(*parts)
+
+    monkeypatch.setattr(checkpoint.resources, "files", lambda package: Files(weights))
+    rgb = tmp_path / "photo.png"
+    cv2.imwrite(str(rgb), np.full((60, 80, 3), 128, np.uint8))
+    depth = tmp_path / "depth.npy"
+    np.save(depth, np.full((60, 80), 2.0, np.float32))
+    assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "a")]) == 2
+    assert "frontiernet_rgb_resnet18.safetensors: no shipped model takes an RGB image alone" in one_line_error()
+    assert main(["predict", "--image", str(rgb), "--depth", str(depth), "--out", str(tmp_path / "b")]) == 0
+    save_model(weights / checkpoint.SHIPPED_MODELS["rgb"],
+               FrontierNet(NetworkConfig(inputs="rgb", **small)).eval(), MODEL_CONF)
+    capsys.readouterr()
+    assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "c")]) == 0
+    assert (tmp_path / "c" / "overlay.png").is_file() and "depth" not in np.load(tmp_path / "c" / "outputs.npz")

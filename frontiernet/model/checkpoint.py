@@ -27,10 +27,26 @@ from .network import FrontierNet, NetworkConfig
 CONFIG_KEY = "frontiernet_model"
 INFO_KEY = "frontiernet_info"
 DEFAULT_MODEL = "frontiernet_rgbd_resnet18.safetensors"
+SHIPPED_MODELS = {"rgbd": DEFAULT_MODEL, "rgb": "frontiernet_rgb_resnet18.safetensors"}
+"""The model file shipped for each input kind (``frontiernet/weights/``): RGB + depth (the default,
+the paper's) and RGB only (Table II's row; ``predict --image`` without ``--depth``)."""
+
+
+def shipped_model_path(inputs: str = "rgbd") -> Path:
+    """The shipped model file for input kind `inputs` (``rgbd`` | ``rgb``); InputError when that
+    model is not shipped (yet): say what to give instead."""
+    if inputs not in SHIPPED_MODELS:
+        raise InputError(f"no model is shipped for {inputs!r} input; shipped: {', '.join(SHIPPED_MODELS)}")
+    path = Path(str(resources.files("frontiernet").joinpath("weights", SHIPPED_MODELS[inputs])))
+    if not path.is_file():
+        given = "an RGB image alone" if inputs == "rgb" else f"{inputs} input"
+        raise InputError(f"{path.name}: no shipped model takes {given} in this installation "
+                         f"(frontiernet/weights/README.md); give --depth for the RGB + depth model, or --model FILE")
+    return path
 
 
 def default_model_path() -> Path:
-    """The shipped model file (``frontiernet/weights/``, see its model card)."""
+    """The default shipped model file, RGB + depth (``frontiernet/weights/``, see its model card)."""
     return Path(str(resources.files("frontiernet").joinpath("weights", DEFAULT_MODEL)))
 
 
