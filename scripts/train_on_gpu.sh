@@ -7,8 +7,10 @@
 # WORK holds the dataset (WORK/data), the run (WORK/runs/<name>) and stages.tsv (seconds per
 # stage). Every stage resumes: run the same command again after an interruption (a fresh node
 # regenerates the same dataset bytes from the same seed). key=value pairs go to `frontiernet train`.
-# RESULTS=DIR also packs the run's logs and metrics (run.tar.gz) and the float16 model, split into
-# 15 MB parts (cat DIR/model_fp16.safetensors.part* > model.safetensors), into DIR.
+# RESULTS=DIR also packs the run's logs and metrics (NAME.run.tar.gz) and the float16 model, split into
+# 15 MB parts (cat DIR/NAME.model_fp16.safetensors.part* > model.safetensors), into DIR. A second
+# model on the same data: NAME=rgb scripts/train_on_gpu.sh WORK model.network.inputs=rgb (the
+# dataset and its training cache are reused).
 # Environment: SCENES (procedural:0-199: training scenes only, never the published or development
 # ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20), BATCH (64), PYTHON (python3),
 # SITE (/tmp/site: where the package and the wheels in .whl/ are installed when missing).
@@ -82,7 +84,7 @@ stage export "${FRONTIERNET[@]}" export "$RUN/model.safetensors" --format safete
 cat "$STAGES" >&2
 if [ -n "${RESULTS:-}" ]; then  # e.g. a lent machine's $OUT: at most 8 files of 16 MiB come back
     mkdir -p "$RESULTS"
-    tar -C "$WORK" -czf "$RESULTS/run.tar.gz" stages.tsv "runs/$NAME/metrics.csv" "runs/$NAME/summary.json" \
+    tar -C "$WORK" -czf "$RESULTS/$NAME.run.tar.gz" stages.tsv "runs/$NAME/metrics.csv" "runs/$NAME/summary.json" \
         "runs/$NAME/evaluate.json" "runs/$NAME/config.yaml" data/summary.json
-    split -b 15M -d "$RUN/model_fp16.safetensors" "$RESULTS/model_fp16.safetensors.part"  # cat *.part* > file
+    split -b 15M -d "$RUN/model_fp16.safetensors" "$RESULTS/$NAME.model_fp16.safetensors.part"  # cat *.part* > file
 fi
