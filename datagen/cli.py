@@ -148,7 +148,8 @@ def run_bench(args) -> int:
     if agreement["compared"]:
         print(f"  {agreement['compared']}: {agreement['hit_mask_mismatched_pixels']} of {agreement['pixels']} "
               f"pixels differ in the hit mask; hit distances within "
-              f"{agreement['max_hit_distance_difference_mm']:.4f} mm")
+              f"{agreement['max_hit_distance_difference_mm']:.4f} mm; "
+              f"{agreement['common_hits_on_another_triangle']} hits on another (coplanar) triangle")
     print(f"  {result['threads']} thread(s) on {result['cores']} core(s); scene setup (load, voxels, generator) "
           f"{result['setup_s']:.2f} s; peak memory of this process {result['peak_rss_mb']:.0f} MB")
     return 0
