@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import os
 import weakref
 from abc import ABC, abstractmethod
 from concurrent.futures import ThreadPoolExecutor
@@ -156,12 +157,11 @@ _ENGINES = {"open3d": Open3DRayCaster, "embree": EmbreeRayCaster}
 _CACHE: "weakref.WeakKeyDictionary[Scene, dict[str, RayCaster]]" = weakref.WeakKeyDictionary()
 _SELECTED: list[str] = []  # this process's backend once chosen (select_backend or the shipped config)
 _POOL: list[ThreadPoolExecutor] = []
+os.register_at_fork(after_in_child=_POOL.clear)  # a forked child has none of the parent's threads
 
 
 def _thread_pool() -> ThreadPoolExecutor:
     if not _POOL:
-        import os
-
         _POOL.append(ThreadPoolExecutor(max_workers=os.cpu_count() or 1, thread_name_prefix="embree"))
     return _POOL[0]
 
