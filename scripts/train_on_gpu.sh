@@ -11,6 +11,9 @@
 # 15 MB parts (cat DIR/NAME.model_fp16.safetensors.part* > model.safetensors), into DIR. A second
 # model on the same data: NAME=rgb scripts/train_on_gpu.sh WORK model.network.inputs=rgb (the
 # dataset and its training cache are reused).
+# BUDGET_S=SECONDS bounds the whole call: datagen stops at DATAGEN_SHARE % of it (training then uses
+# the shards finished so far; stages.tsv says "datagen_cut"), training gets what is left but RESERVE_S
+# (trainer.max_time), so a call always ends with a model and its metrics.
 # Environment: SCENES (procedural:0-199: training scenes only, never the published or development
 # ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20), BATCH (64), PYTHON (python3),
 # SITE (/tmp/site: where the package and the wheels in .whl/ are installed when missing).
@@ -25,19 +28,23 @@ VIEWS=${VIEWS:-75}
 NAME=${NAME:-rgbd}
 EPOCHS=${EPOCHS:-20}
 BATCH=${BATCH:-64}
+BUDGET_S=${BUDGET_S:-}          # wall seconds this call may take in all (a lent machine's 10-minute command)
+DATAGEN_SHARE=${DATAGEN_SHARE:-45}  # ... of which data generation gets at most this percent
+RESERVE_S=${RESERVE_S:-180}     # ... and this much is kept for the cache, evaluation, export and packing
 CORES=$(nproc)
 mkdir -p "$WORK"
 STAGES="$WORK/stages.tsv"
-stage() {  # stage NAME COMMAND...: run it, append "NAME<TAB>seconds" to stages.tsv
-    local name=$1 start=$SECONDS
+stage() {  # stage NAME COMMAND...: run it, append "NAME<TAB>seconds" to stages.tsv; its exit status
+    local name=$1 start=$SECONDS status=0
     shift
     echo "== $name: $*" >&2
-    "$@"
+    "$@" || status=$?
     printf '%s\t%d\n' "$name" $((SECONDS - start)) >> "$STAGES"
+    return "$status"
 }
 
 install() {
-    # carried wheels (embreex, omegaconf, antlr4: what a torch-only GPU image lacks; see docs/model.md)
+    # carried wheels (embreex, omegaconf: what a torch-only GPU image lacks; see docs/model.md)
     local wheel name missing=()
     for wheel in "$REPO"/.whl/*.whl; do  # only those whose distribution is not installed already
         [ -e "$wheel" ] || continue
@@ -60,22 +67,35 @@ DATA="$WORK/data"
 DATAGEN=(datagen --scenes "$SCENES" --views-per-scene "$VIEWS" --seed 0 --out "$DATA" --workers "$CORES" --no-progress)
 if [ ! -f "$DATA/summary.json" ]; then  # datagen writes summary.json last
     [ -f "$DATA/dataset.json" ] && DATAGEN+=(--resume)
-    stage datagen "${FRONTIERNET[@]}" "${DATAGEN[@]}"
+    if [ -n "$BUDGET_S" ]; then  # timeout signals datagen's whole process group: its workers stop too
+        status=0
+        stage datagen timeout $((BUDGET_S * DATAGEN_SHARE / 100 - SECONDS)) "${FRONTIERNET[@]}" "${DATAGEN[@]}" || status=$?
+        [ "$status" -eq 124 ] && printf 'datagen_cut\t%d\n' "$SECONDS" >> "$STAGES"
+        [ "$status" -eq 0 ] || [ "$status" -eq 124 ] || exit "$status"
+    else
+        stage datagen "${FRONTIERNET[@]}" "${DATAGEN[@]}"
+    fi
 fi
 
 RUN="$WORK/runs/$NAME"
 TRAIN=(train data.path="$DATA" out="$WORK/runs" name="$NAME" trainer.accelerator=gpu trainer.devices=1
        trainer.precision=bf16-mixed data.batch_size="$BATCH" data.num_workers=auto trainer.max_epochs="$EPOCHS"
-       optim.warmup_steps=500 data.max_val_samples=1024 "$@" --no-progress)
+       optim.warmup_steps=500 data.max_val_samples=1024 "$@")
+if [ -n "$BUDGET_S" ]; then
+    left=$((BUDGET_S - SECONDS - RESERVE_S))
+    [ "$left" -gt 60 ] || { echo "BUDGET_S=$BUDGET_S leaves ${left} s to train" >&2; exit 2; }
+    TRAIN+=(trainer.max_time="$(printf '00:%02d:%02d:%02d' $((left / 3600)) $((left % 3600 / 60)) $((left % 60)))")
+fi
 if [ -f "$RUN/summary.json" ]; then
     :  # trained
 elif [ -f "$RUN/checkpoints/last.ckpt" ]; then
-    stage train "${FRONTIERNET[@]}" "${TRAIN[@]}" --resume
+    stage train "${FRONTIERNET[@]}" "${TRAIN[@]}" --no-progress --resume
 else
-    stage train "${FRONTIERNET[@]}" "${TRAIN[@]}"
+    stage train "${FRONTIERNET[@]}" "${TRAIN[@]}" --no-progress
 fi
 
-stage evaluate "${FRONTIERNET[@]}" evaluate "$RUN/model.safetensors" --data "$DATA" --json "$RUN/evaluate.json"
+stage evaluate "${FRONTIERNET[@]}" evaluate "$RUN/model.safetensors" --data "$DATA" --max-samples 512 --workers "$CORES" \
+    --json "$RUN/evaluate.json"
 # the shippable file: float16 weights, the frontier threshold l = the held-out best-F1 one
 THRESHOLD=$("$PYTHON" -c "import json, sys; print(json.load(open(sys.argv[1]))['best_f1_threshold_px'])" "$RUN/evaluate.json")
 rm -f "$RUN/model_fp16.safetensors"
@@ -85,6 +105,6 @@ cat "$STAGES" >&2
 if [ -n "${RESULTS:-}" ]; then  # e.g. a lent machine's $OUT: at most 8 files of 16 MiB come back
     mkdir -p "$RESULTS"
     tar -C "$WORK" -czf "$RESULTS/$NAME.run.tar.gz" stages.tsv "runs/$NAME/metrics.csv" "runs/$NAME/summary.json" \
-        "runs/$NAME/evaluate.json" "runs/$NAME/config.yaml" data/summary.json
+        "runs/$NAME/evaluate.json" "runs/$NAME/config.yaml" $(cd "$WORK" && ls data/summary.json 2> /dev/null)
     split -b 15M -d "$RUN/model_fp16.safetensors" "$RESULTS/$NAME.model_fp16.safetensors.part"  # cat *.part* > file
 fi

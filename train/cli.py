@@ -36,6 +36,8 @@ def add_parser(subparsers) -> None:
     evaluate.add_argument("--depth", default="ground_truth", metavar="SOURCE",
                           help="depth prior for the model and the F_d baseline: ground_truth (default), "
                                "emulated (monocular-like) or another source of configs/depth.yaml")
+    evaluate.add_argument("--workers", type=int, default=0, metavar="W",
+                          help="processes decoding the dataset (default 0: in this process)")
     evaluate.add_argument("--json", metavar="FILE", help="also write the metrics as JSON")
     evaluate.set_defaults(func=run_evaluate)
 
@@ -62,12 +64,14 @@ def run_evaluate(args) -> int:
 
     if args.max_samples is not None and args.max_samples < 1:
         raise InputError(f"--max-samples must be >= 1, got {args.max_samples}")
+    if args.workers < 0:
+        raise InputError(f"--workers must be >= 0, got {args.workers}")
     from rich.progress import Progress
 
     with Progress(transient=True) as bar:
         task = bar.add_task("evaluating", total=None)
         result = evaluate(args.model, args.data, scenes=args.scenes, all_scenes=args.all,
-                          max_samples=args.max_samples, size=args.size, depth=args.depth,
+                          max_samples=args.max_samples, size=args.size, depth=args.depth, workers=args.workers,
                           progress=lambda done, total: bar.update(task, completed=done, total=total))
     print(format_report(result))
     if args.json:

@@ -25,7 +25,7 @@ from .transforms import network_batch
 
 def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_scenes: bool = False,
              max_samples: int | None = None, batch_size: int = 8, size: int | None = None,
-             depth: str = "ground_truth", progress=None) -> dict:
+             depth: str = "ground_truth", progress=None, workers: int = 0) -> dict:
     """Table II metrics of the model on the dataset's held-out scenes.
 
     Args:
@@ -36,6 +36,7 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         depth: the depth prior given to the model and to the F_d baseline: a source of
             ``configs/depth.yaml`` (``ground_truth``, ``emulated`` monocular, ...).
         progress: optional callable ``progress(done, total)``.
+        workers: loader processes decoding the dataset (0: in this process).
     Returns:
         dict of metrics (``df_error_px``, ``gain_dice``, ``frontier_precision`` ...), the
         baselines under ``baselines`` and what was evaluated under ``evaluated``.
@@ -69,13 +70,15 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
     metrics = FrontierMetrics(labels)
     zero_dice, band_dice = GainDice(K, labels["truncation_px"]), GainDice(K, labels["truncation_px"])
     band_counts = torch.zeros(K, dtype=torch.float64)
-    loader = DataLoader(samples, batch_size=batch_size, shuffle=False, num_workers=0)
+    loader = DataLoader(samples, batch_size=batch_size, shuffle=False, num_workers=int(workers))
+    device = torch.device("cuda" if torch.cuda.is_available() else "cpu")  # the network on the GPU if there is one
+    model = model.to(device)
     done = 0
     with torch.inference_mode():
         batches = []
         for batch in loader:
             batch = network_batch(batch, conf)
-            distance, logits = model(batch["image"])
+            distance, logits = (output.float().cpu() for output in model(batch["image"].to(device)))
             metrics.update(distance, logits, batch)
             zero_dice.update(torch.zeros_like(batch["gain_class"]), batch["gain_class"], batch["distance"],
                              batch["frontier"])
