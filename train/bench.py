@@ -3,7 +3,8 @@
 In one run, on one machine: the loader's samples/s (training batches delivered to the training
 loop: crop, flip and jitter factors in the workers, per-pixel augmentation and normalisation on
 the device) at each worker count, for the training cache and for decoding the dataset on every
-read (``data.cache: null``, the baseline, ~28 ms a view on one core), then the model's training
+read (``data.cache: null``, the baseline, ~28 ms a view on one core; with 0 workers also the CPU
+milliseconds a sample costs, a figure that a busy machine barely moves), then the model's training
 images/s (forward, the training loss, backward, AdamW) on the same device at the same batch and
 crop, and the ratio loader / model. The loader keeps ahead when that ratio is >= 1.
 """
@@ -39,13 +40,16 @@ def _loader_rate(samples, conf, workers: int, batches: int, device) -> dict:
     for _ in range(warmup):
         network_batch({k: v.to(device, non_blocking=True) for k, v in next(iterator).items()}, model_conf, augment_conf)
     _synchronise(device)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     for _ in range(batches):
         network_batch({k: v.to(device, non_blocking=True) for k, v in next(iterator).items()}, model_conf, augment_conf)
     _synchronise(device)
-    seconds = time.perf_counter() - start
+    seconds, cpu_seconds = time.perf_counter() - start, time.process_time() - cpu_start
     del iterator
-    return {"workers": workers, "batches": batches, "samples_per_s": round(batches * batch_size / seconds, 1)}
+    row = {"workers": workers, "batches": batches, "samples_per_s": round(batches * batch_size / seconds, 1)}
+    if workers == 0:  # all the work in this process: its CPU time per sample, steady on a busy machine
+        row["cpu_ms_per_sample"] = round(1000 * cpu_seconds / (batches * batch_size), 2)
+    return row
 
 
 def _synchronise(device) -> None:
@@ -116,10 +120,15 @@ def bench_train(conf, workers: list[int], batches: int, steps: int, baseline: bo
     result = {"data": str(conf.data.path), "views": len(cache), "cache": str(cache.path),
               "cache_open_or_build_s": round(cache_seconds, 2), "device": str(device), "batch": int(conf.data.batch_size),
               "crop": conf.augment.crop_size, "loader": []}
-    for count in workers:
-        if baseline:
-            result["loader"].append({"source": "decode", **_loader_rate(decoded, conf, count, batches, device)})
-        result["loader"].append({"source": "cache", **_loader_rate(cached, conf, count, batches, device)})
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # on a CPU the batch transform runs in this process: one core's cost, no thread spin
+    try:
+        for count in workers:
+            if baseline:
+                result["loader"].append({"source": "decode", **_loader_rate(decoded, conf, count, batches, device)})
+            result["loader"].append({"source": "cache", **_loader_rate(cached, conf, count, batches, device)})
+    finally:
+        torch.set_num_threads(threads)
     rows = result["loader"]
     base = next((row for row in rows if row["source"] == "decode"), rows[0])["samples_per_s"]
     for row in rows:
@@ -138,8 +147,9 @@ def format_report(result: dict) -> str:
              f"(augmented and normalised there):"]
     for row in result["loader"]:
         source = "cache" if row["source"] == "cache" else "decode every read (data.cache: null)"
+        cpu = f"  ({row['cpu_ms_per_sample']} ms CPU a sample)" if "cpu_ms_per_sample" in row else ""
         lines.append(f"  {source:38s} {row['workers']:2d} worker(s)  {row['samples_per_s']:9.1f} samples/s  "
-                     f"{row['ratio_to_baseline']:6.2f}x")
+                     f"{row['ratio_to_baseline']:6.2f}x{cpu}")
     model = result["model"]
     lines.append(f"model training step ({model['encoder']}, {model['inputs']}, batch {model['batch']}, "
                  f"{model['crop']} px, {model['precision']}, {model['device']}): {model['step_ms']} ms, "
