@@ -29,10 +29,17 @@ def default_config_path(name: str) -> Path:
 def _read_yaml(path: Path) -> DictConfig:
     if not path.is_file():
         raise InputError(f"{path}: config file not found")
+    import yaml
+
     try:
         conf = OmegaConf.load(path)
-    except (OSError, OmegaConfBaseException, ValueError) as error:  # yaml errors are ValueErrors
-        raise InputError(f"{path}: not a readable YAML config ({error.__class__.__name__})") from None
+    except yaml.YAMLError as error:  # malformed YAML: say where
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or error.__class__.__name__
+        raise InputError(f"{path}: not valid YAML{where} ({problem})") from None
+    except (OSError, OmegaConfBaseException, ValueError) as error:
+        raise InputError(f"{path}: not a readable YAML config ({error.__class__.__name__}: {error})".split("\n")[0]) from None
     if not isinstance(conf, DictConfig):
         raise InputError(f"{path}: a config must be a YAML mapping")
     return conf

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import sys
 
 from .. import __version__
@@ -20,6 +21,8 @@ from . import bench, demo, explore, render, scene, sequence
 
 COMMANDS = (scene, render, explore, demo, bench, sequence)
 PLUGIN_GROUP = "frontiernet.commands"
+NEGATIVE_NUMBER = re.compile(r"-\.?\d")
+"""What the parser reads as a (negative) number, not an option (CPython's current argparse pattern, ``match``)."""
 
 
 def plugin_commands(group: str = PLUGIN_GROUP) -> list:
@@ -37,7 +40,15 @@ def plugin_commands(group: str = PLUGIN_GROUP) -> list:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but usage errors are one line with exit code 2 (argparse's own code)."""
+    """argparse, but usage errors are one line with exit code 2 (argparse's own code), and an
+    argument that starts with '-' and a digit is a value, never an option: ``--pose -4.5,-0.5,1.2,0``,
+    ``--start -1,2,1.2,-90``, ``--seed -1`` read as written. Older argparse (3.11's) takes only a
+    lone ``-4.5`` for a number and ``-4.5,...`` for an unknown option; the rule here is the one of
+    CPython's current argparse: ``-``, an optional ``.``, a digit. No option here is named ``-<digit>``."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str):  # noqa: D401
         self.exit(2, f"{self.prog}: error: {message}\n")

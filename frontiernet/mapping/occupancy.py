@@ -344,7 +344,7 @@ class OccupancyMap:
                 occupancy = cls(data["origin"], data["log_odds"].shape, settings)
                 occupancy._log_odds[...] = data["log_odds"]
                 occupancy._observed[...] = data["observed"]
-        except (OSError, KeyError, ValueError, SyntaxError) as error:
+        except (OSError, KeyError, ValueError, SyntaxError, EOFError) as error:
             if isinstance(error, InputError):
                 raise
             raise InputError(f"{path}: cannot read an occupancy map ({error.__class__.__name__}: {error})") from None

@@ -181,7 +181,7 @@ def _door_gaps(candidates: np.ndarray, space_labels: np.ndarray, free: np.ndarra
 def _load_array(path: Path) -> np.ndarray:
     try:
         array = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as error:
+    except (OSError, ValueError, EOFError) as error:  # EOFError: an empty file
         raise InputError(f"{path}: not a readable .npy array ({error})") from None
     if not np.issubdtype(array.dtype, np.number) and array.dtype != bool:
         raise InputError(f"{path}: floor-plan array must be numeric, got {array.dtype}")

@@ -89,7 +89,7 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     if path.suffix.lower() == ".npy":
         try:
             depth = np.load(path, allow_pickle=False)
-        except (ValueError, OSError) as error:
+        except (ValueError, OSError, EOFError) as error:  # EOFError: an empty file
             raise InputError(f"{path}: not a readable .npy array ({error})") from None
     else:
         depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)

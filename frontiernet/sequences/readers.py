@@ -60,7 +60,7 @@ def image_size(path: Path) -> tuple[int, int]:
     if path.suffix.lower() == ".npy":
         try:
             shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
-        except (ValueError, OSError) as error:
+        except (ValueError, OSError, EOFError) as error:  # EOFError: an empty file
             raise InputError(f"{path}: not a readable .npy array ({error})") from None
         if len(shape) != 2:
             raise InputError(f"{path}: depth must be a (H, W) array, got shape {tuple(shape)}")
