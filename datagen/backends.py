@@ -13,7 +13,7 @@ import multiprocessing
 import os
 import queue
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
@@ -21,10 +21,10 @@ from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
 from frontiernet.simulator.raycast import select_backend
+from frontiernet.workers import check_backend, process_pool, sigterm_as_interrupt
 
 log = logging.getLogger(__name__)
 
-BACKENDS = ("local", "ray")
 MAX_ATTEMPTS = 2
 _CACHE: dict = {}  # per process: (scene spec, config hash) -> (scene, voxels, generator), the last two
 _PROGRESS = None  # per worker process: a queue that receives one item per computed view
@@ -155,8 +155,7 @@ class _Bar:
 def run_tasks(tasks: list[dict], conf_dict: dict, info: dict, *, backend: str = "local", workers: int = 1,
               progress: bool = True, total_views: int = 0) -> list[dict]:
     """Run shard tasks on a backend; returns one result per task (in completion order)."""
-    if backend not in BACKENDS:
-        raise InputError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    check_backend(backend, workers)
     if not tasks:
         return []
     bar = _Bar(total_views, progress)
@@ -192,51 +191,50 @@ def _run_inline(tasks, conf_dict, info, bar: _Bar) -> list[dict]:
 
 
 def _run_processes(tasks, conf_dict, info, workers: int, bar: _Bar) -> list[dict]:
-    """Run on a pool of spawned processes; restart the pool when a worker dies."""
-    context = multiprocessing.get_context("spawn")
-    manager = context.Manager()
-    progress_queue = manager.Queue()
+    """Run on a pool of spawned processes; restart the pool when a worker dies. When the run is
+    stopped (Ctrl-C, or SIGTERM to this process alone) the workers and the progress queue's
+    manager end with it (:func:`frontiernet.workers.process_pool`)."""
     threads = max(1, (os.cpu_count() or 1) // workers)
     attempts = {task["path"]: 0 for task in tasks}
     results: list[dict] = []
     remaining = list(tasks)
     failed = 0
-    try:
-        while remaining:
-            pool = ProcessPoolExecutor(max_workers=min(workers, len(remaining)), mp_context=context,
-                                       initializer=_init_worker, initargs=(progress_queue, threads))
-            pending = {}
-            for task in remaining:
-                attempts[task["path"]] += 1
-                pending[pool.submit(run_shard_task, task, conf_dict, info)] = task
-            remaining = []
-            try:
-                while pending:
-                    done, _ = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-                    _drain(progress_queue, bar, failed)
-                    for future in done:
-                        task = pending.pop(future)
-                        try:
-                            result = future.result()
-                        except BrokenProcessPool:
-                            remaining.append(task)
-                            continue
-                        results.append(result)
-                        failed += not result["ok"]
-            finally:
-                pool.shutdown(wait=True, cancel_futures=True)
-            retry = [task for task in remaining if attempts[task["path"]] < MAX_ATTEMPTS]
-            for task in remaining:
-                if attempts[task["path"]] >= MAX_ATTEMPTS:
-                    results.append({"task": os.path.basename(task["path"]), "spec": task["spec"], "ok": False,
-                                    "error": "worker process died twice (killed or out of memory)", "seconds": 0.0})
-                    failed += 1
-            if remaining:
-                log.warning("a worker process died; retrying %d shard(s)", len(retry))
-            remaining = retry
-        _drain(progress_queue, bar, failed)
-    finally:
-        manager.shutdown()
+    with sigterm_as_interrupt():
+        manager = multiprocessing.get_context("spawn").Manager()
+        try:
+            progress_queue = manager.Queue()
+            while remaining:
+                with process_pool(min(workers, len(remaining)), _init_worker, (progress_queue, threads)) as pool:
+                    pending = {}
+                    for task in remaining:
+                        attempts[task["path"]] += 1
+                        pending[pool.submit(run_shard_task, task, conf_dict, info)] = task
+                    remaining = []
+                    while pending:
+                        done, _ = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
+                        _drain(progress_queue, bar, failed)
+                        for future in done:
+                            task = pending.pop(future)
+                            try:
+                                result = future.result()
+                            except BrokenProcessPool:
+                                remaining.append(task)
+                                continue
+                            results.append(result)
+                            failed += not result["ok"]
+                retry = [task for task in remaining if attempts[task["path"]] < MAX_ATTEMPTS]
+                for task in remaining:
+                    if attempts[task["path"]] >= MAX_ATTEMPTS:
+                        results.append({"task": os.path.basename(task["path"]), "spec": task["spec"], "ok": False,
+                                        "error": "worker process died twice (killed or out of memory)",
+                                        "seconds": 0.0})
+                        failed += 1
+                if remaining:
+                    log.warning("a worker process died; retrying %d shard(s)", len(retry))
+                remaining = retry
+            _drain(progress_queue, bar, failed)
+        finally:
+            manager.shutdown()
     return results
 
 

@@ -13,6 +13,7 @@ point (``frontiernet`` itself never imports ``datagen``).
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 
@@ -99,8 +100,8 @@ def print_summary(summary: dict, out: Path) -> None:
           f"{100 * summary['frontier_pixel_ratio']:.2f} % of all, {summary['candidates_per_view']:.2f} "
           "candidates per view")
     print(f"  gain classes 1-{max(len(hist) - 1, 1)} (% of gain pixels): {shares}")
-    for failure in summary["failed_scenes"]:
-        print(f"  FAILED {failure['scene']}: {failure['error']}")
+    for failure in summary["failed_scenes"]:  # on stderr, where a log or a terminal shows errors
+        print(f"frontiernet datagen: FAILED {failure['scene']}: {failure['error']}", file=sys.stderr)
 
 
 def run_preview(args) -> int:

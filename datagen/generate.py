@@ -24,6 +24,7 @@ from frontiernet.errors import InputError
 from frontiernet.io import write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
 from frontiernet.simulator.raycast import resolve_backend
+from frontiernet.workers import check_backend
 
 from .config import config_hash
 from .shards import (INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
@@ -137,11 +138,12 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
 
     out = Path(out)
     specs, shard_size = _check_args(scenes, views_per_scene, seed, conf)
-    if not isinstance(workers, int) or workers < 1:
-        raise InputError(f"--workers must be a positive integer, got {workers!r}")
+    check_backend(backend, workers)  # before anything is written: a refused run leaves nothing behind
     conf_dict = OmegaConf.to_container(conf, resolve=True)
     info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed,
             "scenes": specs, "views_per_scene": views_per_scene, "shard_size": shard_size, "config": conf_dict}
+    created = not (out / INFO_NAME).exists()
+    existed = out.exists()
     _prepare_output(out, info, resume)
     removed = remove_stale_temporaries(out / SHARDS_DIR)
     if removed:
@@ -156,5 +158,26 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
     from .summary import summarise
 
     summary = summarise(out, tasks, results, elapsed, done_before=len(tasks) - len(todo))
+    if created and summary["views"] == 0 and results:  # every shard failed: a dataset of nothing
+        _take_back(out, existed)  # the next run must not find an empty dataset in its way
+        failures = summary["failed_scenes"] or [{"scene": specs[0], "error": "no view made"}]
+        raise InputError(f"{failures[0]['scene']}: {failures[0]['error']} (no view was made of "
+                         f"{len(summary['failed_scenes'])} failed scene(s); nothing was left in {out})")
     write_json(out / "summary.json", summary)
     return summary
+
+
+def _take_back(out: Path, existed: bool) -> None:
+    """Remove what a run that made nothing wrote to `out`: the folder when the run created it,
+    else its dataset.json and empty shards folder."""
+    import shutil
+
+    if not existed:
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    (out / INFO_NAME).unlink(missing_ok=True)
+    remove_stale_temporaries(out / SHARDS_DIR)
+    try:
+        (out / SHARDS_DIR).rmdir()
+    except OSError:
+        pass

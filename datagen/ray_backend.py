@@ -11,17 +11,14 @@ from __future__ import annotations
 import os
 import time
 
-from frontiernet.errors import InputError
+from frontiernet.workers import import_ray
 
 from .backends import run_shard_task
 
 
 def run_on_ray(tasks: list[dict], conf_dict: dict, info: dict, workers: int, bar) -> list[dict]:
     """Run shard tasks as Ray tasks, `workers` at a time; returns their results."""
-    try:
-        import ray
-    except ImportError:
-        raise InputError("--backend ray needs Ray: pip install 'frontiernet[ray]' (or pip install ray)") from None
+    ray = import_ray()
     started_here = not ray.is_initialized()
     if started_here:
         address = os.environ.get("RAY_ADDRESS")

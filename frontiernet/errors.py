@@ -41,3 +41,17 @@ def number_range(value, name: str, lower: float = -math.inf, upper: float = math
         bound = f" <= {upper}" if math.isfinite(upper) else ""
         raise InputError(f"{name} must satisfy {lower} <= min <= max{bound}, got {[low, high]}")
     return low, high
+
+
+def whole_number(value, name: str, minimum: int = 0, maximum: float = math.inf) -> int:
+    """`value` as an int if it is an integer (not a bool) with ``minimum <= value <= maximum``.
+
+    Otherwise raise :class:`InputError` naming `name`, e.g. ``"--seed must be an integer >= 0, got -1"``.
+    """
+    import numbers
+
+    ok = isinstance(value, numbers.Integral) and not isinstance(value, bool) and minimum <= value <= maximum
+    if not ok:
+        bound = f">= {minimum}" if maximum == math.inf else f"in [{minimum}, {maximum}]"
+        raise InputError(f"{name} must be an integer {bound}, got {value!r}")
+    return int(value)

@@ -133,3 +133,62 @@ def one_line_error(capsys):
         assert err and "\n" not in err and "Traceback" not in err, err
         return err
     return read
+
+
+def _process_stat(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after the command name (state, parent pid, ...); None if gone."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+
+
+def _spawned_children(pid: int) -> list[int]:
+    """Worker processes (multiprocessing spawn) whose parent is `pid`, from /proc."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or (fields := _process_stat(int(entry.name))) is None or int(fields[1]) != pid:
+            continue
+        try:
+            if b"spawn_main" in (entry / "cmdline").read_bytes():
+                found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
+def _alive(pids: list[int]) -> list[int]:
+    """The processes of `pids` that still run (neither gone nor zombies)."""
+    return [pid for pid in pids if (fields := _process_stat(pid)) is not None and fields[0] != "Z"]
+
+
+def check_sigterm_ends_workers(args: list[str], workers: int = 2) -> None:
+    """Run ``frontiernet ARGS`` until it has `workers` spawned worker processes, send SIGTERM to the
+    command's own process (as ``kill PID`` does), and check it exits 130 ("interrupted") and no
+    worker is left running. Linux only (reads /proc); kills whatever it started if a check fails."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    process = subprocess.Popen([sys.executable, "-m", "frontiernet.cli.main", *args], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    found = []
+    try:
+        deadline = time.monotonic() + 240
+        while len(found := _spawned_children(process.pid)) < workers and time.monotonic() < deadline:
+            assert process.poll() is None, process.communicate()[1][-2000:]
+            time.sleep(0.5)
+        assert len(found) >= workers, "the command started no workers"
+        process.send_signal(signal.SIGTERM)
+        _, err = process.communicate(timeout=120)
+        assert process.returncode == 130 and "interrupted" in err, err[-2000:]
+        deadline = time.monotonic() + 30
+        while _alive(found) and time.monotonic() < deadline:
+            time.sleep(0.5)
+        assert not _alive(found), f"workers still running after the command stopped: {_alive(found)}"
+    finally:  # a failed check leaves nothing running
+        if process.poll() is None:
+            process.kill()
+        for pid in _alive(found):
+            os.kill(pid, signal.SIGKILL)

@@ -6,16 +6,12 @@ import contextlib
 import csv
 import io
 import json
-import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import check_sigterm_ends_workers
 from frontiernet.benchmark.plan import scene_key
 from frontiernet.benchmark.report import add_shared_vox, coverage_at, ratio_interval, table_markdown, write_report
 from frontiernet.cli.main import main
@@ -273,6 +269,36 @@ def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):
     assert code == 0 and "1 runs (0 failed)" in stdout, stderr
 
 
+def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_behaviour(tmp_path):
+    """docs/benchmark/published was planned before planner.approach_radius_m existed (its default,
+    0, is the code of then: KEYS_ADDED_AFTER_PLANS): its protocol command resumes with today's code;
+    setting the key, or a plan that lacks a key not listed there, is a change of settings."""
+    from omegaconf import OmegaConf
+
+    from conftest import REPO_ROOT
+    from frontiernet.benchmark.main import resumable_plan
+    from frontiernet.errors import InputError
+    from frontiernet.exploration.run import load_run_config
+
+    published = REPO_ROOT / "docs" / "benchmark" / "published"
+    stored = json.loads((published / "plan.json").read_text())
+    assert "approach_radius_m" not in stored["settings"]["conf"]["planner"]
+
+    def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of docs/benchmark.md's command
+        return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
+                "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
+
+    assert resumable_plan(published, protocol())["start_poses"] == stored["start_poses"]
+    with pytest.raises(InputError, match=r"\(conf.planner.approach_radius_m: 0.0 in the plan, 1.5 now\)"):
+        resumable_plan(published, protocol("planner.approach_radius_m=1.5"))
+    with pytest.raises(InputError, match=r"\(conf.planner.clearance_m: 0.3 in the plan, 0.35 now\)"):
+        resumable_plan(published, protocol("planner.clearance_m=0.35"))
+    del stored["settings"]["conf"]["planner"]["clearance_m"]
+    (tmp_path / "plan.json").write_text(json.dumps(stored))
+    with pytest.raises(InputError, match=r"\(conf.planner.clearance_m: absent in the plan, 0.3 now\)"):
+        resumable_plan(tmp_path, protocol())
+
+
 def test_report_of_a_folder_without_a_benchmark_says_so(tmp_path, one_line_error):
     assert main(["bench", "--report", "--out", str(tmp_path)]) == 2
     assert "no benchmark here" in one_line_error()
@@ -357,57 +383,9 @@ def test_hot_path_benchmarks_keep_their_scene_option_beside_the_exploration_benc
     assert json.loads(stdout)["scene"] == "procedural:0"
 
 
-def _stat(pid: int) -> list[str] | None:
-    """The fields of /proc/<pid>/stat after the command name (state, parent pid, ...); None if gone."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except (OSError, IndexError):
-        return None
-
-
-def _children(pid: int) -> list[int]:
-    """Worker processes (multiprocessing spawn) whose parent is `pid`, from /proc."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or (fields := _stat(int(entry.name))) is None or int(fields[1]) != pid:
-            continue
-        try:
-            if b"spawn_main" in (entry / "cmdline").read_bytes():
-                found.append(int(entry.name))
-        except OSError:
-            continue
-    return found
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads worker processes from Linux's /proc")
 def test_stopping_the_benchmark_with_sigterm_ends_its_workers(plan_spec, tmp_path):
     """`kill PID` of a running benchmark (SIGTERM to the main process alone) must not leave its
     workers running their explorations unseen beside the resumed benchmark."""
-    command = [sys.executable, "-m", "frontiernet.cli.main", "bench", "--scenes", plan_spec, "--methods",
-               "classic", "--starts", "2", "--repeats", "1", "--max-steps", "2000", "--workers", "2",
-               "--out", str(tmp_path / "bench")]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    workers = []
-    try:
-        deadline = time.monotonic() + 240
-        while len(workers := _children(process.pid)) < 2 and time.monotonic() < deadline:
-            assert process.poll() is None, process.communicate()[1][-2000:]
-            time.sleep(0.5)
-        assert len(workers) == 2, "the benchmark started no workers"
-        process.send_signal(signal.SIGTERM)
-        _, err = process.communicate(timeout=120)
-        assert process.returncode == 130 and "interrupted" in err, err[-2000:]
-        deadline = time.monotonic() + 30
-        while _alive(workers) and time.monotonic() < deadline:
-            time.sleep(0.5)
-        assert not _alive(workers), f"workers still running after the benchmark stopped: {_alive(workers)}"
-    finally:  # a failed check leaves nothing running
-        if process.poll() is None:
-            process.kill()
-        for pid in _alive(workers):
-            os.kill(pid, signal.SIGKILL)
-
-
-def _alive(pids: list[int]) -> list[int]:
-    """The processes of `pids` that still run (neither gone nor zombies)."""
-    return [pid for pid in pids if (fields := _stat(pid)) is not None and fields[0] != "Z"]
+    check_sigterm_ends_workers(["bench", "--scenes", plan_spec, "--methods", "classic", "--starts", "2", "--repeats",
+                                "1", "--max-steps", "2000", "--workers", "2", "--out", str(tmp_path / "bench")])

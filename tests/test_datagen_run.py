@@ -366,8 +366,8 @@ def test_failing_scene_is_reported_and_the_others_are_written(tmp_path, capsys):
     args = ["datagen", "--scenes", str(bad), "procedural:5", "--views-per-scene", "2", "--out", str(out),
             "--no-progress", "--set", *SMALL_SET]
     assert main(args) == 1
-    printed = capsys.readouterr().out
-    assert "FAILED" in printed and str(bad) in printed
+    printed = capsys.readouterr()
+    assert "FAILED" in printed.err and str(bad) in printed.err  # an error: on stderr, not only in the report
     shards = sorted(p.name for p in (out / "shards").glob("*.zip"))
     assert shards == ["00001-procedural-5-0000.zip"]
     assert shard_complete(out / "shards" / shards[0])

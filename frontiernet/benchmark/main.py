@@ -7,12 +7,14 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from ..errors import InputError
+from ..depth import SOURCES as DEPTH_SOURCES
+from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import RUN_SECTIONS, depth_source_name, load_run_config
 from ..io import ensure_dir, write_json
 from ..scenes.spec import expand_specs
-from .plan import MIN_BUDGET, plan_runs
+from ..workers import check_backend
+from .plan import MIN_BUDGET, first_difference, plan_runs, with_keys_added_after
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, read_plan
@@ -43,7 +45,11 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
-    seed = int(conf.run.seed if seed is None else seed)
+    seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
+    check_backend(backend, workers)  # before plan.json is written: a refused run leaves nothing behind
+    if depth_source_name(depth, conf) not in DEPTH_SOURCES:
+        raise InputError(f"depth source '{depth_source_name(depth, conf)}' (--depth, run.depth) is unknown; valid: "
+                         f"gt, {', '.join(DEPTH_SOURCES)}")
     scenes = expand_specs(scenes)
     valid = method_names()
     for method in methods:
@@ -60,14 +66,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     plan_path = out / "plan.json"
     poses = None
     if plan_path.is_file():  # resuming: the same settings, the same start poses
-        previous = read_plan(out)
-        shipped = OmegaConf.to_container(load_run_config(), resolve=True)
-        for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
-            previous["settings"]["conf"].setdefault(section, shipped[section])
-        if previous["settings"] != settings:
-            raise InputError(f"{out} holds a benchmark with other settings (budget, seed, model, depth or config); "
-                             "use another --out or remove it")
-        poses = previous["start_poses"]
+        poses = resumable_plan(out, settings)["start_poses"]
     clock = time.perf_counter()
     runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
                                   depth_source_name(depth, conf))
@@ -78,6 +77,24 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                           "depth": depth}, workers, backend, progress)
     report = write_report(out, rows, list(scenes), list(methods))
     return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
+
+
+def resumable_plan(out: Path, settings: dict) -> dict:
+    """The plan stored in benchmark folder `out` (``plan.json``) when a benchmark with `settings`
+    (as :func:`main` builds them) may resume it; InputError naming the first setting that differs.
+
+    A plan made before the run config had sections ``sim`` and ``depth`` used the shipped files;
+    one made before a key of :data:`~frontiernet.benchmark.plan.KEYS_ADDED_AFTER_PLANS` existed
+    ran as that key's listed value does. Anything else that differs is a change of settings."""
+    previous = read_plan(out)
+    shipped = OmegaConf.to_container(load_run_config(), resolve=True)
+    for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
+        previous["settings"]["conf"].setdefault(section, shipped[section])
+    with_keys_added_after(previous["settings"]["conf"])
+    if previous["settings"] != settings:
+        raise InputError(f"{out} holds a benchmark with other settings "
+                         f"({first_difference(previous['settings'], settings)}); use another --out or remove it")
+    return previous
 
 
 def report(out: str | Path) -> dict:
@@ -101,4 +118,4 @@ def report(out: str | Path) -> dict:
     return {"rows": reported, **write_report(out, reported, scenes, methods, pending, finished), "pending": pending}
 
 
-__all__ = ["main", "report"]
+__all__ = ["main", "report", "resumable_plan"]

@@ -12,22 +12,19 @@ other run's, with its own scene, start, repeat and seed.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
 import os
 import shutil
-import signal
 import sys
-import threading
 from pathlib import Path
 
 from ..errors import InputError
+from ..workers import BACKENDS, check_backend, import_ray, process_pool
 from .store import FinishedRuns, read_metrics
 
 log = logging.getLogger(__name__)
 
-BACKENDS = ("local", "ray")
 ROW_FIELDS = ("scene", "method", "start", "repeat", "seed", "status", "error", "steps", "max_steps", "coverage",
               "vox25", "vox50", "vox100", "success", "surface_coverage", "surface_auc", "chamfer_m", "completeness",
               "path_length_m", "collisions", "step_ms", "wall_s", "stop_reason", "copy_of")
@@ -149,10 +146,7 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
         backend: ``local`` (processes on this machine) or ``ray`` (a Ray cluster: ``ray.init()``
             connects to ``RAY_ADDRESS`` when set; needs the ``ray`` extra).
     """
-    if backend not in BACKENDS:
-        raise InputError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
-    if int(workers) < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
+    workers = check_backend(backend, workers)
     every = [{**run.as_dict(), "key": run.key} for run in runs]
     done = {}  # finished before: read here, so progress (and its time left) counts only runs to do
     finished = FinishedRuns(settings["out"])
@@ -161,71 +155,38 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
         if row is not None and row["status"] == "done":
             done[task["key"]] = row
     tasks = [task for task in every if not task["copy_of"] and task["key"] not in done]
-    settings = {**settings, "threads": max(1, (os.cpu_count() or 1) // int(workers))}
+    settings = {**settings, "threads": max(1, (os.cpu_count() or 1) // workers)}
     rows: list = [None] * len(tasks)
     with _Progress(len(tasks), progress) as bar:
         if backend == "ray":
-            _run_ray(tasks, settings, int(workers), rows, bar)
-        elif int(workers) == 1:
+            _run_ray(tasks, settings, workers, rows, bar)
+        elif workers == 1:
             for index, task in enumerate(tasks):
                 rows[index] = run_one(task, settings)
                 bar.advance(rows[index])
         else:
-            _run_processes(tasks, settings, int(workers), rows, bar)
+            _run_processes(tasks, settings, workers, rows, bar)
     return with_copies(every, {**done, **{row["key"]: row for row in rows}})
 
 
 def _run_processes(tasks, settings, workers, rows, bar) -> None:
-    """Runs `tasks` in `workers` spawned processes. When the benchmark is stopped (Ctrl-C, or
-    SIGTERM to this process alone, as ``kill PID`` sends), the workers are ended with it: left
-    running, they would go on with their runs, unseen, beside the resumed benchmark."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    """Runs `tasks` in `workers` spawned processes; when the benchmark is stopped (Ctrl-C, or
+    SIGTERM to this process alone) the workers end with it (:func:`frontiernet.workers.process_pool`)."""
+    from concurrent.futures import as_completed
 
-    # spawn: torch and Open3D threads in this process must not be forked half-initialised
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    with _sigterm_as_interrupt():
-        try:
-            futures = {pool.submit(run_one, task, settings): index for index, task in enumerate(tasks)}
-            for future in as_completed(futures):
-                index = futures[future]
-                try:
-                    rows[index] = future.result()
-                except Exception as error:  # a worker that died (killed, out of memory)
-                    rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
-                bar.advance(rows[index])
-        except BaseException:
-            for process in list((getattr(pool, "_processes", None) or {}).values()):  # no public way before 3.14
-                process.terminate()
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
-    pool.shutdown(wait=True)
-
-
-@contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """Within the block, SIGTERM raises KeyboardInterrupt (as Ctrl-C does), so that cleanup runs;
-    the previous handler is restored after. Only the main thread can set handlers: elsewhere
-    (a caller's thread) nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    with process_pool(workers) as pool:
+        futures = {pool.submit(run_one, task, settings): index for index, task in enumerate(tasks)}
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                rows[index] = future.result()
+            except Exception as error:  # a worker that died (killed, out of memory)
+                rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
+            bar.advance(rows[index])
 
 
 def _run_ray(tasks, settings, workers, rows, bar) -> None:
-    try:
-        import ray
-    except ImportError:
-        raise InputError("--backend ray needs Ray: pip install 'frontiernet[ray]'") from None
+    ray = import_ray()
     ray.init(ignore_reinit_error=True, log_to_driver=False)
     remote = ray.remote(num_cpus=settings["threads"])(run_one)
     pending, index_of, next_task = [], {}, 0

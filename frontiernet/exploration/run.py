@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from ..errors import InputError
+from ..errors import InputError, whole_number
 from ..geometry import parse_pose_text, pose_from_heading
 
 DEPTH_ALIASES = {"gt": "ground_truth"}
@@ -165,7 +165,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
     if budget < 1:
         raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
-    seed = int(conf.run.seed if seed is None else seed)
+    seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     depth_name = depth_source_name(depth, conf)
     # the explorer's own draws read run.seed; config.yaml records what the run used
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})

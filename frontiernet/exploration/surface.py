@@ -33,16 +33,10 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..errors import InputError, positive_number
+from ..errors import InputError, positive_number, whole_number
 from ..mapping import OccupancyMap
 
 _OVERSAMPLE, _RADIUS_DIVISOR = 3, 5.0  # 3 n uniform samples thinned at sqrt(area / (5 n)) leave ~1.2-1.5 n
-
-
-def _integer(value, name: str, minimum: int, maximum: float = np.inf) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not minimum <= value <= maximum:
-        raise InputError(f"{name} must be an integer in [{minimum}, {maximum}], got {value!r}")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -65,8 +59,8 @@ class SurfaceSettings:
             return conf
         conf = conf.get("surface", conf)
         try:
-            return cls(_integer(conf["num_points"], "surface.num_points", 1),
-                       _integer(conf["tolerance_voxels"], "surface.tolerance_voxels", 0, 3),
+            return cls(whole_number(conf["num_points"], "surface.num_points", 1),
+                       whole_number(conf["tolerance_voxels"], "surface.tolerance_voxels", 0, 3),
                        *(positive_number(conf[key], f"surface.{key}", "metres")
                          for key in ("max_distance_to_explorable_m", "completeness_threshold_m")))
         except KeyError as error:
@@ -79,7 +73,7 @@ def even_surface_samples(vertices: np.ndarray, triangles: np.ndarray, count: int
     import trimesh
     from trimesh.points import remove_close
 
-    count, seed = _integer(count, "count", 1), _integer(seed, "seed", 0)
+    count, seed = whole_number(count, "count", 1), whole_number(seed, "seed", 0)
     mesh = trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(triangles, np.int64), process=False)
     points, _ = trimesh.sample.sample_surface(mesh, _OVERSAMPLE * count, seed=seed)
     radius = np.sqrt(mesh.area / (_RADIUS_DIVISOR * count))
@@ -187,7 +181,7 @@ def coverage_auc(fractions: np.ndarray, max_steps: int) -> float:
     `fractions`: (S + 1,) float coverages in [0, 1] after 0, 1, ..., S <= max_steps steps (a run
     that stopped early holds its last value to the budget). Returns the trapezoidal area over
     steps [0, max_steps] / max_steps: a constant curve gives it, a ramp from 0 to 1 gives 0.5."""
-    max_steps = _integer(max_steps, "max_steps", 1)
+    max_steps = whole_number(max_steps, "max_steps", 1)
     values = np.asarray(fractions, np.float64)
     if values.ndim != 1 or len(values) == 0:
         raise InputError(f"fractions must be a non-empty 1D array of per-step coverages, got shape {values.shape}")
