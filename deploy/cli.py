@@ -19,6 +19,7 @@ def add_parser(subparsers) -> None:
     export.add_argument("--format", required=True, choices=("onnx", "torchscript", "safetensors"))
     export.add_argument("--out", required=True, metavar="FILE", help="output file")
     export.add_argument("--half", action="store_true", help="safetensors: float16 weights (half the size)")
+    export.add_argument("--force", action="store_true", help="replace --out if it exists (refused without it)")
     export.add_argument("--frontier-threshold", type=float, metavar="PX",
                         help="threshold l (px) the exported file's runtimes use for D < l, e.g. the best-F1 l "
                              "of frontiernet evaluate (default: keep the model's)")
@@ -49,13 +50,16 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                          help="pinhole intrinsics of the image in pixels: also write 3D frontiers (frontiers.json, "
                               "in a level camera frame and the camera frame; needs --depth)")
-    predict.add_argument("--threads", type=int, help="CPU threads for the network")
+    predict.add_argument("--threads", type=int, help="CPU threads for the network (>= 1; default: torch's)")
     predict.set_defaults(func=run_predict)
 
 
 def run_export(args) -> int:
+    from frontiernet.io import check_output_file
+
     from .export import export
 
+    check_output_file(args.out, args.force)
     path = export(args.model, args.format, args.out, half=args.half,
                   frontier_threshold_px=args.frontier_threshold)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
@@ -63,13 +67,15 @@ def run_export(args) -> int:
 
 
 def run_predict(args) -> int:
-    from frontiernet.errors import InputError, positive_number
+    from frontiernet.errors import InputError, positive_number, whole_number
 
     from .predict import predict_files
 
     if args.size is not None and args.size < 0:
         raise InputError(f"--size must be >= 0, got {args.size}")
     positive_number(args.depth_scale, "--depth-scale")
+    if args.threads is not None:
+        whole_number(args.threads, "--threads", 1)
     intrinsics = None
     if args.intrinsics:
         from frontiernet.cli.sequence import parse_intrinsics

@@ -16,7 +16,7 @@ from pathlib import Path
 import torch
 
 from frontiernet.errors import InputError, positive_number
-from frontiernet.io import atomic_write
+from frontiernet.io import atomic_write, check_output_file
 from frontiernet.model import load_model, save_model
 from frontiernet.model.checkpoint import CONFIG_KEY
 
@@ -44,7 +44,9 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
     """
     if fmt not in FORMATS:
         raise InputError(f"--format must be one of {', '.join(FORMATS)}, got {fmt!r}")
-    out = Path(out)
+    if half and fmt != "safetensors":
+        raise InputError(f"--half writes float16 safetensors only; {fmt} files keep float32 weights (leave --half out)")
+    out = check_output_file(out)  # a folder in the way fails now, not after the export
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: output folder does not exist")
     model, conf = load_model(model_path)

@@ -58,6 +58,8 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         raise InputError("--intrinsics anchors frontiers in 3D, which needs --depth")
     rgb = read_rgb(image) if image is not None else None
     depth_m = read_depth(depth, depth_scale, depth_encoding) if depth is not None else None
+    if depth_m is not None and not depth_m.any():
+        raise InputError(f"{depth}: no valid depth (every pixel is 0, negative or NaN)")
     if depth_m is not None:  # as the simulated sensor the network learnt from: nothing beyond its range
         depth_m = fill_invalid_nearest(depth_m) if fill_invalid else depth_m
         depth_m = np.nan_to_num(beyond_range_invalid(depth_m, runtime.conf["input"]["max_depth_m"]), nan=0.0)

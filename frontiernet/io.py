@@ -24,9 +24,38 @@ def ensure_dir(path: str | Path) -> Path:
     return path
 
 
+FORCE = "--force"
+"""The option of every command that replaces earlier outputs (export, render, explore, scene topdown)."""
+
+
+def check_output_file(path: str | Path, force: bool = True) -> Path:
+    """Before the work: InputError when output file `path` is a folder, or exists and `force`
+    is off (nothing written before is replaced unless asked: :data:`FORCE`)."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder; give the output's file name")
+    if path.exists() and not force:
+        raise InputError(f"{path}: exists; pass {FORCE} to replace it, or choose another output")
+    return path
+
+
+def check_output_folder(path: str | Path, force: bool = False) -> Path:
+    """Before the work: InputError when output folder `path` is a file, or already holds files
+    and `force` is off (a command's earlier outputs are not replaced unless asked: :data:`FORCE`)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: output path exists and is not a folder")
+    if path.is_dir() and not force and any(path.iterdir()):
+        raise InputError(f"{path}: folder already holds files (earlier outputs?); pass {FORCE} to write over "
+                         f"them, or choose another --out")
+    return path
+
+
 def atomic_write(path: str | Path, write) -> Path:
     """Call ``write(tmp_path)`` on a temporary file beside `path`, then rename it into place."""
     path = Path(path)
+    if path.is_dir():  # os.replace would fail after the work, with a traceback
+        raise InputError(f"{path}: cannot write, a folder is in the way")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
     except OSError as error:  # a missing folder, a file where the folder should be, no permission

@@ -99,3 +99,104 @@ def test_sigterm_to_datagen_ends_its_workers(tmp_path):
     # 3: the two workers and the manager process of their progress queue
     check_sigterm_ends_workers(["datagen", "--scenes", "procedural:1", "procedural:2", "--views-per-scene", "64",
                                 "--out", str(tmp_path / "ds"), "--workers", "2", "--no-progress"], workers=3)
+
+
+@pytest.mark.parametrize("option, message", [
+    (["--pixel-size", "0"], "pixel size (--pixel-size) must be a positive number"),
+    (["--pixel-size", "-0.05"], "got -0.05"),
+    (["--pixel-size", "nan"], "got nan"),
+    (["--pixel-size", "0.0001"], "give a larger pixel size"),
+    (["--cut-height", "-5"], "cut height (--cut-height) must be a positive number"),
+])
+def test_bad_top_view_settings_are_one_line(plan_spec, tmp_path, one_line_error, option, message):
+    assert main(["scene", "topdown", plan_spec, "--out", str(tmp_path / "top.png"), *option]) == 2
+    assert message in one_line_error()
+    assert not (tmp_path / "top.png").exists()
+
+
+def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_line_error):
+    view, top = tmp_path / "view", tmp_path / "top.png"
+    render = ["render", plan_spec, "--pose", "2.0,1.5,1.2,0", "--out", str(view)]
+    topdown = ["scene", "topdown", plan_spec, "--out", str(top)]
+    assert main(render) == 0 and main(topdown) == 0
+    before = {path: path.read_bytes() for path in [*view.iterdir(), top]}
+    (view / "mine.txt").write_text("a file of the user's")
+    for argv, name in ((render, "view"), (topdown, "top.png"),
+                       (["explore", "--scene", plan_spec, "--out", str(view)], "view"),
+                       (["export", "model.safetensors", "--format", "onnx", "--out", str(top)], "top.png")):
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        error = one_line_error()
+        assert name in error and "--force" in error
+    assert all(path.read_bytes() == data for path, data in before.items())  # nothing written over
+    assert main([*render[:2], "--pose", "2.0,1.5,1.2,90", "--out", str(view), "--force"]) == 0
+    assert main([*topdown, "--force", "--pixel-size", "0.1"]) == 0
+    assert (view / "depth.npy").read_bytes() != before[view / "depth.npy"] and top.read_bytes() != before[top]
+    assert (view / "mine.txt").is_file()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["export", "{model}", "--format", "onnx", "--out", "{tmp}"], "is a folder; give the output's file name"),
+    (["export", "{model}", "--format", "onnx", "--half", "--out", "{tmp}/m.onnx"], "--half writes float16 safetensors"),
+    (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads=-2", "--out", "{tmp}/p"],
+     "--threads must be an integer >= 1, got -2"),
+    (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads", "0", "--out", "{tmp}/p"],
+     "got 0"),
+    (["evaluate", "{model}", "--data", "{tmp}", "--size=-64"], "--size must be an integer >= 8, got -64"),
+    (["evaluate", "{model}", "--data", "{tmp}", "--json", "{tmp}"], "is a folder"),
+    (["evaluate", "{model}", "--data", "{tmp}", "--all", "--scenes", "procedural:1"], "--all and --scenes exclude"),
+    (["bench", "render", "--scene", "procedural:0", "--repeats=-1"], "--repeats must be an integer >= 1, got -1"),
+    (["bench", "render", "--scene", "procedural:0", "--batch", "0"], "--batch must be an integer >= 1, got 0"),
+    (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
+    (["sequence", "--input", "{tmp}", "--intrinsics", "nan,525,320,240", "--out", "{tmp}/s"], "finite pixels"),
+])
+def test_bad_options_are_one_line_before_any_work(argv, message, tmp_path, one_line_error):
+    from frontiernet.model import default_model_path
+
+    argv = [word.format(model=default_model_path(), tmp=tmp_path) for word in argv]
+    assert main(argv) == 2
+    assert message in one_line_error()
+    assert sorted(path.name for path in tmp_path.iterdir()) == []  # nothing written
+
+
+def test_a_nonsense_motion_step_is_refused(plan_spec, tmp_path, one_line_error):
+    assert main(["explore", "--scene", plan_spec, "--method", "classic", "--max-steps", "1", "--no-video",
+                 "--out", str(tmp_path / "e"), "motion.translation_m=-0.11"]) == 2
+    assert "motion.translation_m must be a positive number of metres, got -0.11" in one_line_error()
+
+
+def test_predict_reads_nan_as_invalid_depth_as_render_writes_it(tmp_path, capsys):
+    import cv2
+
+    rgb = np.random.default_rng(0).integers(0, 255, (64, 80, 3), np.uint8)
+    cv2.imwrite(str(tmp_path / "rgb.png"), rgb)
+    depth = np.full((64, 80), 2.0, np.float32)
+    depth[:, :30] = np.nan  # nothing hit within range: render's depth.npy
+    np.save(tmp_path / "depth.npy", depth)
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.npy"),
+                 "--size", "64", "--out", str(tmp_path / "p")]) == 0, capsys.readouterr().err
+    inputs = np.load(tmp_path / "p" / "outputs.npz")["depth"]
+    assert np.all(inputs[:, :20] == 0) and np.all(inputs[:, -20:] > 1.9)  # NaN went in as invalid (0)
+
+
+def test_the_sequence_cache_is_redone_when_the_intrinsics_change():
+    from types import SimpleNamespace
+
+    from frontiernet.sequences.perceive import cache_key
+
+    conf = {"size": 320, "crop": True, "fill_invalid_depth": False}
+    frame = SimpleNamespace(name="0001.png", camera=SimpleNamespace(K=np.array([[525.0, 0, 320], [0, 525, 240],
+                                                                                 [0, 0, 1]])))
+    other = SimpleNamespace(name="0001.png", camera=SimpleNamespace(K=np.array([[600.0, 0, 320], [0, 600, 240],
+                                                                                 [0, 0, 1]])))
+    assert cache_key(frame, "m", "sensor", conf) == cache_key(frame, "m", "sensor", conf)
+    assert cache_key(frame, "m", "sensor", conf) != cache_key(other, "m", "sensor", conf)
+
+
+def test_a_validation_fraction_outside_0_1_is_refused():
+    from frontiernet.errors import InputError
+    from train.data import split_scenes
+
+    assert len(split_scenes(["a", "b", "c"], None, 0.3, 0)[1]) == 1
+    with pytest.raises(InputError, match="data.val_fraction must lie strictly between 0 and 1, got 1.5"):
+        split_scenes(["a", "b"], None, 1.5, 0)

@@ -113,10 +113,8 @@ def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, c
     cv2.imwrite(str(rgb), np.zeros((40, 50, 3), np.uint8))
     depth_small = tmp_path / "small.npy"
     np.save(depth_small, np.ones((20, 25), np.float32))
-    depth_nan = tmp_path / "nan.npy"
-    nan = np.ones((40, 50), np.float32)
-    nan[0, 0] = np.nan
-    np.save(depth_nan, nan)
+    depth_negative = tmp_path / "negative.npy"  # (NaN is invalid depth, as render writes it: tests/test_bad_input.py)
+    np.save(depth_negative, np.full((40, 50), -1.0, np.float32))
     good_depth = tmp_path / "good.npy"
     np.save(good_depth, np.ones((40, 50), np.float32))
     corrupt = tmp_path / "corrupt.onnx"
@@ -127,8 +125,8 @@ def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, c
          "grey.png: image has 1 channel(s)"),
         (["predict", "--image", str(rgb), "--depth", str(depth_small), "--model", str(model_file), "--out", out],
          "depth map is 25 x 20 but the image is 50 x 40"),
-        (["predict", "--image", str(rgb), "--depth", str(depth_nan), "--model", str(model_file), "--out", out],
-         "nan.npy: depth has 1 NaN pixels"),
+        (["predict", "--image", str(rgb), "--depth", str(depth_negative), "--model", str(model_file), "--out", out],
+         "negative.npy: no valid depth"),
         (["predict", "--image", str(rgb), "--model", str(model_file), "--out", out], "give --depth"),
         (["predict", "--image", str(rgb), "--depth", str(good_depth), "--model", str(corrupt), "--out", out],
          "corrupt.onnx: not a loadable ONNX model"),

@@ -57,8 +57,8 @@ def run_train(args) -> int:
 
 
 def run_evaluate(args) -> int:
-    from frontiernet.errors import InputError
-    from frontiernet.io import write_json
+    from frontiernet.errors import InputError, whole_number
+    from frontiernet.io import check_output_file, write_json
 
     from .evaluate import evaluate, format_report
 
@@ -66,6 +66,12 @@ def run_evaluate(args) -> int:
         raise InputError(f"--max-samples must be >= 1, got {args.max_samples}")
     if args.workers < 0:
         raise InputError(f"--workers must be >= 0, got {args.workers}")
+    if args.size is not None:
+        whole_number(args.size, "--size", 8)  # (the smallest input the exports take)
+    if args.all and args.scenes:
+        raise InputError("--all and --scenes exclude each other: give one")
+    if args.json:
+        check_output_file(args.json)  # a folder given as --json fails now, not after the evaluation
     from rich.progress import Progress
 
     with Progress(transient=True) as bar:

@@ -44,6 +44,8 @@ def split_scenes(scenes: list[str], val_scenes, val_fraction: float, seed: int) 
     else:
         if len(scenes) < 2:
             raise InputError(f"the dataset has {len(scenes)} scene(s); a held-out validation split needs two or more")
+        if not 0.0 < float(val_fraction) < 1.0:  # (1.5 used to hold out all but one scene in silence)
+            raise InputError(f"data.val_fraction must lie strictly between 0 and 1, got {val_fraction}")
         count = min(max(1, int(np.ceil(float(val_fraction) * len(scenes)))), len(scenes) - 1)
         rng = np.random.default_rng(seed)
         val = sorted(rng.choice(scenes, size=count, replace=False).tolist())

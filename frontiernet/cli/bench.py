@@ -137,6 +137,14 @@ def _scene_bench(actions, name: str, help_text: str, func):
     return parser
 
 
+def counts(**options: int) -> None:
+    """InputError naming the first option (``--name``) of `options` that is not an integer >= 1."""
+    from ..errors import whole_number
+
+    for name, value in options.items():
+        whole_number(value, f"--{name}", 1)
+
+
 def median_seconds(function, repeats: int, warmup: int = 2) -> float:
     """Median wall time of `function()` over `repeats` runs after `warmup` runs."""
     for _ in range(warmup):
@@ -166,6 +174,7 @@ def run_render(args) -> int:
     from ..simulator.raycast import active_backend, ray_caster, select_backend
     from ..simulator.voxels import voxelize_scene
 
+    counts(repeats=args.repeats, batch=args.batch)
     if args.raycast:
         select_backend(args.raycast)
     spec = default_bench_scene(args.scene)
@@ -226,6 +235,7 @@ def run_map(args) -> int:
     from ..simulator.poses import sample_poses
     from ..simulator.voxels import voxelize_scene
 
+    counts(frames=args.frames, views=args.views)
     spec = default_bench_scene(args.scene)
     sim, explore = load_config("sim"), load_config("explore")
     scene = load_scene(spec)
@@ -275,6 +285,7 @@ def run_explore(args) -> int:
 
     from ..exploration.run import main
 
+    counts(steps=args.steps)
     spec = default_bench_scene(args.scene)
     with tempfile.TemporaryDirectory() as out:
         record = main(load_config("explore"), spec, out, method=args.method, max_steps=args.steps, video=False,

@@ -30,6 +30,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml and depth.yaml under "
                                          "sections sim: and depth:")
     parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--force", action="store_true", help="write over earlier outputs in --out (refused without it)")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. planner.clearance_m=0.3, "
                                                               "sim.camera.max_depth=5, depth.emulated.fill_depth=20")
     parser.set_defaults(func=run)
@@ -48,7 +49,9 @@ def summary_line(record: dict, out) -> str:
 
 def run(args) -> int:
     from ..exploration.run import load_run_config, main
+    from ..io import check_output_folder
 
+    check_output_folder(args.out, args.force)
     conf = load_run_config(args.config, args.overrides)
     if args.map_free:
         conf.planner.mode = "map_free"

@@ -20,6 +20,7 @@ def add_parser(subparsers) -> None:
                         help="camera position (metres, world Z-up) and heading; angles in degrees, or radians with "
                              "a 'rad' suffix (e.g. 1.57rad); yaw 0 looks along +x, pitch > 0 up")
     parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--force", action="store_true", help="write over earlier outputs in --out (refused without it)")
     parser.add_argument("--config", help="YAML overriding configs/sim.yaml (camera, voxels)")
     parser.add_argument("--no-check", action="store_true",
                         help="skip the check that the pose lies in the scene's free space")
@@ -27,10 +28,11 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ..io import colorize_depth, ensure_dir, write_image, write_json, write_npy
+    from ..io import check_output_folder, colorize_depth, ensure_dir, write_image, write_json, write_npy
     from ..scenes import load_scene
     from ..simulator.camera import PinholeCamera, Renderer
 
+    check_output_folder(args.out, args.force)
     conf = load_config("sim", args.config)
     x, y, z, yaw, pitch = parse_pose_text(args.pose)
     scene = load_scene(args.spec)

@@ -27,9 +27,10 @@ def add_parser(subparsers) -> None:
     topdown = actions.add_parser("topdown", help="save a cut-away top view PNG")
     topdown.add_argument("spec", metavar="SPEC")
     topdown.add_argument("--out", required=True, help="output PNG file")
+    topdown.add_argument("--force", action="store_true", help="replace --out if it exists (refused without it)")
     topdown.add_argument("--pixel-size", type=float, default=0.05, help="metres per pixel (default 0.05)")
     topdown.add_argument("--cut-height", type=float, default=1.8,
-                         help="metres above the floor where the view is cut (default 1.8)")
+                         help="metres above the floor where the view is cut, > 0 (default 1.8)")
     topdown.set_defaults(func=run_topdown)
 
 
@@ -77,10 +78,11 @@ def run_info(args) -> int:
 
 
 def run_topdown(args) -> int:
-    from ..io import check_image_name, ensure_dir, write_image
+    from ..io import check_image_name, check_output_file, ensure_dir, write_image
     from ..scenes.preview import topdown_image
 
     check_image_name(args.out)  # before the work: a bad --out fails at once
+    check_output_file(args.out, args.force)
     ensure_dir(Path(args.out).parent)
     image = topdown_image(load_scene(args.spec), pixel_size=args.pixel_size, cut_height=args.cut_height)
     write_image(args.out, image)

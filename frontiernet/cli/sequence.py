@@ -37,13 +37,15 @@ def add_parser(subparsers) -> None:
 
 
 def parse_intrinsics(text: str) -> tuple[float, float, float, float]:
-    """``"fx,fy,cx,cy"`` -> four floats (focal lengths positive)."""
+    """``"fx,fy,cx,cy"`` -> four finite floats (focal lengths positive)."""
+    import math
+
     try:
         values = tuple(float(value) for value in text.split(","))
     except ValueError:
         raise InputError(f"--intrinsics must be fx,fy,cx,cy in pixels, got '{text}'") from None
-    if len(values) != 4 or values[0] <= 0 or values[1] <= 0:
-        raise InputError(f"--intrinsics must be fx,fy,cx,cy with positive focal lengths, got '{text}'")
+    if len(values) != 4 or not all(math.isfinite(value) for value in values) or values[0] <= 0 or values[1] <= 0:
+        raise InputError(f"--intrinsics must be fx,fy,cx,cy: finite pixels, positive focal lengths, got '{text}'")
     return values
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import positive_number
 from ..geometry import pose_from_heading
 
 
@@ -34,11 +35,12 @@ class Motion:
     """
 
     def __init__(self, conf, z: float) -> None:
-        self.max_translation = float(conf["translation_m"])
-        self.max_rotation = np.radians(float(conf["rotation_deg"]))
-        self.turn_in_place = np.radians(float(conf["turn_in_place_deg"]))
+        self.max_translation = positive_number(conf["translation_m"], "motion.translation_m", "metres")
+        self.max_rotation = np.radians(positive_number(conf["rotation_deg"], "motion.rotation_deg", "degrees"))
+        self.turn_in_place = np.radians(positive_number(conf["turn_in_place_deg"], "motion.turn_in_place_deg",
+                                                        "degrees", allow_zero=True))
         self.pitch = np.radians(float(conf["pitch_deg"]))
-        self.reach = float(conf["waypoint_tolerance_m"])
+        self.reach = positive_number(conf["waypoint_tolerance_m"], "motion.waypoint_tolerance_m", "metres")
         self.z = float(z)
 
     def pose(self, xy: np.ndarray, yaw: float) -> np.ndarray:

@@ -16,6 +16,10 @@ def material_colors(scene: Scene) -> np.ndarray:
                      for m in scene.materials], np.float32).reshape(-1, 3)
 
 
+MAX_TOPDOWN_PIXELS = 25_000_000
+"""Largest top view drawn (5000 x 5000 px): its two casts of 24-byte rays per pixel hold 1.2 GB, more with their hits."""
+
+
 def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.8) -> np.ndarray:
     """Orthographic top view of `scene` cut at ``bounds_min_z + cut_height`` metres.
 
@@ -31,10 +35,20 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
         cut_height: metres above the scene's lowest point.
     Returns:
         (H, W, 3) uint8 image; row 0 is the scene's largest y (north up), column 0 its smallest x.
+    Raises:
+        InputError: a pixel size or cut height that is not a positive number, or an image of more
+            than :data:`MAX_TOPDOWN_PIXELS`.
     """
+    from ..errors import InputError, positive_number
     from ..simulator.raycast import INVALID_ID, cast_rays
 
+    positive_number(pixel_size, "the pixel size (--pixel-size)", "metres")
+    positive_number(cut_height, "the cut height (--cut-height)", "metres above the floor")
     lo, hi = scene.bounds
+    width, height = (int(np.ceil((hi[axis] - lo[axis]) / pixel_size)) for axis in (0, 1))
+    if width * height > MAX_TOPDOWN_PIXELS:
+        raise InputError(f"a top view of {scene.name} at {pixel_size:g} m per pixel would be {width} x {height} px, "
+                         f"more than {MAX_TOPDOWN_PIXELS:,}; give a larger pixel size (--pixel-size)")
     cut = lo[2] + cut_height
     xs = np.arange(lo[0] + pixel_size / 2, hi[0], pixel_size)
     ys = np.arange(hi[1] - pixel_size / 2, lo[1], -pixel_size)

@@ -77,7 +77,7 @@ def _read_nyu(path: Path) -> np.ndarray:
 def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "scale") -> np.ndarray:
     """(H, W) float32 metres from a depth file; 0 = invalid (see the module doc for `encoding`).
 
-    NaN is refused in float files (mark invalid pixels with 0); negative values are read as invalid.
+    NaN (the convention of ``frontiernet render``'s ``depth.npy``), 0 and negative values are invalid.
     """
     path = Path(path)
     if encoding not in DEPTH_ENCODINGS:
@@ -104,9 +104,10 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     if depth.ndim != 2:
         raise InputError(f"{path}: depth must be a single-channel (H, W) map, got shape {tuple(depth.shape)}")
     depth = depth.astype(np.float32)
-    if np.isnan(depth).any():
-        raise InputError(f"{path}: depth has {int(np.isnan(depth).sum())} NaN pixels; mark invalid pixels with 0")
-    depth[~(depth > 0)] = 0.0
+    if np.isinf(depth).any():
+        raise InputError(f"{path}: depth has {int(np.isinf(depth).sum())} infinite pixels; mark invalid pixels "
+                         "with 0 or NaN")
+    depth[~(depth > 0)] = 0.0  # NaN too
     check_depth_unit(depth, path, f"depth scale {depth_scale:g} units per metre" if encoding == "scale" else
                      f"the {encoding} encoding")
     return depth

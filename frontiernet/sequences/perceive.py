@@ -8,7 +8,7 @@ Each frame's results go to ``<cache>/<index:05d>.npz`` (written atomically) hold
 * ``distance_field`` (h, w) float16 px and ``gain_class`` (h, w) uint8: its outputs;
 * ``full_depth`` (H, W) float16 metres (NaN invalid): the frame's depth at its own size, for
   the map and the point cloud;
-* ``key``: what produced it (frame name, model, depth source, working size).
+* ``key``: what produced it (frame name, camera intrinsics, model, depth source, working size).
 
 A re-run with the same key reads the file instead of running the depth source and network
 again, so an interrupted run resumes where it stopped.
@@ -42,7 +42,9 @@ def frame_depth(frame, rgb: np.ndarray, depth_source) -> np.ndarray:
 
 
 def cache_key(frame, model_name: str, depth_name: str, conf) -> str:
-    return json.dumps({"frame": frame.name, "model": model_name, "depth": depth_name, "size": conf["size"],
+    """What a cache file was made from; another key (e.g. ``--intrinsics`` changed) recomputes it."""
+    K = [round(float(value), 6) for value in np.asarray(frame.camera.K).ravel()]
+    return json.dumps({"frame": frame.name, "K": K, "model": model_name, "depth": depth_name, "size": conf["size"],
                        "crop": bool(conf["crop"]), "fill": bool(conf["fill_invalid_depth"])}, sort_keys=True)
 
 
