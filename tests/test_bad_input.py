@@ -200,3 +200,22 @@ def test_a_validation_fraction_outside_0_1_is_refused():
     assert len(split_scenes(["a", "b", "c"], None, 0.3, 0)[1]) == 1
     with pytest.raises(InputError, match="data.val_fraction must lie strictly between 0 and 1, got 1.5"):
         split_scenes(["a", "b"], None, 1.5, 0)
+
+
+def test_an_internal_error_is_one_line_naming_the_log_with_its_traceback(monkeypatch, capsys, one_line_error):
+    import frontiernet.cli.render as render
+
+    def fault(args):
+        raise ZeroDivisionError("a bug\nsecond line")
+
+    monkeypatch.setattr(render, "run", fault)
+    argv = ["render", "procedural:3", "--pose", "1,1,1.2,0", "--out", "o"]
+    assert main(argv) == 1
+    error = one_line_error()
+    assert "internal error (ZeroDivisionError: a bug)" in error
+    log = Path(error.split("the traceback is in ")[1].split(" (-v")[0])
+    text = log.read_text()
+    assert "frontiernet render procedural:3 --pose 1,1,1.2,0" in text and "Traceback" in text and "in fault" in text
+    log.unlink()
+    with pytest.raises(ZeroDivisionError):  # -v: the traceback on the terminal
+        main(["-v", *argv])

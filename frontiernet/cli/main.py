@@ -85,6 +85,30 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into a reader that stopped (`| head`)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
+    except Exception as error:  # a fault of ours, not of the input: one line, the traceback in a log file
+        if args.verbose:
+            raise
+        log = write_traceback(args.command, sys.argv[1:] if argv is None else argv)
+        message = (str(error).splitlines() or [""])[0][:200]
+        print(f"frontiernet {args.command}: internal error ({type(error).__name__}: {message}); the traceback is "
+              f"in {log} (-v prints it here)", file=sys.stderr)
+        return 1
+
+
+def write_traceback(command: str, argv: list[str]) -> str:
+    """Write the command line `argv` and the exception being handled, with its traceback, to a new
+    log file under the temporary folder (``frontiernet-logs/<command>-<time>-<pid>.log``); returns its path."""
+    import tempfile
+    import time
+    import traceback
+
+    folder = os.path.join(tempfile.gettempdir(), "frontiernet-logs")
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, f"{command}-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.log")
+    with open(path, "w") as handle:
+        handle.write(f"frontiernet {' '.join(argv)}\nfrontiernet {__version__}, Python {sys.version}\n\n")
+        traceback.print_exc(file=handle)
+    return path
 
 
 if __name__ == "__main__":
