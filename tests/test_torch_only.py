@@ -48,12 +48,14 @@ def test_datagen_runs_on_embree_without_open3d_and_labels_as_open3d_does(tmp_pat
                            "--no-progress", "--set", *settings)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["raycast_backends"] == ["embree"] and summary["views"] == 4
-    # a mesh file needs trimesh: that scene fails with a line that says so, the run goes on (exit 1)
+    # a mesh file needs trimesh: that scene fails with a line that says so (on stderr; beside good scenes
+    # the run goes on and exits 1; alone, nothing is made: exit 2 and no empty dataset left behind)
     mesh = tmp_path / "triangle.obj"
     mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     failed = frontiernet_torch_only("datagen", "--scenes", str(mesh), "--views-per-scene", "1", "--out",
-                                    str(tmp_path / "mesh"), "--no-progress", exit_code=1)
-    assert "loading mesh files needs trimesh (pip install trimesh)" in failed.stdout
+                                    str(tmp_path / "mesh"), "--no-progress", exit_code=2)
+    assert "loading mesh files needs trimesh (pip install trimesh)" in failed.stderr
+    assert not (tmp_path / "mesh").exists()
     if importlib.util.find_spec("open3d") is not None:  # the same dataset here, on Open3D: the same labels
         from datagen import open_dataset
         from datagen.config import load_datagen_config
