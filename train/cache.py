@@ -34,6 +34,7 @@ import logging
 import os
 import shutil
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,8 +98,9 @@ def dataset_fingerprint(root: Path) -> str:
     info_file = root / "dataset.json"
     digest.update(info_file.read_bytes() if info_file.is_file() else b"")
     dataset = open_dataset(root)
-    for shard, meta in zip(dataset.shards, dataset._metas):
-        digest.update(f"{shard.name}:{shard.stat().st_size}:{len(meta['samples'])};".encode())
+    views = Counter(record["shard"] for record in dataset.records)
+    for shard in dataset.shards:
+        digest.update(f"{shard.name}:{shard.stat().st_size}:{views[shard.name]};".encode())
     return digest.hexdigest()
 
 
