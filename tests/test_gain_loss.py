@@ -13,6 +13,7 @@ from frontiernet.cli.main import main
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import class_confusion, class_offsets, dice_per_class, mean_dice
+from frontiernet.model import encode_distance
 from train.losses import LEGACY_GAIN_LOSS, dice_loss, frontier_loss, gain_cross_entropy, loss_settings
 from train.metrics import GainDice
 
@@ -134,3 +135,19 @@ def test_gain_metric_reports_band_frontier_and_confusion():
     perfect = GainDice(K)
     perfect.update(batch["gain_class"], batch["gain_class"], batch["distance"], frontier)
     assert perfect.compute()["gain_dice_with_class_0"] == 1 and perfect.compute()["gain_dice_frontier"] == 1
+
+
+def test_gain_read_in_the_predicted_band_ignores_classes_outside_it():
+    from train.metrics import FrontierMetrics
+
+    batch = band_batch()
+    batch["frontier"] = batch["distance"] == 0
+    batch["depth"] = torch.full((1, 16, 16), 2.0)
+    distance_y = encode_distance(batch["distance"], LABELS)[:, None]  # the right distance field
+    logits = one_hot_logits(batch["gain_class"])
+    logits[:, 7][(batch["distance"] >= 10)] = 40.0  # class 7 everywhere outside the band
+    metrics = FrontierMetrics(LABELS)
+    metrics.update(distance_y, logits, batch)
+    result = metrics.compute()
+    assert result["gain_dice_read_with_class_0"] == 1.0 and result["gain_dice_read"] == 1.0
+    assert result["gain_dice_with_class_0"] < 0.8  # the raw argmax map pays for class 7 outside

@@ -199,6 +199,8 @@ class FrontierMetrics(nn.Module):
 
     ``update(distance, logits, batch)``: distance (B, 1, H, W) normalised y, logits (B, K, H, W),
     batch with ``distance`` px, ``gain_class``, ``frontier`` and ``depth`` (B, H, W).
+    The gain is also scored as the pipeline reads it (``gain_dice_read*``): the argmax class where
+    the predicted D < r, class 0 elsewhere (anchoring only looks at pixels with D < l < r).
     """
 
     def __init__(self, labels_conf):
@@ -206,17 +208,23 @@ class FrontierMetrics(nn.Module):
         self.labels = dict(labels_conf)
         self.distance_error = DistanceError(self.labels["truncation_px"])
         self.gain_dice = GainDice(self.labels["num_classes"], self.labels["truncation_px"])
+        self.gain_dice_read = GainDice(self.labels["num_classes"], self.labels["truncation_px"])
         self.frontier_curves = FrontierCurves()
 
     def update(self, distance: torch.Tensor, logits: torch.Tensor, batch: dict) -> None:
         predicted_px = decode_distance(distance[:, 0].float(), self.labels)
         self.distance_error.update(predicted_px, batch["distance"])
-        self.gain_dice.update(logits.argmax(1), batch["gain_class"], batch["distance"], batch["frontier"])
+        predicted_class = logits.argmax(1)
+        self.gain_dice.update(predicted_class, batch["gain_class"], batch["distance"], batch["frontier"])
+        read = torch.where(predicted_px < float(self.labels["truncation_px"]), predicted_class, 0)
+        self.gain_dice_read.update(read, batch["gain_class"])
         self.frontier_curves.update(predicted_px, batch["frontier"], batch["depth"])
 
     def compute(self) -> dict:
-        return {**self.distance_error.compute(), **self.gain_dice.compute(), **self.frontier_curves.compute()}
+        read = self.gain_dice_read.compute()
+        return {**self.distance_error.compute(), **self.gain_dice.compute(), **self.frontier_curves.compute(),
+                "gain_dice_read_with_class_0": read["gain_dice_with_class_0"], "gain_dice_read": read["gain_dice"]}
 
     def reset(self) -> None:
-        for metric in (self.distance_error, self.gain_dice, self.frontier_curves):
+        for metric in (self.distance_error, self.gain_dice, self.gain_dice_read, self.frontier_curves):
             metric.reset()
