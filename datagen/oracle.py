@@ -5,13 +5,23 @@ entry point group). Each frame's frontier mask and gain classes are the ground t
 :class:`~datagen.ground_truth.GroundTruthGenerator` for that view (the labels the network
 is trained on), so the run shows what the rest of the pipeline (anchoring, bookkeeping,
 planning) achieves with perfect single-view perception: an upper bound for the model.
+
+Two hybrids (``frontiernet.methods`` entry points) split it into "where" and "how much"
+(issue 27, step 3; docs/benchmark.md, "Where the value of gain is lost"):
+
+* ``oracle-uniform``: the ground truth's frontier pixels, one uniform gain class
+  (``ablations.uniform_gain_class``, as ``df-uniform``);
+* ``frontiernet-oracle-gain``: the model's frontier pixels, the ground truth's gain classes
+  (:class:`~frontiernet.exploration.ablations.GainFrom`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from frontiernet.exploration.perception import Perception, PerceptionResult
+from frontiernet.exploration.ablations import GainFrom
+from frontiernet.exploration.methods import ImageSource, Method
+from frontiernet.exploration.perception import Perception, PerceptionResult, make_perception, uniform_gain
 
 from .config import load_datagen_config
 from .ground_truth import GroundTruthGenerator
@@ -44,3 +54,20 @@ class OraclePerception(Perception):
         truth = self.generator.from_frame(frame, self.rng)
         return PerceptionResult(frame.rgb, np.asarray(depth, np.float32), np.asarray(frame.K, np.float64),
                                 truth.distance_field, truth.gain_class.astype(np.uint8), self.labels)
+
+
+def _image_method(name: str, perception: Perception) -> Method:
+    perception.name = name
+    return Method(name, ImageSource(perception))
+
+
+def oracle_uniform(model, scene, voxels, sim_conf, conf) -> Method:
+    """``oracle-uniform``: ground-truth frontier pixels, uniform gain (a ``frontiernet.methods`` factory)."""
+    return _image_method("oracle-uniform", uniform_gain(OraclePerception(scene, voxels, sim_conf), conf))
+
+
+def frontiernet_oracle_gain(model, scene, voxels, sim_conf, conf) -> Method:
+    """``frontiernet-oracle-gain``: the model's frontier pixels (`model`: its file, None = the
+    shipped one), ground-truth gain classes (a ``frontiernet.methods`` factory)."""
+    model_perception = make_perception("frontiernet", model, conf=conf)
+    return _image_method("frontiernet-oracle-gain", GainFrom(model_perception, OraclePerception(scene, voxels, sim_conf)))

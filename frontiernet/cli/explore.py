@@ -13,7 +13,8 @@ def add_parser(subparsers) -> None:
                                    description=__doc__.split("\n\n")[0])
     parser.add_argument("--scene", required=True, help="scene spec (see `frontiernet scene --help`)")
     parser.add_argument("--method", default="frontiernet",
-                        help="exploration method: frontiernet (the model), oracle (ground-truth frontiers), the Fig. 9 "
+                        help="exploration method: frontiernet (the model), oracle (ground-truth frontiers), its hybrids "
+                             "oracle-uniform and frontiernet-oracle-gain, the Fig. 9 "
                              "ablations df-uniform, discontinuity-gain, discontinuity-uniform, the baselines classic, "
                              "gain-distance, random-frontier, vacuum, or a plugin (docs/exploration.md)")
     parser.add_argument("--model", help="model file (.safetensors, .ckpt, .onnx, .pt; default: the shipped model)")

@@ -12,6 +12,18 @@ discontinuity-gain       F_d of the robot's depth (D = 0 on F_d)      the model'
 discontinuity-uniform    F_d of the robot's depth                     uniform (no model)
 =======================  ===========================================  ======================
 
+The attribution hybrids (issue 27, step 3) put the oracle's ground truth (``datagen``'s
+:class:`~datagen.oracle.OraclePerception`) in one half; they are registered by ``datagen``
+(``frontiernet.methods``), since the library never imports it:
+
+=======================  ===========================================  ======================
+method                   frontier pixels                              gain classes
+=======================  ===========================================  ======================
+oracle-uniform           the ground truth's D < l                     uniform (one class)
+frontiernet-oracle-gain  the model's D < l                            the ground truth's
+                                                                      (:class:`GainFrom`)
+=======================  ===========================================  ======================
+
 With a uniform gain the planner's utility gain / distance (paper Eq. 8) ranks frontiers by
 distance alone. F_d is datagen's depth-discontinuity mask (:mod:`frontiernet.frontiers.discontinuity`),
 the image edges the ground truth's F = F_p & F_d starts from, without the learned selection.
@@ -65,6 +77,42 @@ class UniformGain(Perception):
         # (h, w) of the base's dtype (uint8), the same class everywhere
         uniform = np.full(seen.gain_class.shape, self.gain_class, seen.gain_class.dtype)
         return replace(seen, gain_class=uniform)
+
+
+class GainFrom(Perception):
+    """The base perception's frontier pixels with another perception's gain classes.
+
+    The gain source's class image is brought to the base's working size the way the model's
+    input is (:func:`~frontiernet.model.inputs.resize_and_crop`: short side to the size, centre
+    crop, nearest neighbour) when its shape differs, e.g. the oracle's 480 px labels under the
+    model's 320 px field. The labels keep the base's distance-field encoding (``truncation_px``,
+    ``frontier_threshold_px``) and take the gain source's class encoding (``bin_edges``,
+    ``bin_unit_m3``, ``num_classes``), so the classes decode as their source meant them.
+
+    Args:
+        base: the perception whose distance field (and rgb, depth, K) is kept.
+        gain_source: the perception whose gain classes replace the base's.
+    """
+
+    name = "gain-from"
+    GAIN_LABELS = ("bin_edges", "bin_unit_m3", "num_classes")
+
+    def __init__(self, base: Perception, gain_source: Perception) -> None:
+        self.base, self.gain_source = base, gain_source
+
+    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
+        seen, gain = self.base(frame, depth), self.gain_source(frame, depth)
+        classes = gain.gain_class  # (h', w') uint8
+        if classes.shape != seen.gain_class.shape:
+            from ..model.inputs import resize_and_crop
+
+            height, width = seen.gain_class.shape
+            if height != width:
+                raise ValueError(f"GainFrom resamples gain classes to a square working size only, got {height} x {width}")
+            _, resized, _ = resize_and_crop(None, classes.astype(np.float32), None, height)
+            classes = resized.astype(seen.gain_class.dtype)
+        labels = {**seen.labels, **{key: gain.labels[key] for key in self.GAIN_LABELS if key in gain.labels}}
+        return replace(seen, gain_class=np.ascontiguousarray(classes, seen.gain_class.dtype), labels=labels)
 
 
 @dataclass(frozen=True)
@@ -144,5 +192,5 @@ class DiscontinuityFrontiers(Perception):
         return replace(seen, distance_field=field, labels=labels)
 
 
-__all__ = ["DISCONTINUITY_THRESHOLD_PX", "DiscontinuityFrontiers", "DiscontinuitySettings", "UniformGain",
+__all__ = ["DISCONTINUITY_THRESHOLD_PX", "DiscontinuityFrontiers", "DiscontinuitySettings", "GainFrom", "UniformGain",
            "model_labels"]

@@ -14,6 +14,8 @@ oracle                   datagen's ground truth on the image   ground truth     
 df-uniform               the model's distance field            uniform                 gain / distance
 discontinuity-gain       depth discontinuities F_d             the model's             gain / distance
 discontinuity-uniform    depth discontinuities F_d             uniform                 gain / distance
+oracle-uniform           datagen's ground truth on the image   uniform                 gain / distance
+frontiernet-oracle-gain  the model on the image, anchored      ground truth            gain / distance
 classic                  the map: free cells beside unknown    --                      nearest (Yamauchi 1997)
 gain-distance            the map's frontiers                   visible unknown volume  gain / distance (NBVP, SEER, MapEx)
 random-frontier          the map's frontiers                   --                      random, fixed per frontier
@@ -21,8 +23,9 @@ vacuum                   none                                  --               
                                                                                        random turn (GLEAM's "vacuum")
 =======================  ====================================  ======================  ====================
 
-The first five are the paper's system and its Fig. 9 ablations; the rest are the baselines
-of issue 6. **Adding a method**: build a :class:`Method` from a :class:`FrontierSource` (an
+The first five are the paper's system and its Fig. 9 ablations, the next two the oracle's
+"where" / "how much" hybrids of issue 27 (``datagen`` registers them, as it does ``oracle``);
+the rest are the baselines of issue 6. **Adding a method**: build a :class:`Method` from a :class:`FrontierSource` (an
 :class:`ImageSource` around your own :class:`~frontiernet.exploration.perception.Perception`,
 the :class:`MapSource`, or a subclass with your own ``__call__``) and a goal rule, and
 register a factory ``make(model, scene, voxels, sim_conf, conf) -> Method`` under the entry

@@ -143,10 +143,16 @@ def _ablations(conf):
     return section
 
 
-def _df_uniform(model, conf) -> Perception:
+def uniform_gain(base: Perception, conf=None) -> Perception:
+    """`base`'s frontier pixels with the uniform gain class of ``ablations.uniform_gain_class``
+    (explore config `conf`; None: the shipped one): df-uniform's and the plugins' stand-in."""
     from .ablations import UniformGain
 
-    return UniformGain(_model(model), _ablations(conf).uniform_gain_class)
+    return UniformGain(base, _ablations(conf).uniform_gain_class)
+
+
+def _df_uniform(model, conf) -> Perception:
+    return uniform_gain(_model(model), conf)
 
 
 def _discontinuity(base, conf) -> Perception:
@@ -156,9 +162,7 @@ def _discontinuity(base, conf) -> Perception:
 
 
 def _discontinuity_uniform(model, conf) -> Perception:
-    from .ablations import UniformGain
-
-    return UniformGain(_discontinuity(None, conf), _ablations(conf).uniform_gain_class)
+    return uniform_gain(_discontinuity(None, conf), conf)
 
 
 #: Built-in methods: name -> ``builder(model, conf) -> Perception``. ``frontiernet`` is the paper's

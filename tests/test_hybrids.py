@@ -1,0 +1,95 @@
+"""The oracle's attribution hybrids (issue 27, step 3; datagen/oracle.py): each takes its frontier
+pixels ("where") from one source and its gain classes ("how much") from another."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+
+from datagen.oracle import OraclePerception
+from frontiernet.config import load_config
+from frontiernet.errors import InputError
+from frontiernet.exploration.ablations import GainFrom
+from frontiernet.exploration.methods import ImageSource, make_method, method_names
+from frontiernet.exploration.perception import make_perception
+from frontiernet.geometry import pose_from_heading
+from frontiernet.model import FrontierNet, NetworkConfig, save_model
+from frontiernet.model.inputs import resize_and_crop
+from frontiernet.simulator.camera import PinholeCamera, Renderer
+
+SIZE = 96  # the frame's size (pixels); the tiny model works at 64 px
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory):
+    torch.manual_seed(0)
+    net = FrontierNet(NetworkConfig(decoder_channels=(32, 16, 16, 8, 8), head_channels=8)).eval()
+    conf = OmegaConf.to_container(load_config("model"), resolve=True)
+    conf["inference"]["size"] = 64
+    return save_model(tmp_path_factory.mktemp("model") / "tiny.safetensors", net, conf)
+
+
+@pytest.fixture(scope="module")
+def small_sim():
+    return load_config("sim", overrides=[f"camera.width={SIZE}", f"camera.height={SIZE}", "camera.focal_px=60"])
+
+
+@pytest.fixture(scope="module")
+def door_frame(two_room_scene, small_sim):
+    """A view from the first room through the door into the second (a frontier with gain)."""
+    camera = PinholeCamera.from_config(small_sim.camera)
+    return Renderer(two_room_scene, camera).render(pose_from_heading(1.0, 1.95, 1.2, 0.0))
+
+
+def hybrid(name, model, scene, voxels, sim, conf=None):
+    method = make_method(name, model, scene, voxels, sim, conf if conf is not None else load_config("explore"))
+    assert method.name == name and isinstance(method.source, ImageSource) and method.goal == "utility"
+    assert method.source.perception.name == name
+    return method.source.perception
+
+
+def test_the_hybrids_are_listed_and_an_unknown_name_lists_them():
+    assert {"oracle-uniform", "frontiernet-oracle-gain"} <= set(method_names())
+    with pytest.raises(InputError, match="valid: .*frontiernet-oracle-gain.*oracle-uniform"):
+        make_method("oracle-unifrom")
+
+
+def test_oracle_uniform_has_the_ground_truth_frontiers_and_the_uniform_gain(two_room_scene, two_room_voxels,
+                                                                            small_sim, door_frame):
+    conf = load_config("explore", overrides=["ablations.uniform_gain_class=4"])
+    seen = hybrid("oracle-uniform", None, two_room_scene, two_room_voxels, small_sim, conf)(door_frame,
+                                                                                           door_frame.depth)
+    truth = OraclePerception(two_room_scene, two_room_voxels, small_sim)(door_frame, door_frame.depth)
+    frontier = truth.distance_field < truth.labels["frontier_threshold_px"]
+    assert frontier.any() and (truth.gain_class[frontier] > 0).any()  # the view has a frontier with gain
+    np.testing.assert_array_equal(seen.distance_field, truth.distance_field)  # where: the ground truth's
+    assert seen.labels == truth.labels
+    assert seen.gain_class.shape == (SIZE, SIZE) and (seen.gain_class == 4).all()  # how much: uniform
+
+
+def test_frontiernet_oracle_gain_has_the_models_frontiers_and_the_ground_truth_gain(
+        tiny_model, two_room_scene, two_room_voxels, small_sim, door_frame):
+    seen = hybrid("frontiernet-oracle-gain", tiny_model, two_room_scene, two_room_voxels, small_sim)(
+        door_frame, door_frame.depth)
+    model = make_perception("frontiernet", tiny_model)(door_frame, door_frame.depth)
+    truth = OraclePerception(two_room_scene, two_room_voxels, small_sim)(door_frame, door_frame.depth)
+    np.testing.assert_array_equal(seen.distance_field, model.distance_field)  # where: the model's (64 px)
+    np.testing.assert_array_equal(seen.depth, model.depth)
+    np.testing.assert_array_equal(seen.K, model.K)
+    # how much: the ground truth's classes, brought to the model's 64 px as its input is (nearest)
+    _, expected, _ = resize_and_crop(None, truth.gain_class.astype(np.float32), None, 64)
+    assert seen.gain_class.shape == (64, 64) and seen.gain_class.dtype == np.uint8
+    np.testing.assert_array_equal(seen.gain_class, expected.astype(np.uint8))
+    assert (seen.gain_class > 0).any()
+    assert seen.labels["bin_edges"] == truth.labels["bin_edges"]
+    assert seen.labels["frontier_threshold_px"] == model.labels["frontier_threshold_px"]
+
+
+def test_gain_from_keeps_a_same_size_gain_as_it_is(door_frame, two_room_scene, two_room_voxels, small_sim):
+    truth = OraclePerception(two_room_scene, two_room_voxels, small_sim)
+    seen = GainFrom(truth, OraclePerception(two_room_scene, two_room_voxels, small_sim))(door_frame, door_frame.depth)
+    again = OraclePerception(two_room_scene, two_room_voxels, small_sim)(door_frame, door_frame.depth)
+    np.testing.assert_array_equal(seen.gain_class, again.gain_class)
+    np.testing.assert_array_equal(seen.distance_field, again.distance_field)
