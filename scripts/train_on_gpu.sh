@@ -44,13 +44,14 @@ stage() {  # stage NAME COMMAND...: run it, append "NAME<TAB>seconds" to stages.
 }
 
 install() {
-    # carried wheels (embreex, omegaconf: what a torch-only GPU image lacks; see docs/model.md)
-    local wheel name missing=()
-    for wheel in "$REPO"/.whl/*.whl; do  # only those whose distribution is not installed already
+    # carried wheels (embreex, omegaconf, ...: what a torch-only GPU image lacks, and setuptools to build
+    # this package offline; see docs/model.md), each unless that very version is importable already
+    local wheel name version missing=()
+    for wheel in "$REPO"/.whl/*.whl; do
         [ -e "$wheel" ] || continue
-        name=$(basename "$wheel"); name=${name%%-*}
-        PYTHONPATH="$SITE" "$PYTHON" -c "import importlib.metadata as m, sys; m.version(sys.argv[1])" "$name" \
-            2> /dev/null || missing+=("$wheel")
+        name=$(basename "$wheel"); version=${name#*-}; version=${version%%-*}; name=${name%%-*}
+        PYTHONPATH="$SITE" "$PYTHON" -c "import importlib.metadata as m, sys; assert m.version(sys.argv[1]) == sys.argv[2]" \
+            "$name" "$version" 2> /dev/null || missing+=("$wheel")
     done
     if [ ${#missing[@]} -gt 0 ]; then
         "$PYTHON" -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target "$SITE" "${missing[@]}"
@@ -84,7 +85,8 @@ TRAIN=(train data.path="$DATA" out="$WORK/runs" name="$NAME" trainer.accelerator
 if [ -n "$BUDGET_S" ]; then
     left=$((BUDGET_S - SECONDS - RESERVE_S))
     [ "$left" -gt 60 ] || { echo "BUDGET_S=$BUDGET_S leaves ${left} s to train" >&2; exit 2; }
-    TRAIN+=(trainer.max_time="$(printf '00:%02d:%02d:%02d' $((left / 3600)) $((left % 3600 / 60)) $((left % 60)))")
+    TRAIN+=(trainer.max_time="$(printf '00:%02d:%02d:%02d' $((left / 3600)) $((left % 3600 / 60)) $((left % 60)))"
+            optim.horizon=time)  # the cosine ends at max_time: the budget ends with a decayed rate
 fi
 if [ -f "$RUN/summary.json" ]; then
     :  # trained

@@ -202,6 +202,23 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
 
 
 @pytest.mark.slow
+def test_time_horizon_ends_the_cosine_at_max_time(tiny_dataset, tmp_path):
+    # a wall-clock budget (a lent GPU's 10 minutes) ends with a decayed rate, not cut mid-cosine
+    args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
+            f"data.path={tiny_dataset}", f"out={tmp_path}", "trainer.max_epochs=100000",
+            "trainer.max_time=00:00:00:20"]
+    for horizon in ("time", "steps"):
+        assert main(args + [f"name={horizon}", f"optim.horizon={horizon}"]) == 0
+        with open(tmp_path / horizon / "metrics.csv") as handle:
+            rates = [float(row["lr-AdamW"]) for row in csv.DictReader(handle) if row.get("lr-AdamW")]
+        assert len(rates) > 10
+        peak = max(rates)  # 3e-3 after warm-up, the tiny config's lr
+        assert rates[-1] < 0.25 * peak if horizon == "time" else rates[-1] > 0.9 * peak, (horizon, rates[-5:])
+    # the time horizon needs the time
+    assert main(args[:-1] + ["name=none", "optim.horizon=time"]) == 2
+
+
+@pytest.mark.slow
 def test_ctrl_c_leaves_a_resumable_checkpoint(tiny_dataset, tmp_path):
     arguments = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
                  f"data.path={tiny_dataset}", f"out={tmp_path}", "name=stop", "trainer.max_epochs=1000"]

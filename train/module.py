@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import lightning as L
+from lightning.pytorch.callbacks import Timer
 import torch
 
 from frontiernet.model import FrontierNet, NetworkConfig, load_imagenet_encoder
@@ -75,6 +76,14 @@ class FrontierNetModule(L.LightningModule):
         warmup = min(int(optim["warmup_steps"]), total // 2)
         schedule = optim["schedule"]
         final = float(optim["final_lr_fraction"])
+        horizon = optim.get("horizon", "steps")
+        timer = next((c for c in self.trainer.callbacks if isinstance(c, Timer)), None)
+        if schedule not in ("cosine", "constant"):
+            raise ValueError(f"optim.schedule must be 'cosine' or 'constant', got {schedule!r}")
+        if horizon not in ("steps", "time"):
+            raise ValueError(f"optim.horizon must be 'steps' or 'time', got {horizon!r}")
+        if horizon == "time" and (timer is None or timer.time_remaining() is None):
+            raise ValueError("optim.horizon=time needs trainer.max_time")
 
         def factor(step: int) -> float:
             if step < warmup:
@@ -82,9 +91,11 @@ class FrontierNetModule(L.LightningModule):
             if schedule == "constant":
                 return 1.0
             progress = min((step - warmup) / max(total - warmup, 1), 1.0)
+            if horizon == "time":  # whichever ends first: the steps or trainer.max_time (training time so far,
+                # resumed sessions included, over the whole allowance; Budgeted Training, Li et al., ICLR 2020)
+                elapsed = timer.time_elapsed()
+                progress = max(progress, min(elapsed / max(elapsed + timer.time_remaining(), 1e-9), 1.0))
             return final + (1.0 - final) * 0.5 * (1.0 + math.cos(math.pi * progress))
 
-        if schedule not in ("cosine", "constant"):
-            raise ValueError(f"optim.schedule must be 'cosine' or 'constant', got {schedule!r}")
         scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
         return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
