@@ -308,30 +308,12 @@ def _one_thread(worker_id: int) -> None:
     torch.set_num_threads(1)  # each worker decodes one view at a time; processes give the parallelism
 
 
-def _outdated(path: Path, dataset_root: Path) -> bool:
-    """Whether the cache at `path` was written by another cache version or from another version of
-    the dataset (an unreadable description is not "outdated": open_cache reports it)."""
-    try:
-        info = json.loads((path / INFO_NAME).read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(info, dict) and info.get("format") == CACHE_FORMAT and (
-        info.get("version") != CACHE_VERSION or info.get("dataset_fingerprint") != dataset_fingerprint(dataset_root))
-
-
 def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, workers: int = 0,
                  progress=None) -> TrainingCache:
     """The cache named by ``data.cache`` (``auto``: :func:`default_cache_dir`; or a folder), built
     from the dataset when it does not exist yet, else opened and checked."""
     dataset_root = Path(dataset_root)
-    auto = str(cache) == "auto"
-    path = default_cache_dir(dataset_root, size, labels_conf) if auto else Path(str(cache))
-    if path.exists() and auto and _outdated(path, dataset_root):
-        # the automatic cache is this dataset's own derived data: a dataset that grew (datagen --resume
-        # after a cut run) or was regenerated gets its cache rebuilt; a folder named by data.cache is
-        # the user's and is only ever refused (open_cache)
-        log.warning("the training cache %s is of an earlier version of %s: rebuilding it", path, dataset_root)
-        shutil.rmtree(path)
+    path = default_cache_dir(dataset_root, size, labels_conf) if str(cache) == "auto" else Path(str(cache))
     if path.exists():
         return open_cache(path, dataset_root, size, labels_conf)
     try:
