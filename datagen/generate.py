@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import re
+import shutil
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,7 +28,7 @@ from frontiernet.simulator.raycast import resolve_backend
 from frontiernet.workers import check_backend
 
 from .config import config_hash
-from .shards import (INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
+from .shards import (CACHE_DIR, INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
                      write_dataset_info)
 
 GENERATOR_VERSION = f"frontiernet-datagen/{__version__}/gt1"
@@ -150,6 +151,11 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
         log.info("removed %d unfinished shard file(s) of an interrupted run", removed)
     tasks = plan_shards(specs, views_per_scene, shard_size, seed, out)
     todo = [task for task in tasks if not shard_complete(task.path)]
+    if todo and (out / CACHE_DIR).is_dir():
+        # the training caches were built from the dataset as it was: once shards are added they no
+        # longer match it (training would refuse them), so they go; the next `train` rebuilds its own
+        log.warning("removing %s: the training caches of the dataset before this run", out / CACHE_DIR)
+        shutil.rmtree(out / CACHE_DIR)
     start = time.perf_counter()
     results = run_tasks([asdict(task) for task in todo], conf_dict, info, backend=backend, workers=workers,
                         progress=progress, total_views=sum(task.num_views for task in todo))
@@ -170,8 +176,6 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
 def _take_back(out: Path, existed: bool) -> None:
     """Remove what a run that made nothing wrote to `out`: the folder when the run created it,
     else its dataset.json and empty shards folder."""
-    import shutil
-
     if not existed:
         shutil.rmtree(out, ignore_errors=True)
         return

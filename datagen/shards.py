@@ -4,6 +4,8 @@ Layout of a dataset folder::
 
     DIR/dataset.json        # generator, config, seed, scenes (write_dataset_info)
     DIR/shards/<name>.zip   # one shard per write_shard call
+    DIR/cache/              # derived data of this version of the dataset (train/cache.py's training
+                            # caches); a datagen run that writes shards removes it
 
 Members of a shard, in this order, for sample j (``key = f"{j:06d}"``)::
 
@@ -41,6 +43,7 @@ DATASET_FORMAT_VERSION = 1
 SHARD_FORMAT_VERSION = 1
 INFO_NAME = "dataset.json"
 SHARDS_DIR = "shards"
+CACHE_DIR = "cache"
 META_NAME = "meta.json"
 MASK_NAMES = ("frontier_mask", "frontier_projected", "discontinuity")
 DEFAULT_TRUNCATION_PX = 10.0

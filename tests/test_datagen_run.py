@@ -305,6 +305,22 @@ def test_resume_of_a_finished_dataset_changes_no_shard(small_dataset, tmp_path, 
     assert json.loads((out / "summary.json").read_text())["shards_done_before"] == 4
 
 
+def test_a_run_that_adds_shards_removes_the_training_caches_of_the_dataset_before(small_dataset, tmp_path):
+    # a budget-cut run resumed later (scripts/train_on_gpu.sh): the training cache built in between
+    # no longer matches the dataset, and training refuses a mismatched cache (train/cache.py)
+    out = tmp_path / "ds"
+    shutil.copytree(small_dataset[0], out)
+    cache = out / "cache" / "64px-0123abcd"
+    cache.mkdir(parents=True)
+    (cache / "cache.json").write_text("{}")
+    assert main(small_args(out, "--resume")) == 0  # nothing to add: the cache stays
+    assert (cache / "cache.json").is_file()
+    shard = sorted((out / "shards").glob("*.zip"))[-1]
+    shard.unlink()
+    assert main(small_args(out, "--resume")) == 0
+    assert shard.is_file() and not (out / "cache").exists()
+
+
 @pytest.mark.parametrize("change, message", [
     (("--scenes", "nosuch.glb"), "nosuch.glb"),
     (("--views-per-scene", "0"), "--views-per-scene"),

@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from datagen.shards import CACHE_DIR
 from frontiernet.errors import InputError
 from frontiernet.io import write_json
 
@@ -107,7 +108,7 @@ def dataset_fingerprint(root: Path) -> str:
 def default_cache_dir(dataset_root: Path, size: int, labels_conf) -> Path:
     """``<dataset>/cache/<S>px-<hash of the label encoding>``: one cache per size and encoding."""
     key = hashlib.sha256(json.dumps(label_encoding(labels_conf), sort_keys=True).encode()).hexdigest()[:8]
-    return Path(dataset_root) / "cache" / f"{int(size)}px-{key}"
+    return Path(dataset_root) / CACHE_DIR / f"{int(size)}px-{key}"
 
 
 @dataclass
