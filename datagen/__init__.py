@@ -1,4 +1,4 @@
-"""datagen: ground truth for FrontierNet from any scene (DESIGN.md section 3, paper III-D).
+"""datagen: ground truth for FrontierNet from any scene (docs/design.md section 3, paper III-D).
 
 - :class:`~datagen.ground_truth.GroundTruthGenerator`: per-view labels (F_p, F_d, F,
   the distance field, gain and gain classes) for a voxelised scene and a camera pose.

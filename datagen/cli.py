@@ -20,7 +20,7 @@ from pathlib import Path
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "datagen", help="generate training data (frontier distance fields, gain classes) from scenes",
-        description="Generate a sharded FrontierNet dataset from scenes (DESIGN.md section 3). "
+        description="Generate a sharded FrontierNet dataset from scenes (docs/design.md section 3). "
                     "Subcommands: 'preview DIR' draws contact sheets, 'bench' times one view, "
                     "'consistency' measures how well the gain labels agree with themselves.")
     parser.add_argument("--scenes", nargs="+", metavar="SPEC",

@@ -1,6 +1,6 @@
 """Per-view ground truth: frontier pixels, the distance field and info-gain classes.
 
-The method of DESIGN.md section 3 and the paper's section III-D, for one camera pose in
+The method of docs/design.md section 3 and the paper's section III-D, for one camera pose in
 a scene voxelised at 0.1 m:
 
 1. **V_in**: voxels the camera observes, i.e. every voxel a pixel's ray passes through

@@ -4,7 +4,7 @@ All four are defined in the library and re-exported here: F_d (:func:`discontinu
 and D (:func:`distance_field`) in :mod:`frontiernet.frontiers.discontinuity`, the gain
 classes (:func:`gain_classes`, :func:`class_lower_bounds`) in :mod:`frontiernet.frontiers.gain`.
 
-DESIGN.md section 3, paper section III-D. All images are (H, W) in pixel coordinates
+docs/design.md section 3, paper section III-D. All images are (H, W) in pixel coordinates
 (row v, column u); depth is metric z-depth in metres with NaN where invalid, as the
 simulator renders it.
 """

@@ -1,6 +1,6 @@
 """Poses and rotations.
 
-Conventions (DESIGN.md): world frame Z-up, metres, radians; camera frame OpenCV
+Conventions (docs/design.md): world frame Z-up, metres, radians; camera frame OpenCV
 (x right, y down, z forward). ``T_world_cam`` (4, 4) float64 maps camera
 coordinates into the world: ``p_world = T_world_cam[:3, :3] @ p_cam + T_world_cam[:3, 3]``.
 

@@ -1,4 +1,4 @@
-"""Closed-loop exploration (DESIGN.md items 4-7): motion increments, `frontiernet explore`, `frontiernet demo`.
+"""Closed-loop exploration (docs/design.md items 4-7): motion increments, `frontiernet explore`, `frontiernet demo`.
 
 The end-to-end runs use the oracle perception (ground-truth frontiers) on a small floor plan
 of two rooms, so that they check the loop, not the model's quality; only the demo runs the

@@ -1,4 +1,4 @@
-"""Planning (DESIGN.md item 6): the frontier tree, the pose graph, utility = gain / distance,
+"""Planning (docs/design.md item 6): the frontier tree, the pose graph, utility = gain / distance,
 goal keeping, blacklisting, map and map-free routes, route resampling."""
 
 from __future__ import annotations

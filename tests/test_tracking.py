@@ -1,4 +1,4 @@
-"""Frontier bookkeeping (DESIGN.md item 5): merge, map-based gain reduction, drops, stable ids."""
+"""Frontier bookkeeping (docs/design.md item 5): merge, map-based gain reduction, drops, stable ids."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The training loss: ``alpha * L1(normalised D) + CE(Y) + Dice(Y)`` (DESIGN.md section 2).
+"""The training loss: ``alpha * L1(normalised D) + CE(Y) + Dice(Y)`` (docs/design.md section 2).
 
 The gain terms are configurable (``loss`` section of ``configs/train.yaml``), because the label
 is lopsided: class 0 (no gain) covers ~90 % of the pixels, the ten gain classes live in the band

@@ -1,6 +1,6 @@
 """Benchmark report: ``results.csv``, ``table.md`` and coverage curves per scene.
 
-**Vox@k** (DESIGN.md item 7, the paper's Table I): coverage (known fraction of the scene's
+**Vox@k** (docs/design.md item 7, the paper's Table I): coverage (known fraction of the scene's
 explorable volume) when the step count reaches k % of the run. Runs of one comparison (same
 scene, start and repeat) can end at different steps (no frontiers left), so for k = 25 and
 50 the step is shared: the mean over the compared methods of k % of each one's steps; a run

@@ -1,4 +1,4 @@
-"""Closed-loop exploration in the simulator (paper III-E, III-F; DESIGN.md items 4 to 7).
+"""Closed-loop exploration in the simulator (paper III-E, III-F; docs/design.md items 4 to 7).
 
 :func:`~frontiernet.exploration.run.main` runs one exploration from a config;
 :class:`~frontiernet.exploration.explorer.Explorer` is the loop; perceptions

@@ -1,4 +1,4 @@
-"""The closed exploration loop (paper III-E, III-F; DESIGN.md items 4 to 7).
+"""The closed exploration loop (paper III-E, III-F; docs/design.md items 4 to 7).
 
 Each iteration: **sense** (render the camera frame, get the depth prior from the depth
 source, run the perception, anchor its frontier pixels to 3D frontiers, integrate the depth

@@ -2,7 +2,7 @@
 
 The robot keeps its camera at a fixed height and pitch and turns in yaw only. Each
 increment moves at most ``motion.translation_m`` and turns at most ``motion.rotation_deg``
-(just above the paper's step thresholds, so one increment is one step, DESIGN.md item 7).
+(just above the paper's step thresholds, so one increment is one step, docs/design.md item 7).
 When the next waypoint lies more than ``turn_in_place_deg`` off the heading the robot
 first turns on the spot, so the camera looks where the robot is about to go.
 """

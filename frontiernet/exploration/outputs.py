@@ -1,7 +1,7 @@
 """What an exploration run writes: metrics, trajectory, frontiers, video, coverage plot.
 
 ``metrics.json`` holds coverage per step (the fraction of the scene's explorable volume
-observed), Vox@k at 25 / 50 / 100 % of the step budget (DESIGN.md item 7; the benchmark
+observed), Vox@k at 25 / 50 / 100 % of the step budget (docs/design.md item 7; the benchmark
 shares the 25 / 50 % step counts across methods), path length, collisions and the mean time
 per stage. The video shows, per step, the camera image with the perceived frontier pixels
 coloured by gain class beside a top-down view of the robot's map with its path, the live

@@ -1,6 +1,6 @@
 """Frontiers: from per-pixel network outputs to 3D frontiers, and their bookkeeping.
 
-DESIGN.md items 4 and 5, paper III-E and III-F. :func:`anchor_prediction` takes a distance
+docs/design.md items 4 and 5, paper III-E and III-F. :func:`anchor_prediction` takes a distance
 field and gain classes (from the network or the ground truth) and returns
 :class:`FrontierObservation` s; :mod:`.gain` holds the gain-class encoding shared with the
 data generation; :class:`FrontierTracker` (:mod:`.tracking`) folds observations over frames.

@@ -1,4 +1,4 @@
-"""Anchoring: per-pixel network outputs -> 3D frontiers (DESIGN.md item 4, paper III-E).
+"""Anchoring: per-pixel network outputs -> 3D frontiers (docs/design.md item 4, paper III-E).
 
 1. F = [D < l] and G = the decoded gain class (:func:`anchor_prediction`).
 2. Per frontier pixel: the image direction towards the occluded side (down the depth

@@ -1,6 +1,6 @@
 """Depth discontinuities F_d and the truncated distance field D (image space).
 
-DESIGN.md section 3, paper section III-D (FrontierNet, RA-L 2025). The ground truth
+docs/design.md section 3, paper section III-D (FrontierNet, RA-L 2025). The ground truth
 (``datagen``) builds its labels from them (F = F_p & F_d, then D), and the exploration
 ablations of the paper's Fig. 9 (:mod:`frontiernet.exploration.ablations`) take F_d of the
 robot's own depth in place of the network's frontiers. Moved here from ``datagen/labels.py``

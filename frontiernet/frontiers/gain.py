@@ -1,6 +1,6 @@
 """Information-gain classes: binning gains (m^3) into K classes and decoding them back.
 
-DESIGN.md sections 1 and 4, paper sections III-C and III-E. The network's gain head
+docs/design.md sections 1 and 4, paper sections III-C and III-E. The network's gain head
 predicts one of K = ``len(bin_edges)`` classes per pixel; the edges are the classes'
 upper bounds in units of ``bin_unit_m3`` (public code: 0.01 m^3, edges 1 ... 3500, so
 K = 11). Both the label side (``datagen``) and the decoding side (anchoring) use these

@@ -1,6 +1,6 @@
 """Frontier bookkeeping across frames: merge, gain adjustment, invalidation (paper III-F).
 
-DESIGN.md item 5. Each frame's :class:`~frontiernet.frontiers.anchoring.FrontierObservation`
+docs/design.md item 5. Each frame's :class:`~frontiernet.frontiers.anchoring.FrontierObservation`
 list is folded into a :class:`FrontierTracker`, whose frontiers keep stable integer ids:
 
 * **Merge.** An observation closer than ``merge_distance_m`` to an existing frontier whose

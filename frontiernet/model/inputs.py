@@ -8,7 +8,7 @@ Input normalisation (``configs/model.yaml`` section ``input``):
   refused: callers map their invalid pixels to 0 first (:func:`invalid_to_zero`).
 
 Channel order is RGB then depth. Output decoding (``labels`` section): the distance head's
-``y`` gives ``D = r * exp(-y)`` pixels, frontier pixels are ``D < l`` (DESIGN.md section 4).
+``y`` gives ``D = r * exp(-y)`` pixels, frontier pixels are ``D < l`` (docs/design.md section 4).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The FrontierNet network: a UNet on a torchvision ResNet encoder with two heads.
 
-DESIGN.md section 2, paper section III-C. The encoder is a ResNet (18, 34 or 50) whose first
+docs/design.md section 2, paper section III-C. The encoder is a ResNet (18, 34 or 50) whose first
 convolution takes the configured input channels (RGB + depth prior, RGB only or depth only);
 a shared UNet decoder upsamples back to full resolution; two heads of three convolutions each
 predict

@@ -1,6 +1,6 @@
 """Goal selection and paths: utility u = gain / distance (paper Eq. 8) over the frontier tree.
 
-DESIGN.md item 6, paper III-F. Each planning round:
+docs/design.md item 6, paper III-F. Each planning round:
 
 1. every live frontier gets a route: on the map (``planner.mode: map``) the frontier-tree
    edge is walked back to ``c*``, the first point the robot can reach on the map's 2D

@@ -1,6 +1,6 @@
 """The frontier tree: robot poses as a chain, each frontier a child of the pose that saw it.
 
-Paper III-F, DESIGN.md item 6. The pose that registered a frontier saw it along a line of
+Paper III-F, docs/design.md item 6. The pose that registered a frontier saw it along a line of
 sight, so the straight *edge* from that pose to the frontier runs through space that was
 free when it was seen. When a goal frontier lies outside the mapped free space, the planner
 walks back along that edge to the first point ``c*`` it can reach on the map, plans there,

@@ -1,7 +1,7 @@
 """The one scene type: a triangle mesh with per-triangle materials.
 
 Every source (mesh files, HM3D, floor plans, procedural) produces a :class:`Scene`
-in the world frame of DESIGN.md: Z-up, metres.
+in the world frame of docs/design.md: Z-up, metres.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """A Z-up world frame for a posed sequence.
 
-The pipeline's world is Z-up (DESIGN.md conventions): levelled frontier directions, the
+The pipeline's world is Z-up (docs/design.md conventions): levelled frontier directions, the
 tracker's height window and the map's height band all read the world z axis. Reconstructions
 and trajectories come in any frame: COLMAP's first camera, Redwood's camera 0 (y down), a
 motion-capture room. Hand-held and robot cameras are held roughly level, so the mean of

@@ -1,6 +1,6 @@
 """Moving the camera: collision-checked motion along poses, and the paper's step count.
 
-Frames and units (DESIGN.md): world Z-up, metres, radians; ``T_world_cam`` (4, 4)
+Frames and units (docs/design.md): world Z-up, metres, radians; ``T_world_cam`` (4, 4)
 float64 camera-to-world poses, OpenCV camera axes.
 
 * **Collision.** The agent is a sphere of ``agent.radius_m`` around the camera centre.
@@ -11,7 +11,7 @@ float64 camera-to-world poses, OpenCV camera axes.
   it stays >= 0.75 radius from the mesh). A move into an obstacle stops at the last safe
   pose (refined by bisection towards the first colliding sample) and is reported, never
   passes through. Orientation is interpolated by slerp along the same parameter.
-* **Steps** (paper, DESIGN.md section 7): a new step is counted when the pose differs
+* **Steps** (paper, docs/design.md section 7): a new step is counted when the pose differs
   from the pose of the last counted step by more than ``step_translation_m`` in position
   or ``step_rotation_deg`` in rotation (geodesic angle). The :class:`Agent` feeds its
   :class:`StepCounter` the end pose of every move (the waypoints a planner gives it), not

@@ -1,6 +1,6 @@
 """The simulated camera: RGB, metric z-depth, normals and hit mask by Open3D ray casting.
 
-Defaults from the paper (DESIGN.md): 480 x 480 pixels, f = 300 px (77.32 degrees field
+Defaults from the paper (docs/design.md): 480 x 480 pixels, f = 300 px (77.32 degrees field
 of view), depth beyond 3.5 m invalid. Pixel centres sit at integer coordinates (OpenCV),
 so the principal point of a W x H image is ((W - 1) / 2, (H - 1) / 2).
 

@@ -1,6 +1,6 @@
 """Camera poses in a scene's free space: seeded sampling and validity checks.
 
-Frames and units (DESIGN.md): world Z-up, metres, radians; camera frame OpenCV
+Frames and units (docs/design.md): world Z-up, metres, radians; camera frame OpenCV
 (x right, y down, z forward); ``T_world_cam`` (4, 4) float64 maps camera coordinates
 into the world. Sampled cameras have no roll.
 

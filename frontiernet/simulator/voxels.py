@@ -10,7 +10,7 @@ Three classes of voxels:
 * **occupied**: voxels a scene triangle intersects (exact triangle/box overlap test,
   separating-axis theorem, vectorised in numpy: thin walls are closed, no holes).
 * **explorable**: the free interior, the volume an exploration run must discover
-  (Vox@k in DESIGN.md is a fraction of it).
+  (Vox@k in docs/design.md is a fraction of it).
 * **outside**: everything else (the outside of the building, the inside of walls and
   closed furniture); neither occupied nor explorable.
 
