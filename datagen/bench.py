@@ -48,7 +48,7 @@ def bench_ground_truth(spec: str | None = None, views: int = 20, backends: list[
     """
     import numba
 
-    from frontiernet.cli.bench import default_bench_scene
+    from frontiernet.benchmark.perf import default_bench_scene
     from frontiernet.errors import InputError
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.poses import sample_poses

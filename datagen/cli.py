@@ -45,8 +45,9 @@ def add_parser(subparsers) -> None:
     preview.add_argument("--out", metavar="DIR", help="where to write (default: DIR/preview)")
     preview.set_defaults(func=run_preview)
     bench = actions.add_parser("bench", help="cost of one ground-truth view in depth renders, views/s per core")
-    bench.add_argument("--scene", default=None, help="scene spec (default: the shared house when present, "
-                                                     "else procedural:0)")
+    bench.add_argument("--scene", default=None, help="scene spec (default: perf.scene of "
+                                                     "configs/bench.yaml, the shared house next to the "
+                                                     "checkout, when present; else perf.fallback_scene)")
     bench.add_argument("--views", type=int, default=20, help="views to time (default 20)")
     bench.add_argument("--raycast", nargs="+", metavar="ENGINE", choices=("open3d", "embree"),
                        help="ray-cast engines to time, the first is the baseline (default: every one importable)")

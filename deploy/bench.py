@@ -15,16 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
-from frontiernet.cli.bench import median_seconds
-
-# torch is imported where it is used: `frontiernet` loads this module to list `bench inference`
-# with every command it parses, and importing torch took seconds of each start.
+# torch (and the benchmark package) are imported where they are used: `frontiernet` loads this
+# module to list `bench inference` with every command it parses, and importing torch took seconds
+# of each start.
 
 
 def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_crop: int = 192,
                     train_batch: int = 8) -> dict:
     import torch
 
+    from frontiernet.benchmark.perf import median_seconds
     from frontiernet.model import load_model
     from frontiernet.model.predictor import Predictor, torch_threads
 
@@ -73,6 +73,8 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
 def _training_throughput(model, channels: int, crop: int, batch: int, conf, inference_fps: float) -> dict:
     """Images/s of a training step on this machine's device (GPU when there is one)."""
     import torch
+
+    from frontiernet.benchmark.perf import median_seconds
 
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     model = model.to(device).train()

@@ -10,6 +10,9 @@ paper's Table I for any scene set. Steps, one module each (hloc style):
   far (``--report``);
 * :mod:`.store`: the finished runs' records, one ``metrics.json`` per run as they finish, or
   packed into one compressed file per (scene, method) by :func:`pack` (``--pack``).
+
+Beside it, :mod:`.perf` holds the hot-path benchmarks (``frontiernet bench render|map|explore``:
+stage times as ratios to a render or a bare ray cast of the same run) and their timing helpers.
 """
 
 from .main import main, report

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from frontiernet.cli.bench import default_bench_scene
+from frontiernet.benchmark.perf import default_bench_scene
 from frontiernet.config import load_config
 from frontiernet.frontiers import anchor_prediction
 from frontiernet.model.predictor import Predictor

@@ -20,7 +20,7 @@ import argparse
 
 import numpy as np
 
-from frontiernet.cli.bench import default_bench_scene
+from frontiernet.benchmark.perf import default_bench_scene
 from frontiernet.config import load_config
 from frontiernet.depth import make_depth_source
 from frontiernet.exploration.run import start_sampler
