@@ -78,9 +78,9 @@ def run_predict(args) -> int:
         whole_number(args.threads, "--threads", 1)
     intrinsics = None
     if args.intrinsics:
-        from frontiernet.cli.sequence import parse_intrinsics
+        from frontiernet.geometry import parse_intrinsics_text
 
-        intrinsics = parse_intrinsics(args.intrinsics)
+        intrinsics = parse_intrinsics_text(args.intrinsics)
     result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
                            depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
                            depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth)

@@ -112,6 +112,18 @@ def intrinsics_matrix(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], np.float64)
 
 
+def parse_intrinsics_text(text: str) -> tuple[float, float, float, float]:
+    """``"fx,fy,cx,cy"`` as typed after ``--intrinsics`` -> four finite floats, pixels (focal
+    lengths positive), or :class:`InputError` quoting `text`."""
+    try:
+        values = tuple(float(value) for value in text.split(","))
+    except ValueError:
+        raise InputError(f"--intrinsics must be fx,fy,cx,cy in pixels, got '{text}'") from None
+    if len(values) != 4 or not all(np.isfinite(value) for value in values) or values[0] <= 0 or values[1] <= 0:
+        raise InputError(f"--intrinsics must be fx,fy,cx,cy: finite pixels, positive focal lengths, got '{text}'")
+    return values
+
+
 def pinhole_intrinsics(K, image_shape: tuple[int, int]) -> np.ndarray:
     """(3, 3) float64 pinhole K that fits an (H, W) image, or InputError naming `K`."""
     K = np.asarray(K, np.float64)

@@ -11,6 +11,7 @@ outputs in ``cache/`` (a re-run resumes from them).
 from __future__ import annotations
 
 from ..errors import InputError
+from ..geometry import parse_intrinsics_text
 
 
 def add_parser(subparsers) -> None:
@@ -36,19 +37,6 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def parse_intrinsics(text: str) -> tuple[float, float, float, float]:
-    """``"fx,fy,cx,cy"`` -> four finite floats (focal lengths positive)."""
-    import math
-
-    try:
-        values = tuple(float(value) for value in text.split(","))
-    except ValueError:
-        raise InputError(f"--intrinsics must be fx,fy,cx,cy in pixels, got '{text}'") from None
-    if len(values) != 4 or not all(math.isfinite(value) for value in values) or values[0] <= 0 or values[1] <= 0:
-        raise InputError(f"--intrinsics must be fx,fy,cx,cy: finite pixels, positive focal lengths, got '{text}'")
-    return values
-
-
 def camera_from_intrinsics(text: str, input_path):
     """A :class:`~frontiernet.sequences.Camera` of the given intrinsics at the size of the first image."""
     from pathlib import Path
@@ -56,7 +44,7 @@ def camera_from_intrinsics(text: str, input_path):
     from ..sequences import Camera
     from ..sequences.readers import IMAGE_SUFFIXES, image_size
 
-    fx, fy, cx, cy = parse_intrinsics(text)
+    fx, fy, cx, cy = parse_intrinsics_text(text)
     images = sorted(path for path in Path(input_path).rglob("*") if path.suffix.lower() in IMAGE_SUFFIXES
                     and "depth" not in path.parts)
     if not images:
