@@ -14,8 +14,9 @@ from frontiernet.errors import InputError
 from frontiernet.scenes import load_scene
 from frontiernet.scenes.builder import MeshBuilder
 from frontiernet.scenes.floorplan import plan_pixel_to_world
+from frontiernet.scenes.interior import enclosed_free
 from frontiernet.scenes.scene import Material, SceneMetadata
-from frontiernet.simulator.voxels import VoxelGrid, enclosed_free, surface_voxels, voxelize_scene
+from frontiernet.simulator.voxels import VoxelGrid, surface_voxels, voxelize_scene
 
 from conftest import TWO_ROOM_FREE_VOLUME, box_scene, room_boxes
 

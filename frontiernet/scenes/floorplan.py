@@ -19,8 +19,8 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
-from ..simulator.voxels import enclosed_free as building_inside  # shared with 3D voxelisation
 from .builder import MeshBuilder
+from .interior import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
 from .textures import make_texture
 

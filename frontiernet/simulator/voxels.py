@@ -34,11 +34,11 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
+from ..scenes import Scene
+from ..scenes.interior import enclosed_free
 
-if TYPE_CHECKING:  # the scenes package imports this module (floor plans), keep it lazy
+if TYPE_CHECKING:
     from omegaconf import DictConfig
-
-    from ..scenes import Scene
 
 
 @dataclass
@@ -291,60 +291,6 @@ def surface_voxels(vertices: np.ndarray, triangles: np.ndarray, origin: np.ndarr
 
 
 # ----------------------------------------------------------------------------- interior
-
-
-_TIE = 1e-4  # cells; float32 distances equal to the radius count as within it
-
-
-def _inplane_edt(mask: np.ndarray) -> np.ndarray:
-    """float32 distance (cells) from each True cell of `mask` to the nearest False cell of its slice.
-
-    `mask` is (H, W) or (H, W, Z) with horizontal slices along the last axis; a slice
-    without any False cell gets a huge distance. Exact Euclidean distance transform
-    (OpenCV, DIST_MASK_PRECISE), one slice at a time: 20x faster than a 3D scipy EDT.
-    """
-    import cv2
-
-    if mask.ndim == 2:
-        return cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    out = np.empty(mask.shape, np.float32)
-    for k in range(mask.shape[2]):
-        out[:, :, k] = cv2.distanceTransform(mask[:, :, k].astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return out
-
-
-def enclosed_free(free: np.ndarray, resolution: float, gap_closing_m: float) -> np.ndarray:
-    """Free cells enclosed by the building: not reachable from the lateral border.
-
-    Works on one 2D plan (H, W) or on a stack of horizontal slices (X, Y, Z) at once
-    (the in-plane axes are the first two). Openings narrower than `gap_closing_m`
-    (doors and windows to the outside) are treated as closed: the flood from the border
-    only passes cells farther than half that from any non-free cell (in-plane), and is
-    then grown back by the same radius.
-
-    Args:
-        free: (H, W) or (X, Y, Z) bool, free cells.
-        resolution: metres per cell; gap_closing_m: metres.
-    Returns:
-        bool array like `free`: free cells inside the building.
-    """
-    free = np.asarray(free, bool)
-    radius = gap_closing_m / 2.0 / resolution
-    pad = int(np.ceil(radius)) + 2
-    width = ((pad, pad), (pad, pad)) + ((0, 0),) * (free.ndim - 2)
-    padded = np.pad(free, width, constant_values=True)
-    clearance = _inplane_edt(padded)
-    structure = ndimage.generate_binary_structure(2, 1)  # 4-connected in-plane
-    if free.ndim == 3:
-        structure = np.stack([np.zeros_like(structure), structure, np.zeros_like(structure)], axis=-1)
-    labels, _ = ndimage.label(clearance > radius + _TIE, structure=structure)
-    border = np.unique(np.concatenate([labels[0].ravel(), labels[-1].ravel(),
-                                       labels[:, 0].ravel(), labels[:, -1].ravel()]))
-    flood = np.isin(labels, border[border > 0])
-    del labels, clearance
-    outside = _inplane_edt(~flood) <= radius + _TIE
-    inside = padded & ~outside
-    return inside[pad:-pad, pad:-pad]
 
 
 def largest_component(mask: np.ndarray) -> np.ndarray:
