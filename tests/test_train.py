@@ -153,6 +153,30 @@ def test_metrics_of_a_perfect_and_a_shifted_prediction():
     assert depth_jump_score(depth)[0, 10, 16] > 0.1 > depth_jump_score(depth)[0, 5, 5]
 
 
+def test_channels_last_changes_the_memory_order_not_the_numbers():
+    from train.main import channels_last_wanted
+    from train.module import FrontierNetModule
+
+    model = OmegaConf.to_container(load_config("model"))
+    model["network"]["pretrained"] = None
+    optim = OmegaConf.to_container(load_config("train").optim)
+    module = FrontierNetModule(model=model, train={"loss": TRAIN_LOSS, "optim": optim})
+    module.eval()
+    image = torch.randn(2, 4, 64, 64, generator=torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        reference = module.net(image)
+        module.use_channels_last(True)
+        weight = next(p for p in module.net.parameters() if p.dim() == 4)
+        assert weight.is_contiguous(memory_format=torch.channels_last) and not weight.is_contiguous()
+        nhwc = module.net(image.contiguous(memory_format=torch.channels_last))
+    for a, b in zip(reference, nhwc):
+        assert torch.allclose(a, b, atol=1e-4, rtol=1e-4)
+    assert channels_last_wanted(OmegaConf.create({"channels_last": "auto", "accelerator": "cpu"})) is False
+    assert channels_last_wanted(OmegaConf.create({"channels_last": True, "accelerator": "cpu"})) is True
+    with pytest.raises(InputError, match="trainer.channels_last: must be true, false or auto, got 'maybe'"):
+        channels_last_wanted(OmegaConf.create({"channels_last": "maybe", "accelerator": "cpu"}))
+
+
 def train_losses(run: Path) -> list[float]:
     with open(run / "metrics.csv") as handle:
         return [float(row["train/loss"]) for row in csv.DictReader(handle) if row.get("train/loss")]

@@ -156,3 +156,7 @@ def test_bench_train_reports_loader_and_model_rates(dataset_copy, capsys):
     assert result["model"]["images_per_s"] > 0 and result["model"]["crop"] == 48 and result["model"]["batch"] == 4
     best = max(row["samples_per_s"] for row in result["loader"] if row["source"] == "cache")
     assert result["loader_to_model"] == pytest.approx(best / result["model"]["images_per_s"], rel=0.02)
+    # both memory layouts timed in the same run, as ratios to NCHW; on a CPU `auto` trains in NCHW
+    layouts = result["model_layouts"]
+    assert [layout["channels_last"] for layout in layouts] == [False, True] and layouts[0]["ratio_to_nchw"] == 1.0
+    assert result["model"] == layouts[0]

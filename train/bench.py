@@ -59,8 +59,9 @@ def _synchronise(device) -> None:
         torch.cuda.synchronize()
 
 
-def _model_rate(samples, conf, device, steps: int, precision: str) -> dict:
-    """Training images/s of FrontierNet with the training loss on `device` (median step time)."""
+def _model_rate(samples, conf, device, steps: int, precision: str, channels_last: bool = False) -> dict:
+    """Training images/s of FrontierNet with the training loss on `device` (median step time), with
+    the network in NCHW or NHWC (`channels_last`) memory order."""
     import numpy as np
     import torch
     from torch.utils.data import DataLoader
@@ -71,6 +72,7 @@ def _model_rate(samples, conf, device, steps: int, precision: str) -> dict:
 
     module = FrontierNetModule(model=plain(conf.model), train={key: plain(conf[key]) for key in ("loss", "optim")})
     module = module.to(device).train()
+    module.use_channels_last(channels_last)
     optimizer = torch.optim.AdamW(module.parameters(), lr=float(conf.optim.lr))
     loader = DataLoader(samples, batch_size=int(conf.data.batch_size), shuffle=True, drop_last=True,
                         generator=torch.Generator().manual_seed(0))
@@ -96,7 +98,7 @@ def _model_rate(samples, conf, device, steps: int, precision: str) -> dict:
     size = batch["image"].shape
     return {"device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu",
             "precision": precision, "encoder": conf.model.network.encoder, "inputs": conf.model.network.inputs,
-            "batch": int(size[0]), "crop": int(size[-1]), "steps": steps,
+            "channels_last": channels_last, "batch": int(size[0]), "crop": int(size[-1]), "steps": steps,
             "step_ms": round(1000 * seconds, 1), "images_per_s": round(int(size[0]) / seconds, 1)}
 
 
@@ -106,6 +108,7 @@ def bench_train(conf, workers: list[int], batches: int, steps: int, baseline: bo
     import torch
 
     from .data import CachedSamples, TrainingSamples, open_training_cache, open_training_data, view_size
+    from .main import channels_last_wanted
 
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     precision = precision or ("bf16-mixed" if device.type == "cuda" else "32-true")
@@ -134,7 +137,11 @@ def bench_train(conf, workers: list[int], batches: int, steps: int, baseline: bo
     for row in rows:
         row["ratio_to_baseline"] = round(row["samples_per_s"] / base, 2)
     result["baseline"] = f"{'decode' if baseline else 'cache'}, {rows[0]['workers']} worker(s)"
-    result["model"] = _model_rate(cached, conf, device, steps, precision)
+    layouts = [_model_rate(cached, conf, device, steps, precision, channels_last) for channels_last in (False, True)]
+    for layout in layouts:
+        layout["ratio_to_nchw"] = round(layout["images_per_s"] / layouts[0]["images_per_s"], 2)
+    result["model_layouts"] = layouts
+    result["model"] = layouts[int(channels_last_wanted(conf.trainer))]  # the layout `train` would use
     best = max(row["samples_per_s"] for row in rows if row["source"] == "cache")
     result["loader_to_model"] = round(best / result["model"]["images_per_s"], 2)
     return result
@@ -152,8 +159,12 @@ def format_report(result: dict) -> str:
                      f"{row['ratio_to_baseline']:6.2f}x{cpu}")
     model = result["model"]
     lines.append(f"model training step ({model['encoder']}, {model['inputs']}, batch {model['batch']}, "
-                 f"{model['crop']} px, {model['precision']}, {model['device']}): {model['step_ms']} ms, "
-                 f"{model['images_per_s']} images/s")
+                 f"{model['crop']} px, {model['precision']}, {model['device']}):")
+    for layout in result["model_layouts"]:
+        name = "channels-last (NHWC)" if layout["channels_last"] else "contiguous (NCHW)"
+        used = "  <- trainer.channels_last" if layout is model else ""
+        lines.append(f"  {name:22s} {layout['step_ms']:8.1f} ms  {layout['images_per_s']:9.1f} images/s  "
+                     f"{layout['ratio_to_nchw']:5.2f}x{used}")
     lines.append(f"best cache loader / model: {result['loader_to_model']}x "
                  f"({'the loader keeps ahead' if result['loader_to_model'] >= 1 else 'the model waits for data'})")
     return "\n".join(lines)

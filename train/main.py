@@ -58,6 +58,17 @@ class LastCheckpoint(Callback):
             log.warning("saved %s (resume with --resume)", self.path)
 
 
+def channels_last_wanted(trainer_conf) -> bool:
+    """``trainer.channels_last``: true, false, or auto (on when training runs on a CUDA GPU)."""
+    setting = trainer_conf.get("channels_last", False)
+    if str(setting) == "auto":
+        accelerator = str(trainer_conf.accelerator)
+        return torch.cuda.is_available() and accelerator in ("gpu", "cuda", "auto")
+    if not isinstance(setting, bool):
+        raise InputError(f"trainer.channels_last: must be true, false or auto, got {setting!r}")
+    return setting
+
+
 def _trainer_args(trainer_conf) -> dict:
     keys = ("max_epochs", "max_steps", "max_time", "accelerator", "devices", "num_nodes", "strategy",
             "precision", "gradient_clip_val", "val_check_interval", "check_val_every_n_epoch",
@@ -94,6 +105,7 @@ def check_loop_settings(conf, train_samples: int) -> None:
             raise InputError(f"optim.{key}: must be one of {', '.join(allowed)}, got {conf.optim[key]!r}")
     if conf.optim.get("horizon") == "time" and not conf.trainer.max_time:
         raise InputError("optim.horizon: 'time' ends the schedule at trainer.max_time, which is not set")
+    channels_last_wanted(conf.trainer)
     interval = conf.trainer.val_check_interval
     if isinstance(interval, int) and not isinstance(interval, bool) and not 1 <= interval <= batches \
             and conf.trainer.check_val_every_n_epoch is not None:
@@ -149,6 +161,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     train_part = {key: plain(conf[key]) for key in ("loss", "optim")}
     train_part["val_scenes"] = list(datamodule.val_scenes)  # evaluate reads them from the checkpoint
     module = FrontierNetModule(model=plain(conf.model), train=train_part)
+    module.use_channels_last(channels_last_wanted(conf.trainer))
     if init is not None:
         module.net.load_state_dict(init.state_dict())
     checkpoints = out / "checkpoints"

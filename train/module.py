@@ -35,12 +35,23 @@ class FrontierNetModule(L.LightningModule):
             load_imagenet_encoder(self.net, pretrained)
         self.metrics = FrontierMetrics(model["labels"])
         self.validated_at_step = -1  # global step of the newest validation (not the sanity check)
+        self.channels_last = False  # NHWC weights and inputs (use_channels_last), set before training
+
+    def use_channels_last(self, enabled: bool) -> None:
+        """Keep the network's weights, and so its activations, in NHWC order (``trainer.channels_last``):
+        cuDNN's bf16 / fp16 convolutions run on tensor cores without layout transposes (PyTorch's
+        channels-last tutorial). The numbers are the same; only the memory order changes."""
+        self.channels_last = bool(enabled)
+        self.net.to(memory_format=torch.channels_last if enabled else torch.contiguous_format)
 
     def forward(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return self.net(image)
 
     def _loss(self, batch: dict) -> tuple[dict, torch.Tensor, torch.Tensor]:
-        distance, logits = self.net(batch["image"])
+        image = batch["image"]  # (B, C, S, S) float32, normalised (network_batch)
+        if self.channels_last:
+            image = image.contiguous(memory_format=torch.channels_last)
+        distance, logits = self.net(image)
         terms = frontier_loss(distance, logits, batch, self.hparams.train["loss"], self.hparams.model["labels"])
         return terms, distance, logits
 
