@@ -344,6 +344,25 @@ def test_sim_and_depth_keys_reach_the_run_and_its_config_file_repeats_it(plan_sp
     assert again["coverage_per_step"] == first["coverage_per_step"] and again["start"] == first["start"]
 
 
+def test_the_ray_cast_engine_of_the_run_config_is_the_one_used(plan_spec, tmp_path):
+    from frontiernet.config import load_config
+    from frontiernet.simulator import raycast
+
+    if not all(raycast._importable(name) for name in ("open3d", "embree")):
+        pytest.skip("needs both ray-cast engines")
+    try:
+        for engine in ("embree", "open3d"):
+            code, _, stderr = run_cli(explore_args(plan_spec, tmp_path / engine, 2, "--no-video",
+                                                   f"sim.raycast.backend={engine}"))
+            assert code == 0, stderr
+            assert raycast.active_backend() == engine  # the run selected it (it used to keep the shipped one)
+        code, _, stderr = run_cli(explore_args(plan_spec, tmp_path / "bad", 2, "--no-video",
+                                               "sim.raycast.backend=nosuch"))
+        assert code == 2 and "raycast.backend 'nosuch' is unknown" in stderr
+    finally:
+        raycast.select_backend(load_config("sim").raycast.backend)
+
+
 @pytest.mark.slow
 def test_demo_prints_the_coverage_and_writes_the_video(plan_spec, tmp_path):
     import cv2

@@ -155,6 +155,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from ..io import atomic_write, ensure_dir
     from ..scenes import load_scene
     from ..simulator.camera import PinholeCamera, Renderer
+    from ..simulator.raycast import select_backend
     from ..simulator.voxels import voxelize_scene
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
@@ -170,6 +171,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     # the explorer's own draws read run.seed; config.yaml records what the run used
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
     sim = run_section(conf, "sim")
+    select_backend(sim.raycast.backend)  # the run's ray-cast engine (sim.raycast.backend), not the shipped file's
     clock = time.perf_counter()
     loaded = load_scene(scene)
     voxels = voxelize_scene(loaded, sim.voxels)
