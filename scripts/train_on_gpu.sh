@@ -15,7 +15,8 @@
 # the shards finished so far; stages.tsv says "datagen_cut"), training gets what is left but RESERVE_S
 # (trainer.max_time), so a call always ends with a model and its metrics.
 # Environment: SCENES (procedural:0-199: training scenes only, never the published or development
-# ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20), BATCH (64), PYTHON (python3),
+# ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20; 1000 under BUDGET_S, where the clock
+# ends training: a call on the H200 stopped at 20 epochs of 4,522 views with two minutes unused), BATCH (64), PYTHON (python3),
 # SITE (/tmp/site: where the package and the wheels in .whl/ are installed when missing).
 set -euo pipefail
 WORK=${1:?usage: scripts/train_on_gpu.sh WORK [key=value ...]}
@@ -26,9 +27,9 @@ SITE=${SITE:-/tmp/site}
 SCENES=${SCENES:-procedural:0-199}
 VIEWS=${VIEWS:-75}
 NAME=${NAME:-rgbd}
-EPOCHS=${EPOCHS:-20}
-BATCH=${BATCH:-64}
 BUDGET_S=${BUDGET_S:-}          # wall seconds this call may take in all (a lent machine's 10-minute command)
+EPOCHS=${EPOCHS:-$([ -n "$BUDGET_S" ] && echo 1000 || echo 20)}  # under a budget the clock ends training
+BATCH=${BATCH:-64}
 DATAGEN_SHARE=${DATAGEN_SHARE:-45}  # ... of which data generation gets at most this percent
 RESERVE_S=${RESERVE_S:-180}     # ... and this much is kept for the cache, evaluation, export and packing
 CORES=$(nproc)
