@@ -6,6 +6,7 @@ import contextlib
 import csv
 import io
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +84,39 @@ def test_each_method_is_compared_with_classic_over_paired_runs():
     assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"])  # no reference, no section
 
 
+def test_the_monocular_penalty_is_each_methods_ratio_to_ground_truth_over_paired_runs():
+    """With several depth sources the summary and the comparison with classic come per source, and
+    the penalty table gives each method's mean Vox@k on a source over its mean on ground truth,
+    paired by (scene, start, repeat), with the interval of the comparison with classic."""
+    gt = {("ours", 0): 0.40, ("ours", 1): 0.20, ("classic", 0): 0.30, ("classic", 1): 0.30}
+    mono = {("ours", 0): 0.40, ("ours", 1): 0.10, ("classic", 0): 0.15, ("classic", 1): 0.15}
+    rows = [{"method": method, "depth": depth, "scene": "procedural:1", "start": start, "repeat": 0,
+             "status": "done", "vox25_shared": value, "vox50_shared": value / 2, "vox100": value, "success": True}
+            for depth, values in (("ground_truth", gt), ("emulated", mono))
+            for (method, start), value in values.items()]
+    rows.append({**rows[-1], "start": 2, "vox25_shared": 0.9})  # classic on emulated from a start without a pair
+    table = table_markdown(rows, ["procedural:1"], ["ours", "classic"], depths=["ground_truth", "emulated"])
+    assert re.findall(r"^## (.+)$", table, re.M) == ["ground_truth depth: summary", "emulated depth: summary",
+                                                      "ground_truth depth: per scene", "emulated depth: per scene"]
+    emulated = table[table.index("## emulated depth: summary"):table.index("### Monocular penalty")]
+    assert "| ours | 2 | 25.0 +- 15.0 |" in emulated and "| classic | 3 |" in emulated
+    assert "| ours | 1.67x [0.67, 2.67] (1-1) |" in emulated  # against classic on emulated depth alone
+    penalty = next(b for b in table.split("### ") if b.startswith("Monocular penalty: emulated / ground_truth"))
+    # ours: 0.5 / 0.6 with start 0 level and start 1 lower; classic halves from both starts.
+    # Vox@50 is half of Vox@25 in every run: the same ratios
+    assert "| ours | 0.83x [0.50, 1.00] (0-1) | 0.83x [0.50, 1.00] (0-1) | 0.83x [0.50, 1.00] (0-1) |" in penalty
+    assert "| classic | 0.50x [0.50, 0.50] (0-2) |" in penalty  # the unpaired start 2 is left out
+    assert table.index("Monocular penalty") < table.index("ground_truth depth: per scene")
+    only_mono = [row for row in rows if row["depth"] == "emulated"]
+    assert "Monocular penalty" not in table_markdown(only_mono, ["procedural:1"], ["ours"], depths=["emulated"])
+
+
+def test_runs_on_other_depth_sources_do_not_share_thresholds():
+    rows = [{"scene": "s", "start": 0, "repeat": 0, "method": "a", "depth": depth} for depth in ("gt", "emulated")]
+    add_shared_vox(rows, {0: np.linspace(0, 1, 101), 1: np.linspace(0, 1, 11)})
+    assert rows[0]["vox25_shared"] == pytest.approx(0.25) and rows[1]["vox25_shared"] == pytest.approx(0.3)
+
+
 def test_the_report_gives_the_compute_of_the_runs_made_and_not_of_their_copies():
     rows = [{"method": "ours", "scene": "house.glb", "start": 0, "repeat": 0, "status": "done", "wall_s": "100",
              "copy_of": ""},
@@ -147,7 +181,9 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert len(rows) == 4 and {r["status"] for r in rows} == {"done"}
     assert {(r["method"], r["start"]) for r in rows} == {(m, s) for m in ("classic", "random-frontier") for s in "01"}
+    assert "depth" not in rows[0]  # one depth source: the columns, keys and plan of before several existed
     plan = json.loads((out / "plan.json").read_text())
+    assert all("depth" not in run and "@" not in run["key"] for run in plan["runs"])
     poses = plan["start_poses"][plan_spec]
     assert len(poses) == 2 and poses[0] != poses[1]
     for row in rows:  # both methods started from the same pose
@@ -201,6 +237,65 @@ def test_repeats_of_a_method_that_draws_nothing_are_reported_from_its_first_run(
 
 
 @pytest.mark.slow
+def test_several_depth_sources_run_every_run_once_per_source_from_the_same_starts_and_seeds(plan_spec, tmp_path):
+    """--depth gt,emulated: each (start, repeat, method) once per source, the same pose and seed;
+    classic's repeat 1 is a copy on ground truth (it draws nothing) and a run of its own on the
+    seeded emulated depth; results.csv has a depth column, table.md a part per source and the
+    penalty; --report and a resumed benchmark rebuild the same report, packed or not."""
+    from frontiernet.benchmark.store import read_pack
+
+    out = tmp_path / "bench"
+    args = ["--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "2", "--max-steps", "4",
+            "--depth", "gt,emulated", "--out", out]
+    code, stdout, stderr = bench(*args)
+    assert code == 0 and "4 runs (0 failed, 1 identical repeats taken from repeat 0)" in stdout, stderr
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["settings"]["depth"] == "gt,emulated"
+    runs = {(run["depth"], run["repeat"]): run for run in plan["runs"]}
+    assert sorted(runs) == [("emulated", 0), ("emulated", 1), ("ground_truth", 0), ("ground_truth", 1)]
+    assert {tuple(run["start_pose"]) for run in runs.values()} == {tuple(plan["start_poses"][plan_spec][0])}
+    assert runs[("ground_truth", 1)]["seed"] == runs[("emulated", 1)]["seed"] == 1
+    assert runs[("ground_truth", 1)]["copy_of"] == runs[("ground_truth", 0)]["key"]
+    assert runs[("emulated", 1)]["copy_of"] is None and runs[("emulated", 0)]["key"].split("/")[1] == "classic@emulated"
+    for (depth, repeat), run in runs.items():  # each run used its own source
+        if not run["copy_of"]:
+            assert json.loads((out / "runs" / run["key"] / "metrics.json").read_text())["depth"] == depth
+    header = (out / "results.csv").read_text().splitlines()[0]
+    assert header.startswith("scene,method,depth,start,repeat,")
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert [(r["depth"], r["repeat"]) for r in rows] == [("ground_truth", "0"), ("emulated", "0"),
+                                                          ("ground_truth", "1"), ("emulated", "1")]
+    table = (out / "table.md").read_text()
+    assert "## ground_truth depth: summary" in table and "## emulated depth: summary" in table
+    assert "### Monocular penalty: emulated / ground_truth depth" in table and "| classic | " in table
+    written = {name: (out / name).read_bytes() for name in ("results.csv", "table.md")}
+    code, _, stderr = bench(*args)  # resumed: nothing to run, the same report
+    assert code == 0 and "bench 1/" not in stderr
+    assert {name: (out / name).read_bytes() for name in written} == written
+    code, stdout, _ = bench("--pack", "--report", "--out", out)
+    assert code == 0 and "report of 4 finished runs (0 not yet)" in stdout
+    assert {name: (out / name).read_bytes() for name in written} == written
+    assert set(read_pack(out / "runs" / (runs[("emulated", 0)]["key"].rsplit("/", 1)[0] + ".jsonl.gz"))) == \
+        {runs[("emulated", 0)]["key"], runs[("emulated", 1)]["key"]}
+    code, _, stderr = bench(*args[:-3], "emulated,gt", "--out", out)  # another order is another benchmark
+    assert code == 2 and "other settings" in stderr
+
+
+@pytest.mark.slow
+def test_the_published_benchmarks_report_is_rebuilt_byte_for_byte(tmp_path):
+    """docs/benchmark/published (one depth source, packed) reports as it did before several sources."""
+    import shutil
+
+    from conftest import REPO_ROOT
+
+    published = REPO_ROOT / "docs" / "benchmark" / "published"
+    shutil.copytree(published, tmp_path / "published", ignore=shutil.ignore_patterns("*.png"))
+    assert bench("--report", "--out", tmp_path / "published")[0] == 0
+    for name in ("results.csv", "table.md"):
+        assert (tmp_path / "published" / name).read_bytes() == (published / name).read_bytes(), name
+
+
+@pytest.mark.slow
 def test_the_ray_backend_gives_the_rows_of_local_processes(plan_spec, tmp_path):
     pytest.importorskip("ray")
     common = ["--scenes", plan_spec, "--methods", "classic", "--starts", "2", "--repeats", "1", "--max-steps", "20",
@@ -236,10 +331,15 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
     (["--model", "no/such/model.onnx"], "no/such/model.onnx: model file not found"),  # not a failed run each
     (["--set", "depth.emulated.fill_dept=20"], "unknown config key 'depth.emulated.fill_dept'"),
     (["--set", "sim.camera.max_dept=5"], "unknown config key 'sim.camera.max_dept'"),
+    (["--depth", "gt,sonar"], "depth source 'sonar' (--depth, run.depth) is unknown; valid: gt, ground_truth"),
+    (["--depth", "gt,emulated,ground_truth"], "source 'ground_truth' is given twice in 'gt,emulated,ground_truth'"),
+    (["--depth", "gt,,emulated"], "depth sources 'gt,,emulated' (--depth, run.depth) have an empty item"),
+    (["--depth", "emulated,"], "have an empty item"),
 ])
 def test_bad_benchmark_input_exits_2_with_one_line(plan_spec, tmp_path, args, message):
     code, _, stderr = bench("--scenes", plan_spec, "--max-steps", "20", "--out", tmp_path / "b", *args)
     assert code == 2 and message in stderr and stderr.count("\n") == 1
+    assert not (tmp_path / "b").exists()  # refused before anything is written
 
 
 def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):

@@ -7,14 +7,13 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from ..depth import SOURCES as DEPTH_SOURCES
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
-from ..exploration.run import RUN_SECTIONS, depth_source_name, load_run_config
+from ..exploration.run import RUN_SECTIONS, load_run_config
 from ..io import ensure_dir, write_json
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
-from .plan import MIN_BUDGET, first_difference, plan_runs, with_keys_added_after
+from .plan import MIN_BUDGET, depth_sources, first_difference, plan_runs, with_keys_added_after
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, read_plan
@@ -33,23 +32,25 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         methods: method names (:mod:`frontiernet.exploration.methods`).
         starts, repeats: start poses per scene, runs per start and method.
         max_steps: step budget (None: ``run.max_steps``); seed: start poses and run seeds
-            (None: ``run.seed``); model, depth: as ``frontiernet explore``.
+            (None: ``run.seed``); model: as ``frontiernet explore``.
+        depth: the depth source as ``frontiernet explore`` takes it (None: ``run.depth``), or a
+            comma list of sources (``gt,emulated``): every run once per source
+            (:func:`~frontiernet.benchmark.plan.depth_sources`, :mod:`.plan`).
         workers, backend: parallel runs, ``local`` or ``ray``.
         scene_starts: start from the positions a scene ships (KTH plans: MapEx's) first.
     Returns:
         ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
     Raises:
         InputError: an unknown method or scene, a budget too small for Vox@25, a model file
-            that does not load, a changed plan in a folder that holds another benchmark's runs.
+            that does not load, a depth list with an unknown, repeated or empty item, a changed
+            plan in a folder that holds another benchmark's runs.
     """
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     check_backend(backend, workers)  # before plan.json is written: a refused run leaves nothing behind
-    if depth_source_name(depth, conf) not in DEPTH_SOURCES:
-        raise InputError(f"depth source '{depth_source_name(depth, conf)}' (--depth, run.depth) is unknown; valid: "
-                         f"gt, {', '.join(DEPTH_SOURCES)}")
+    depths = depth_sources(depth, conf)
     scenes = expand_specs(scenes)
     valid = method_names()
     for method in methods:
@@ -69,13 +70,13 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         poses = resumable_plan(out, settings)["start_poses"]
     clock = time.perf_counter()
     runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
-                                  depth_source_name(depth, conf))
+                                  depths)
     ensure_dir(out)
     write_json(plan_path, {"settings": settings, "start_poses": start_poses,
                            "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
     rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],
                           "depth": depth}, workers, backend, progress)
-    report = write_report(out, rows, list(scenes), list(methods))
+    report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None)
     return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
@@ -115,7 +116,9 @@ def report(out: str | Path) -> dict:
     reported = [row for row in rows if row is not None]
     pending = len(rows) - len(reported)
     scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
-    return {"rows": reported, **write_report(out, reported, scenes, methods, pending, finished), "pending": pending}
+    depths = list(dict.fromkeys(run["depth"] for run in runs if run.get("depth"))) or None
+    return {"rows": reported, **write_report(out, reported, scenes, methods, pending, finished, depths),
+            "pending": pending}
 
 
 __all__ = ["main", "report", "resumable_plan"]

@@ -9,6 +9,12 @@ A method that draws nothing, with a depth source that is not seeded (``classic``
 ``gain-distance`` on ground-truth depth:
 :func:`~frontiernet.exploration.methods.repeats_identically`), would repeat its run exactly:
 its repeats > 0 are marked ``copy_of`` repeat 0 and reported from it instead of being run again.
+
+With several depth sources (``frontiernet bench --depth gt,emulated``: the paper's ground-truth
+and monocular regimes), every (scene, start, repeat, method) runs once per source, from the same
+start pose with the same seed; each run carries its source (:attr:`RunSpec.depth`, in its key),
+and whether its repeats are copies is decided by its own source. With one source the runs carry
+none and their keys are those of every benchmark made before several existed.
 """
 
 from __future__ import annotations
@@ -48,6 +54,8 @@ class RunSpec:
         seed: the run's seed.
         copy_of: the key of the run this one would repeat exactly (not run; see the module
             docstring), or None.
+        depth: the run's depth source (a name of :data:`frontiernet.depth.SOURCES`) when the
+            benchmark has several, else None (every run takes the benchmark's one source).
     """
 
     scene: str
@@ -57,14 +65,48 @@ class RunSpec:
     start_pose: tuple
     seed: int
     copy_of: str | None = None
+    depth: str | None = None
 
     @property
     def key(self) -> str:
-        """Relative folder of the run's outputs: ``<scene key>/<method>/start<i>_repeat<r>``."""
-        return f"{scene_key(self.scene)}/{self.method}/start{self.start}_repeat{self.repeat}"
+        """Relative folder of the run's outputs: ``<scene key>/<method>/start<i>_repeat<r>``, and
+        with a depth source ``<scene key>/<method>@<depth>/start<i>_repeat<r>`` (a pack per
+        scene, method and source: :mod:`.store`)."""
+        group = f"{self.method}@{self.depth}" if self.depth else self.method
+        return f"{scene_key(self.scene)}/{group}/start{self.start}_repeat{self.repeat}"
 
     def as_dict(self) -> dict:
-        return {**asdict(self), "start_pose": list(self.start_pose)}
+        """The run as plan.json stores it; ``depth`` only when set (a one-source plan is as before)."""
+        record = {**asdict(self), "start_pose": list(self.start_pose)}
+        if record["depth"] is None:
+            del record["depth"]
+        return record
+
+
+def depth_sources(depth: str | None, conf) -> list[str]:
+    """The depth sources of a benchmark: `depth` (``--depth``), or ``run.depth`` when None, as a
+    comma list of names of :data:`frontiernet.depth.SOURCES` (aliases resolved: ``gt``).
+
+    Raises:
+        InputError: an empty item, an unknown source (the valid ones listed) or one given twice
+            (``gt,ground_truth`` too).
+    """
+    from ..depth import SOURCES
+    from ..exploration.run import depth_source_name
+
+    text = str(depth or conf.run.depth)
+    names = []
+    for item in text.split(","):
+        if not item.strip():
+            raise InputError(f"depth sources '{text}' (--depth, run.depth) have an empty item")
+        name = depth_source_name(item.strip(), conf)
+        if name not in SOURCES:
+            raise InputError(f"depth source '{item.strip()}' (--depth, run.depth) is unknown; valid: "
+                             f"gt, {', '.join(SOURCES)}")
+        if name in names:
+            raise InputError(f"depth source '{name}' is given twice in '{text}' (--depth, run.depth)")
+        names.append(name)
+    return names
 
 
 def with_keys_added_after(conf: dict) -> dict:
@@ -144,16 +186,18 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
 def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
               poses: dict | None = None, scene_starts: bool = False,
-              depth: str = "ground_truth") -> tuple[list[RunSpec], dict]:
+              depths: list[str] = ("ground_truth",)) -> tuple[list[RunSpec], dict]:
     """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by
-    method, and the start poses they use (scene -> list of (x, y, z, yaw_deg)).
+    method, depth source by depth source, and the start poses they use (scene -> list of
+    (x, y, z, yaw_deg)).
 
     Args:
         poses: start poses already sampled, by scene (e.g. read back from a previous
             ``plan.json`` so a resumed benchmark keeps them); missing scenes are sampled.
         scene_starts: use the start positions a scene ships first (:func:`start_poses`).
-        depth: the depth source's name (:data:`frontiernet.depth.SOURCES`), which decides with
-            the method whether repeats are copies (see the module docstring).
+        depths: the depth sources' names (:data:`frontiernet.depth.SOURCES`, as
+            :func:`depth_sources` gives them); each decides with the method whether that
+            source's repeats are copies. With several, each run carries its source (module docstring).
     Raises:
         InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
             repeats below 1, or a scene that does not load.
@@ -178,11 +222,14 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
         for start in range(int(starts)):
             for repeat in range(int(repeats)):
                 for method in methods:
-                    first = RunSpec(scene, method, start, 0, tuple(poses[scene][start]), int(seed))
-                    copy_of = first.key if repeat > 0 and repeats_identically(method, depth) else None
-                    runs.append(RunSpec(scene, method, start, repeat, first.start_pose, int(seed) + repeat, copy_of))
+                    for depth in depths:
+                        regime = depth if len(depths) > 1 else None
+                        first = RunSpec(scene, method, start, 0, tuple(poses[scene][start]), int(seed), depth=regime)
+                        copy_of = first.key if repeat > 0 and repeats_identically(method, depth) else None
+                        runs.append(RunSpec(scene, method, start, repeat, first.start_pose, int(seed) + repeat,
+                                            copy_of, regime))
     return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}
 
 
-__all__ = ["RunSpec", "plan_runs", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
+__all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
            "with_keys_added_after", "first_difference"]

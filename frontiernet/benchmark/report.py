@@ -15,6 +15,14 @@ worker-hours (copies of a run excluded).
 GLEAM's metrics come with each run (:mod:`frontiernet.exploration.surface`): surface coverage
 of Poisson-disk samples of the mesh, its AUC over the budget and the one-way Chamfer distance
 to the robot's map.
+
+With several depth sources (``--depth gt,emulated``, :mod:`.plan`) a comparison is also one
+source's (the shared Vox@25 / @50 steps are among the runs of one source), ``results.csv`` has a
+``depth`` column, and ``table.md`` gives the summary and the comparison with ``classic`` per
+source, then the **monocular penalty**: per method, each other source's mean Vox@25 / @50 / @100
+(the numbers of its summary) over ground truth's, over paired runs (same scene, start and
+repeat), with the same bootstrap interval as against classic; then compute and the per-scene
+tables per source.
 """
 
 from __future__ import annotations
@@ -35,6 +43,7 @@ from .store import FinishedRuns
 
 SUCCESS_COVERAGE = 0.4
 REFERENCE = "classic"  # the paper's Table I baseline (Yamauchi), which the report compares every method with
+DEPTH_REFERENCE = "ground_truth"  # the paper's Table I's open-dot rows, which each depth source is compared with
 METRICS = (("vox25_shared", "Vox@25 (%)", 100.0), ("vox50_shared", "Vox@50 (%)", 100.0),
            ("vox100", "Vox@100 (%)", 100.0), ("success", "success (%)", 100.0),
            ("surface_coverage", "surface coverage (%, GLEAM)", 100.0), ("surface_auc", "surface coverage AUC (%)", 100.0),
@@ -52,13 +61,14 @@ def add_shared_vox(rows: list[dict], curves: dict) -> None:
     """Set ``vox25_shared`` and ``vox50_shared`` of every finished row (see the module docstring).
 
     Args:
-        rows: result rows (:data:`~frontiernet.benchmark.runner.ROW_FIELDS`).
+        rows: result rows (:data:`~frontiernet.benchmark.runner.ROW_FIELDS`; ``depth`` when the
+            benchmark has several sources: a comparison is one source's runs).
         curves: row index -> (S + 1,) coverage per step of the finished runs.
     """
     groups = defaultdict(list)
     for index, row in enumerate(rows):
         if index in curves:
-            groups[(row["scene"], row["start"], row["repeat"])].append(index)
+            groups[(row["scene"], row["start"], row["repeat"], row.get("depth"))].append(index)
     for members in groups.values():
         for k in (25, 50):
             step = float(np.mean([k / 100 * (len(curves[i]) - 1) for i in members]))
@@ -135,12 +145,28 @@ def ratio_interval(ours: np.ndarray, theirs: np.ndarray, clusters: list, conf) -
     return float(low), float(high)
 
 
+def paired_ratio_cell(pairs: list[tuple[dict, dict]], field: str, interval) -> str:
+    """One cell of a paired comparison: the ratio of the mean `field` of the first rows of `pairs`
+    to the second's, its bootstrap interval over (scene, start) clusters in square brackets
+    (:func:`ratio_interval`; `interval`: ``report.interval`` of ``configs/bench.yaml``; none with
+    one cluster) and in round brackets the pairs where the first is larger - smaller;
+    ``--`` without pairs or when the second's mean is 0."""
+    ours = np.array([float(a[field]) for a, _ in pairs])
+    theirs = np.array([float(b[field]) for _, b in pairs])
+    if not len(pairs) or theirs.mean() <= 0:
+        return "--"
+    bounds = ratio_interval(ours, theirs, [(a["scene"], a["start"]) for a, _ in pairs], interval)
+    shown = f" [{bounds[0]:.2f}, {bounds[1]:.2f}]" if bounds is not None else ""
+    wins, losses = (ours > theirs).sum(), (ours < theirs).sum()
+    return f"{ours.mean() / theirs.mean():.2f}x{shown} ({wins}-{losses})"
+
+
 def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], reference: str = REFERENCE,
                     conf=None) -> list[str]:
     """Each method against `reference` over paired runs (same scene, start and repeat, both
     finished), per scene source and over all scenes: the ratio of their mean Vox@25 and Vox@50
     (the paper's Table I comparison: FrontierNet / Classic about 1.75 at both) with its bootstrap
-    interval over (scene, start) clusters (:func:`ratio_interval`; `conf`: ``configs/bench.yaml``,
+    interval over (scene, start) clusters (:func:`paired_ratio_cell`; `conf`: ``configs/bench.yaml``,
     None: the shipped one), and how many pairs the method covered more (wins) and less (losses).
     No section unless `reference` is among `methods`."""
     others = [m for m in methods if m != reference]
@@ -160,19 +186,38 @@ def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], ref
         for members in groups.values():
             pairs = [(r, by_run[(reference, *key[1:])]) for key, r in by_run.items()
                      if key[0] == method and key[1] in members and (reference, *key[1:]) in by_run]
-            clusters = [(a["scene"], a["start"]) for a, _ in pairs]
-            for field in ("vox25_shared", "vox50_shared"):
-                ours = np.array([float(a[field]) for a, _ in pairs])
-                theirs = np.array([float(b[field]) for _, b in pairs])
-                if not len(pairs) or theirs.mean() <= 0:
-                    cells.append("--")
-                    continue
-                bounds = ratio_interval(ours, theirs, clusters, interval)
-                shown = f" [{bounds[0]:.2f}, {bounds[1]:.2f}]" if bounds is not None else ""
-                wins, losses = (ours > theirs).sum(), (ours < theirs).sum()
-                cells.append(f"{ours.mean() / theirs.mean():.2f}x{shown} ({wins}-{losses})")
+            cells += [paired_ratio_cell(pairs, field, interval) for field in ("vox25_shared", "vox50_shared")]
         lines.append(f"| {method} | " + " | ".join(cells) + " |")
     return lines + [""]
+
+
+def penalty_markdown(done: list[dict], methods: list[str], depths: list[str] | None, conf=None) -> list[str]:
+    """The monocular penalty (the paper's Table I, filled against open dots): for each depth
+    source other than ground truth, per method the ratio of its mean Vox@25, Vox@50 (shared
+    steps, as in each source's summary) and Vox@100 on that source to its mean on ground truth,
+    over paired runs (same method, scene, start and repeat, both finished), over all scenes, as
+    :func:`paired_ratio_cell` gives it (interval over (scene, start) clusters; wins: pairs where
+    that source covered more). No section unless ground truth is among several `depths`."""
+    if not depths or DEPTH_REFERENCE not in depths or len(depths) < 2:
+        return []
+    interval = (conf if conf is not None else load_config("bench")).report.interval
+    by_run = {(r["depth"], r["method"], r["scene"], r["start"], r["repeat"]): r for r in done}
+    lines = []
+    for source in [d for d in depths if d != DEPTH_REFERENCE]:
+        lines += [f"### Monocular penalty: {source} / {DEPTH_REFERENCE} depth (paired runs)", "",
+                  f"Ratio of each method's mean Vox@k on {source} depth to its mean on {DEPTH_REFERENCE} depth over "
+                  f"the runs both finished (same scene, start, repeat; all scenes), with its "
+                  f"{float(interval.confidence):.0%} bootstrap interval over (scene, start) clusters in square "
+                  f"brackets; in round brackets the pairs where {source} covered more - less (the paper's "
+                  "FrontierNet with monocular depth: 0.95x / 0.99x at Vox@50 / @100).", "",
+                  "| method | Vox@25 | Vox@50 | Vox@100 |", "| --- | --- | --- | --- |"]
+        for method in methods:
+            pairs = [(r, by_run[(DEPTH_REFERENCE, *key[1:])]) for key, r in by_run.items()
+                     if key[:2] == (source, method) and (DEPTH_REFERENCE, *key[1:]) in by_run]
+            cells = [paired_ratio_cell(pairs, field, interval) for field in ("vox25_shared", "vox50_shared", "vox100")]
+            lines.append(f"| {method} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
 
 
 def compute_markdown(rows: list[dict], methods: list[str]) -> list[str]:
@@ -192,19 +237,11 @@ def compute_markdown(rows: list[dict], methods: list[str]) -> list[str]:
     return lines + [f"| all | {len(made)} | {total / len(made):.0f} | {total / 3600:.2f} |", ""]
 
 
-def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0) -> str:
-    """The summary (:func:`summary_markdown`), each method against ``classic``
-    (:func:`versus_markdown`), then one Table I per metric: rows methods, columns scenes and
-    their mean, cells mean +- std (`pending`: runs of the plan not finished yet, said at the top)."""
-    done = [r for r in rows if r["status"] == "done"]
+def metric_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
+    """One Table I per metric of :data:`METRICS`: rows methods, columns scenes and their mean,
+    cells mean +- std over the finished runs (`done`) of each scene."""
     names = [scene_key(s) for s in scenes]
     lines = []
-    if pending:
-        lines += [f"Interim: {len(rows)} of {len(rows) + pending} runs finished; Vox@25 and @50 thresholds are "
-                  "shared among the finished runs of each comparison.", ""]
-    lines += summary_markdown(done, scenes, methods)
-    lines += versus_markdown(done, scenes, methods)
-    lines += compute_markdown(done, methods)
     for field, title, scale in METRICS:
         lines += [f"### {title}", "", "| method | " + " | ".join(names) + " | mean |",
                   "| --- |" + " --- |" * (len(names) + 1)]
@@ -215,31 +252,64 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
             overall = f"{np.mean(means):.1f}" if len(means) == len(scenes) else "--"
             lines.append(f"| {method} | " + " | ".join(_cell(v, scale) for v in per_scene) + f" | {overall} |")
         lines.append("")
+    return lines
+
+
+def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
+                   depths: list[str] | None = None) -> str:
+    """The summary (:func:`summary_markdown`), each method against ``classic``
+    (:func:`versus_markdown`), the compute (:func:`compute_markdown`), then one Table I per metric
+    (:func:`metric_markdown`) (`pending`: runs of the plan not finished yet, said at the top).
+    With several depth sources (`depths`, rows with their ``depth``): the summary and the
+    comparison with classic per source, the monocular penalty (:func:`penalty_markdown`), then
+    compute and the per-metric tables per source, each part under a ``## <source> depth`` heading."""
+    done = [r for r in rows if r["status"] == "done"]
+    lines = []
+    if pending:
+        lines += [f"Interim: {len(rows)} of {len(rows) + pending} runs finished; Vox@25 and @50 thresholds are "
+                  "shared among the finished runs of each comparison.", ""]
+    regimes = depths or [None]
+
+    def of(depth) -> list[dict]:
+        return done if depth is None else [r for r in done if r.get("depth") == depth]
+
+    def heading(depth, part: str) -> list[str]:
+        return [] if depth is None else [f"## {depth} depth: {part}", ""]
+
+    for depth in regimes:
+        lines += heading(depth, "summary") + summary_markdown(of(depth), scenes, methods)
+        lines += versus_markdown(of(depth), scenes, methods)
+    lines += penalty_markdown(done, methods, depths)
+    for depth in regimes:
+        lines += heading(depth, "per scene") + compute_markdown(of(depth), methods)
+        lines += metric_markdown(of(depth), scenes, methods)
     failed = [r for r in rows if r["status"] != "done"]
     if failed:
         lines += [f"{len(failed)} run(s) failed (see results.csv):", ""]
-        lines += [f"- {r['method']} on {scene_key(r['scene'])}, start {r['start']}, repeat {r['repeat']}: "
-                  f"{r['error']}" for r in failed] + [""]
+        lines += [f"- {r['method']}{f' on {d} depth' if (d := r.get('depth')) else ''} on {scene_key(r['scene'])}, "
+                  f"start {r['start']}, repeat {r['repeat']}: {r['error']}" for r in failed] + [""]
     return "\n".join(lines)
 
 
 def plot_curves(rows: list[dict], curves: dict, scenes: list[str], title: str, path: Path) -> None:
     """Mean coverage per step of each method over its runs on `scenes` (band: +- std over
-    those runs; a run that stopped early holds its final coverage)."""
+    those runs; a run that stopped early holds its final coverage); with several depth sources,
+    of each method on each source (``method (source)``)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(figsize=(6, 4), dpi=100)
-    for method in dict.fromkeys(r["method"] for r in rows):
-        runs = [curves[i] for i, r in enumerate(rows) if i in curves and r["method"] == method and r["scene"] in scenes]
+    for method, depth in dict.fromkeys((r["method"], r.get("depth")) for r in rows):
+        runs = [curves[i] for i, r in enumerate(rows) if i in curves and r["method"] == method
+                and r.get("depth") == depth and r["scene"] in scenes]
         if not runs:
             continue
         length = max(len(c) for c in runs)
         stacked = np.stack([np.pad(c, (0, length - len(c)), mode="edge") for c in runs]) * 100
         mean, std = stacked.mean(0), stacked.std(0)
-        axes.plot(mean, label=method)
+        axes.plot(mean, label=f"{method} ({depth})" if depth else method)
         axes.fill_between(np.arange(length), mean - std, mean + std, alpha=0.15)
     axes.set(xlabel="step", ylabel="coverage (% of explorable volume)", title=title)
     axes.grid(alpha=0.3)
@@ -259,11 +329,13 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
 
 
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
-                 finished: FinishedRuns | None = None) -> dict:
+                 finished: FinishedRuns | None = None, depths: list[str] | None = None) -> dict:
     """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
     ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
     `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not;
-    `finished`: the runs' records (per run or packed; None: read from `out`)."""
+    `finished`: the runs' records (per run or packed; None: read from `out`); `depths`: the
+    benchmark's depth sources when it has several (the rows carry theirs; results.csv then has a
+    ``depth`` column after ``method``), else None."""
     out = Path(out)
     finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
@@ -273,6 +345,8 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
     add_shared_vox(rows, curves)
     fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]
+    if depths:
+        fields.insert(fields.index("method") + 1, "depth")
 
     def write_csv(tmp: Path) -> None:
         with open(tmp, "w", newline="") as handle:
@@ -281,7 +355,8 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
             writer.writerows(rows)
 
     atomic_write(out / "results.csv", write_csv)
-    atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table_markdown(rows, scenes, methods, pending)))
+    table = table_markdown(rows, scenes, methods, pending, depths)
+    atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table))
     plots = []
     for stem, members, title in _plot_sets(scenes, {row["scene"] for row in rows}):
         plots.append(out / f"coverage_{stem}.png")
@@ -290,4 +365,5 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
 
 
 __all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "ratio_interval",
-           "compute_markdown", "coverage_at", "SUCCESS_COVERAGE"]
+           "paired_ratio_cell", "penalty_markdown", "metric_markdown", "compute_markdown", "coverage_at",
+           "SUCCESS_COVERAGE"]

@@ -28,7 +28,9 @@ log = logging.getLogger(__name__)
 ROW_FIELDS = ("scene", "method", "start", "repeat", "seed", "status", "error", "steps", "max_steps", "coverage",
               "vox25", "vox50", "vox100", "success", "surface_coverage", "surface_auc", "chamfer_m", "completeness",
               "path_length_m", "collisions", "step_ms", "wall_s", "stop_reason", "copy_of")
-_IDENTITY = ("scene", "method", "start", "repeat", "seed", "key", "copy_of")
+_IDENTITY = ("scene", "method", "depth", "start", "repeat", "seed", "key", "copy_of")
+"""A row's fields from its run; ``depth`` is None in a benchmark of one depth source (and
+results.csv has no such column then: :func:`~frontiernet.benchmark.report.write_report`)."""
 
 
 def _row(run: dict, status: str, record: dict | None = None, error: str = "") -> dict:
@@ -82,7 +84,7 @@ def _copied_row(run: dict, original: dict) -> dict:
     """The row of `run`, a copy of the run whose row is `original` (see the module docstring)."""
     if original["status"] != "done":
         return _row(run, "failed", error=f"the run it repeats ({run['copy_of']}) failed: {original['error']}")
-    return {**original, **{name: run[name] for name in _IDENTITY}}
+    return {**original, **{name: run.get(name) for name in _IDENTITY}}
 
 
 def with_copies(runs: list[dict], rows_by_key: dict) -> list:
@@ -101,7 +103,8 @@ def run_one(run: dict, settings: dict) -> dict:
     Args:
         run: a :class:`~frontiernet.benchmark.plan.RunSpec` as a dict, plus its ``key``.
         settings: ``out`` (benchmark folder), ``conf`` (the explore config as a dict),
-            ``max_steps``, ``model``, ``depth``, ``threads``.
+            ``max_steps``, ``model``, ``depth`` (the benchmark's one source, or None: ``run.depth``;
+            a run that carries its own ``depth`` takes that), ``threads``.
     """
     from omegaconf import OmegaConf
 
@@ -116,7 +119,8 @@ def run_one(run: dict, settings: dict) -> dict:
     _limit_threads(int(settings["threads"]))
     try:
         record = main(OmegaConf.create(settings["conf"]), run["scene"], partial, method=run["method"],
-                      model=settings["model"], depth=settings["depth"], max_steps=int(settings["max_steps"]),
+                      model=settings["model"], depth=run.get("depth") or settings["depth"],
+                      max_steps=int(settings["max_steps"]),
                       start=",".join(str(v) for v in run["start_pose"]), seed=int(run["seed"]), video=False,
                       progress=False)
         shutil.rmtree(final, ignore_errors=True)

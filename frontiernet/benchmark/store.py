@@ -6,7 +6,8 @@ both are read everywhere (report, resume):
 
 * **per run**, as each run finishes (:mod:`.runner`: written into ``<key>.partial`` and renamed):
   ``runs/<key>/metrics.json`` beside the run's other outputs, where the key is
-  ``<scene key>/<method>/start<i>_repeat<r>`` (:attr:`.plan.RunSpec.key`);
+  ``<scene key>/<method>/start<i>_repeat<r>`` (:attr:`.plan.RunSpec.key`; ``<method>@<depth>``
+  in a benchmark of several depth sources, so a pack holds one method on one source);
 * **packed** (``frontiernet bench --pack --out DIR``, :func:`pack`): one file per (scene, method),
   ``runs/<scene key>/<method>.jsonl.gz``: gzip (no timestamp, so packing the same runs again
   gives the same bytes) of UTF-8 JSON lines, one per run, in start and repeat order::

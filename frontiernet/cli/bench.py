@@ -65,7 +65,9 @@ def _exploration_options(parser) -> None:
     group.add_argument("--backend", default="local", help="local (processes) or ray")
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
     group.add_argument("--model", help="model file of the learned methods (default: the shipped model)")
-    group.add_argument("--depth", help="depth source of every run (default: run.depth)")
+    group.add_argument("--depth", help="depth source of every run (default: run.depth), or a comma list of "
+                                       "sources, e.g. gt,emulated: every run once per source, from the same "
+                                       "starts and seeds, with the monocular penalty in table.md")
     group.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml and depth.yaml under "
                                         "sections sim: and depth:")
     group.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
