@@ -10,16 +10,16 @@ from omegaconf import DictConfig, OmegaConf
 from ..config import check_keys, load_config
 from ..errors import InputError
 from .scene import Material, Scene, SceneMetadata
-from .spec import DEFAULT_SPEC, SceneSpec, parse_spec
+from .spec import DEFAULT_SPEC, EXPLORABLE_OPTIONS, SceneSpec, explorable_options, parse_spec
 
 __all__ = ["Material", "Scene", "SceneMetadata", "SceneSpec", "load_scene", "parse_spec", "DEFAULT_SPEC"]
 
 
-def _section(conf: DictConfig | None, source: str, spec: SceneSpec) -> DictConfig:
-    conf = conf if conf is not None else load_config("scenes")
+def _section(conf: DictConfig, source: str, spec: SceneSpec) -> DictConfig:
     base = conf[source]
-    check_keys(base, spec.options, f"scene spec '{spec.text}'", noun=f"{source} option")
-    return OmegaConf.merge(base, spec.options)
+    own = {key: value for key, value in spec.options.items() if key not in EXPLORABLE_OPTIONS}
+    check_keys(base, own, f"scene spec '{spec.text}'", noun=f"{source} option")
+    return OmegaConf.merge(base, own)
 
 
 def load_scene(spec: str | SceneSpec, conf: DictConfig | None = None) -> Scene:
@@ -32,9 +32,20 @@ def load_scene(spec: str | SceneSpec, conf: DictConfig | None = None) -> Scene:
         A validated :class:`Scene` in world coordinates (Z-up, metres).
     Raises:
         InputError: unknown source, missing or corrupt file, empty mesh, bad option.
+
+    Every source also takes the options ``seed`` and ``bounds`` (:func:`~.spec.explorable_options`),
+    kept on the scene's metadata for the voxeliser's explorable space.
     """
     spec = parse_spec(spec) if isinstance(spec, str) else spec
-    options = _section(conf, spec.source, spec)
+    conf = conf if conf is not None else load_config("scenes")
+    seed, box = explorable_options(spec)
+    scene = _load_source(spec, _section(conf, spec.source, spec))
+    scene.metadata.explorable_seed, scene.metadata.explorable_bounds = seed, box
+    return scene
+
+
+def _load_source(spec: SceneSpec, options: DictConfig) -> Scene:
+    """The scene of `spec` from its source, `options` its section of the scenes config."""
     if spec.source == "mesh":
         from .mesh_files import load_mesh_file
 

@@ -1,6 +1,9 @@
 """The inside of a building on a grid: free cells that a flood from the grid's lateral border
 cannot reach through openings narrower than a gap (doors and windows to the outside).
 
+:func:`near_open_air` is the same half-gap margin around the open air outside a building
+given as a mask (the ``reachable`` explorable rule, :mod:`frontiernet.simulator.explorable`).
+
 One rule for a 2D floor plan (:mod:`.floorplan`, the building's inside) and for the stack of
 horizontal voxel slices of a 3D scene (:mod:`frontiernet.simulator.voxels`, the explorable
 interior), so both agree on what is inside.
@@ -63,3 +66,29 @@ def enclosed_free(free: np.ndarray, resolution: float, gap_closing_m: float) -> 
     outside = _inplane_edt(~flood) <= radius + _TIE
     inside = padded & ~outside
     return inside[pad:-pad, pad:-pad]
+
+
+def near_open_air(free: np.ndarray, outside: np.ndarray, resolution: float, gap_closing_m: float) -> np.ndarray:
+    """Free cells within ``gap_closing_m / 2`` (in-plane) of open air outside the building.
+
+    Open air: cells of `outside` that are free and farther than half the gap from every
+    non-free cell of their slice, so openings narrower than the gap (the doors and windows
+    :func:`enclosed_free` seals) let none of it in; unlike there, the air does not flow
+    on into the building through wider openings: it only reaches the half gap beyond them.
+    The grid's lateral border counts as free outside.
+
+    Args:
+        free: (H, W) or (X, Y, Z) bool, free cells; outside: bool like `free` (cells not in
+            the building); resolution: metres per cell; gap_closing_m: metres.
+    Returns:
+        bool array like `free`: free cells within reach of the open air (the air included).
+    """
+    free = np.asarray(free, bool)
+    radius = gap_closing_m / 2.0 / resolution
+    pad = int(np.ceil(radius)) + 2
+    width = ((pad, pad), (pad, pad)) + ((0, 0),) * (free.ndim - 2)
+    padded = np.pad(free, width, constant_values=True)
+    air = np.pad(np.asarray(outside, bool), width, constant_values=True) & padded
+    air &= _inplane_edt(padded) > radius + _TIE
+    near = padded & (_inplane_edt(~air) <= radius + _TIE)
+    return near[pad:-pad, pad:-pad]

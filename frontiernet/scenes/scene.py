@@ -51,6 +51,11 @@ class SceneMetadata:
         units: always ``"m"`` after loading (sources in other units are scaled).
         up_axis_conversion: ``"none"`` or ``"y-up to z-up"``.
         extra: source-specific facts (resolution, seed, room count, warnings...).
+        explorable_seed: None, or (2,) / (3,) float64 world metres from the spec's ``?seed=x,y[,z]``:
+            a point on the floor inside the building that the explorable space is grown from
+            (:mod:`frontiernet.simulator.explorable`).
+        explorable_bounds: None, or (2, 3) float64 world [min, max] corners (metres) from the spec's
+            ``?bounds=xmin,ymin,zmin,xmax,ymax,zmax``: nothing outside the box is explorable.
     """
 
     name: str
@@ -59,6 +64,8 @@ class SceneMetadata:
     units: str = "m"
     up_axis_conversion: str = "none"
     extra: dict = field(default_factory=dict)
+    explorable_seed: np.ndarray | None = None
+    explorable_bounds: np.ndarray | None = None
 
 
 @dataclass(eq=False)  # identity semantics: scenes are hashable keys of per-scene caches

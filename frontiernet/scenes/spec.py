@@ -17,6 +17,14 @@ Several scenes at once (:func:`expand_specs`, for commands that take many):
   'scans/*.glb', 'hm3d:ROOT/train/*'  a glob (quoted, so the shell leaves it alone)
   ROOT/train                          a folder of scene folders (HM3D scenes, KTH floor plans)
 
+Every source also takes two options about the space exploration is scored on
+(frontiernet/simulator/explorable.py, docs/exploration.md):
+
+  shop.glb?seed=2.5,4                 a point (x,y or x,y,z, metres) on the floor inside the
+                                      building: the explorable space is grown from there
+  site.glb?bounds=-5,-5,0,20,15,4     a box xmin,ymin,zmin,xmax,ymax,zmax (metres): nothing
+                                      outside it is explorable (meshes with surroundings)
+
 A bare path is recognised by what it is: a mesh file by its extension, a folder with
 occ_map.npy as a floor plan, a folder with a .glb as an HM3D scene. Options after '?'
 override the source's section of configs/scenes.yaml (e.g. floorplan: wall_height,
@@ -29,6 +37,7 @@ import glob
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from ..errors import InputError
@@ -46,6 +55,45 @@ class SceneSpec:
     argument: str
     options: dict = field(default_factory=dict)
     text: str = ""
+
+
+EXPLORABLE_OPTIONS = ("seed", "bounds")
+"""Options every source takes (not in any source's section of configs/scenes.yaml)."""
+
+
+def _numbers(spec: SceneSpec, key: str, counts: tuple[int, ...], form: str) -> np.ndarray | None:
+    """The comma-separated numbers of option `key`, (n,) float64 with n in `counts`, or None."""
+    value = spec.options.get(key)
+    if value is None:
+        return None
+    try:
+        numbers = np.array([float(part) for part in str(value).split(",")], np.float64)
+    except ValueError:
+        numbers = np.empty(0)
+    if len(numbers) not in counts or not np.isfinite(numbers).all():
+        raise InputError(f"scene spec '{spec.text}': {key}={value} must be {form} (finite numbers, metres)")
+    return numbers
+
+
+def explorable_options(spec: SceneSpec) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The spec's ``seed`` ((2,) or (3,) float64 metres) and ``bounds`` ((2, 3) float64 [min, max]
+    corners, metres) options, each None when not given.
+
+    Raises:
+        InputError: a value that is not 2 or 3 numbers (seed) or 6 numbers with min < max on
+            every axis (bounds), or a seed outside the bounds box.
+    """
+    seed = _numbers(spec, "seed", (2, 3), "x,y or x,y,z")
+    box = _numbers(spec, "bounds", (6,), "xmin,ymin,zmin,xmax,ymax,zmax")
+    if box is not None:
+        box = box.reshape(2, 3)
+        if not (box[0] < box[1]).all():
+            raise InputError(f"scene spec '{spec.text}': bounds={spec.options['bounds']} must have "
+                             "xmin < xmax, ymin < ymax and zmin < zmax")
+        if seed is not None and not ((box[0, :len(seed)] <= seed) & (seed <= box[1, :len(seed)])).all():
+            raise InputError(f"scene spec '{spec.text}': seed={spec.options['seed']} is outside "
+                             f"bounds={spec.options['bounds']}")
+    return seed, box
 
 
 def _parse_value(text: str):

@@ -14,7 +14,13 @@ Three classes of voxels:
 * **outside**: everything else (the outside of the building, the inside of walls and
   closed furniture); neither occupied nor explorable.
 
-The interior is found per horizontal slice, so scenes without a ceiling (the shared
+Which free voxels are explorable is ``voxels.explorable`` in configs/sim.yaml: ``reachable``
+follows what the robot can reach and see (the building's envelope seen from above, the
+free-space component with the most navigable floor or the scene spec's ``?seed=``, cut by its
+``?bounds=``: :mod:`.explorable`); ``enclosed``, the rule the published benchmark used, is
+described here.
+
+Under ``enclosed`` the interior is found per horizontal slice, so scenes without a ceiling (the shared
 house) and buildings with open doors to the outside still give a sensible volume: a
 free voxel is *outside* when a flood fill from the grid's lateral border reaches it,
 where the flood only passes voxels farther than ``gap_closing_m / 2`` (in-plane) from
@@ -145,6 +151,11 @@ class VoxelGrid:
         return self.index_to_world(np.argwhere(self.explorable))
 
 
+EXPLORABLE_RULES = ("reachable", "enclosed")
+"""Values of ``sim.voxels.explorable``: :mod:`.explorable`'s rule, or the per-slice flood rule
+(module docstring) that the published benchmark used."""
+
+
 def voxels_config(conf: "DictConfig | None") -> "DictConfig":
     """The ``voxels`` section from `conf` (a whole sim config or the section), default when None."""
     if conf is None:
@@ -184,13 +195,27 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig | None" = None) -> VoxelGri
         raise InputError(f"{scene.metadata.spec}: voxel_size {size} m gives a {tuple(shape.tolist())} grid "
                          f"({int(np.prod(shape)):,} voxels > voxels.max_voxels {int(conf.max_voxels):,}); "
                          "use a larger voxel size")
+    rule = conf.explorable
+    if rule not in EXPLORABLE_RULES:
+        raise InputError(f"voxels.explorable must be one of {', '.join(EXPLORABLE_RULES)}, got {rule!r}")
     occupied = surface_voxels(scene.vertices, scene.triangles, origin, size, tuple(shape.tolist()),
                               chunk=int(conf.chunk_candidates))
-    interior = enclosed_free(~occupied, size, gap)
-    explorable = largest_component(interior) if bool(conf.keep_largest_component) else interior
+    meta = scene.metadata
+    if rule == "reachable":
+        from .explorable import reachable_space
+
+        space = reachable_space(occupied, origin, size, conf, seed=meta.explorable_seed,
+                                box=meta.explorable_bounds, where=meta.spec)
+        interior, explorable = space.enclosed, space.explorable
+    else:
+        if meta.explorable_seed is not None or meta.explorable_bounds is not None:
+            raise InputError(f"{meta.spec}: the options seed= and bounds= need voxels.explorable: reachable "
+                             "(this run uses enclosed)")
+        interior = enclosed_free(~occupied, size, gap)
+        explorable = largest_component(interior) if bool(conf.keep_largest_component) else interior
     if not explorable.any():
-        raise InputError(f"{scene.metadata.spec}: the scene has no explorable free space at voxel size "
-                         f"{size} m (no enclosed interior; gap_closing_m = {gap})")
+        raise InputError(f"{meta.spec}: the scene has no explorable free space at voxel size "
+                         f"{size} m (rule {rule}: no {'building envelope' if rule == 'reachable' else 'enclosed interior'})")
     return VoxelGrid(origin=origin, voxel_size=size, occupied=occupied, explorable=explorable, enclosed=interior)
 
 

@@ -1,0 +1,185 @@
+"""The explorable space of a voxelised scene under the ``reachable`` rule (``sim.voxels.explorable``).
+
+The space an exploration run is scored on (Vox@k in docs/design.md item 7) follows what the
+robot can reach and see, not what the outside cannot flood into:
+
+1. **The building's envelope.** A free voxel at layer ``k`` is inside the building when its
+   column lies inside the plan outline of the structure *at or above* that height (every
+   occupied voxel of layers ``>= k`` projected onto the plan; openings in that outline narrower
+   than ``wall_gap_m`` closed, :func:`~frontiernet.scenes.interior.enclosed_free`) and inside the
+   building's footprint (every occupied voxel projected, openings narrower than
+   ``gap_closing_m`` closed: a recess in a facade with no floor is not the building's). Seen from
+   above, a window has its lintel, a door its lintel or the ceiling: glassless windows, wide
+   entrances and open fronts under a roof or a lintel do not open the envelope, and over a
+   roofless room it ends at the walls' height, over a roofed one at the ceiling. Covered voxels
+   (structure above them) within ``gap_closing_m / 2`` of the open air outside the envelope are
+   the outside's (:func:`~frontiernet.scenes.interior.near_open_air`: eaves, a ledge outside a
+   wall, the mouth of a wide door; as the ``enclosed`` rule has it at doors). A ``?bounds=`` box
+   of the scene spec cuts the envelope and drops the structure outside it (surroundings).
+2. **Navigable floor.** A free envelope voxel right above an occupied one (or on the grid's
+   bottom layer) where a robot fits: ``floor_headroom_m`` of free envelope voxels above it, and
+   ``floor_clearance_m`` in-plane to the nearest voxel without that headroom.
+3. **Explorable** = the face-connected component of free envelope voxels that holds the seed:
+   the navigable floor voxel nearest the spec's ``?seed=x,y[,z]`` (within ``seed_search_m``; with
+   a z, the highest floor at or below it), else, automatically, the component with the most
+   navigable floor (the building's interior, not a cabinet or a wall's hollow; with no
+   navigable floor at all, the largest component).
+
+Everything else free inside the envelope (wall interiors, closed cabinets, rooms with no way in)
+is *enclosed*, not explorable: it tells "inside an obstacle" from "outside the building".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import InputError, positive_number
+from ..scenes.interior import enclosed_free, near_open_air
+
+
+@dataclass
+class ReachableSpace:
+    """What :func:`reachable_space` found (arrays (X, Y, Z) bool on the voxel grid).
+
+    Attributes:
+        explorable: the chosen component of free envelope voxels.
+        enclosed: every free voxel inside the envelope (a superset of `explorable`).
+        navigable: navigable floor voxels (free, on a support, with the robot's headroom and clearance).
+        seed: (3,) int64 voxel index the component was chosen by, or None (no navigable floor).
+    """
+
+    explorable: np.ndarray
+    enclosed: np.ndarray
+    navigable: np.ndarray
+    seed: np.ndarray | None
+
+
+def box_mask(origin: np.ndarray, voxel_size: float, shape: tuple[int, int, int], box) -> np.ndarray:
+    """(X, Y, Z) bool (a broadcast view): voxels whose centre lies in `box` ((2, 3) world [min, max],
+    metres); all True when `box` is None."""
+    if box is None:
+        return np.ones((1, 1, 1), bool)
+    box = np.asarray(box, np.float64).reshape(2, 3)
+    masks = []
+    for axis in range(3):
+        centres = origin[axis] + (np.arange(shape[axis]) + 0.5) * voxel_size
+        masks.append((centres >= box[0, axis]) & (centres <= box[1, axis]))
+    return masks[0][:, None, None] & masks[1][None, :, None] & masks[2][None, None, :]
+
+
+def envelope(occupied: np.ndarray, voxel_size: float, wall_gap_m: float,
+             footprint_gap_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(X, Y, Z) bool voxels inside the building's envelope (step 1 of the module docstring), and
+    (X, Y, Z) bool voxels covered (structure at or above them).
+
+    Args:
+        occupied: (X, Y, Z) bool structure (already cut to a bounds box).
+        voxel_size: metres.
+        wall_gap_m: openings in the outline of the structure at or above a layer narrower than
+            this are closed (full-height openings of roofless rooms).
+        footprint_gap_m: the same for the footprint, the outline of all the structure (floors
+            included: a recess in a facade without floor is not the building's).
+    """
+    above = np.logical_or.accumulate(occupied[:, :, ::-1], axis=2)[:, :, ::-1]  # structure at or above k
+    inside = above | enclosed_free(~above, voxel_size, wall_gap_m)
+    plan = above[:, :, 0]  # every occupied voxel projected
+    footprint = plan | enclosed_free(~plan, voxel_size, footprint_gap_m)
+    return inside & footprint[:, :, None], above
+
+
+def navigable_floor(free: np.ndarray, occupied: np.ndarray, voxel_size: float, headroom_m: float,
+                    clearance_m: float) -> np.ndarray:
+    """(X, Y, Z) bool: free voxels on a support (occupied voxel below, or the bottom layer) with
+    `headroom_m` of `free` voxels above them (the voxel included) and `clearance_m` (in-plane)
+    to the nearest voxel of their layer without that headroom."""
+    import cv2
+
+    need = max(int(math.ceil(headroom_m / voxel_size - 1e-9)), 1)
+    run = np.zeros(free.shape[:2], np.int32)
+    room = np.zeros(free.shape, bool)
+    for k in range(free.shape[2] - 1, -1, -1):  # free voxels from k upwards
+        run = np.where(free[:, :, k], run + 1, 0)
+        room[:, :, k] = run >= need
+    support = np.zeros(free.shape, bool)
+    support[:, :, 0] = True
+    support[:, :, 1:] = occupied[:, :, :-1]
+    floor = room & support
+    radius = clearance_m / voxel_size
+    for k in np.flatnonzero(floor.any(axis=(0, 1))):
+        layer = np.pad(room[:, :, k], 1).astype(np.uint8)  # off the grid counts as blocked
+        distance = cv2.distanceTransform(layer, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)[1:-1, 1:-1]
+        floor[:, :, k] &= distance > radius  # distance to the nearest blocked cell centre
+    return floor
+
+
+def _seed_voxel(navigable: np.ndarray, origin: np.ndarray, voxel_size: float, seed: np.ndarray,
+                search_m: float, where: str) -> np.ndarray:
+    """(3,) int64 index of the navigable floor voxel a ``?seed=`` point picks (module docstring)."""
+    index = np.argwhere(navigable)
+    centres = origin + (index + 0.5) * voxel_size
+    horizontal = np.hypot(*(centres[:, :2] - seed[:2]).T)
+    ok = horizontal <= search_m
+    if len(seed) == 3:
+        ok &= centres[:, 2] - 0.5 * voxel_size <= seed[2]
+    if not ok.any():
+        text = ",".join(f"{v:g}" for v in seed)
+        raise InputError(f"{where}: seed={text} has no navigable floor within {search_m:g} m "
+                         f"(free floor with the robot's headroom and clearance, inside the building"
+                         f"{' at or below z' if len(seed) == 3 else ''}); give a point on a room's floor")
+    candidates = np.flatnonzero(ok)
+    # nearest column first, then the highest floor at or below z (or the lowest without z)
+    height = centres[candidates, 2] * (-1.0 if len(seed) == 3 else 1.0)
+    best = candidates[np.lexsort((height, np.round(horizontal[candidates], 6)))[0]]
+    return index[best]
+
+
+def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float, conf, *,
+                    seed: np.ndarray | None = None, box=None, where: str = "scene") -> ReachableSpace:
+    """The explorable space of a voxel grid under the ``reachable`` rule (module docstring).
+
+    Args:
+        occupied: (X, Y, Z) bool surface voxels.
+        origin: (3,) world corner of voxel (0, 0, 0), metres; voxel_size: metres.
+        conf: the ``voxels`` section of configs/sim.yaml (``wall_gap_m``, ``gap_closing_m``, ``floor_headroom_m``,
+            ``floor_clearance_m``, ``seed_search_m``).
+        seed: None, or (2,) / (3,) world metres (a spec's ``?seed=``).
+        box: None, or (2, 3) world [min, max] metres (a spec's ``?bounds=``).
+        where: names the scene in error messages.
+    Raises:
+        InputError: a bad config value, or a seed with no navigable floor near it.
+    """
+    gap = positive_number(conf.wall_gap_m, "voxels.wall_gap_m", "metres", allow_zero=True)
+    footprint_gap = positive_number(conf.gap_closing_m, "voxels.gap_closing_m", "metres", allow_zero=True)
+    headroom = positive_number(conf.floor_headroom_m, "voxels.floor_headroom_m", "metres")
+    clearance = positive_number(conf.floor_clearance_m, "voxels.floor_clearance_m", "metres", allow_zero=True)
+    search = positive_number(conf.seed_search_m, "voxels.seed_search_m", "metres", allow_zero=True)
+    origin = np.asarray(origin, np.float64)
+    in_box = box_mask(origin, voxel_size, occupied.shape, box)
+    structure = occupied & in_box
+    inside, covered = envelope(structure, voxel_size, gap, footprint_gap)
+    inside &= in_box
+    free = ~occupied
+    # covered space at the edge of the open air is the outside's (eaves, ledges, the mouth of a porch)
+    enclosed = free & inside & ~(covered & near_open_air(free, ~inside, voxel_size, footprint_gap))
+    navigable = navigable_floor(enclosed, occupied, voxel_size, headroom, clearance)
+    labels, count = ndimage.label(enclosed)  # face-connected
+    if seed is not None:
+        seed_index = _seed_voxel(navigable, origin, voxel_size, np.asarray(seed, np.float64), search, where)
+        chosen = labels[tuple(seed_index)]
+    elif navigable.any():
+        floor_counts = np.bincount(labels[navigable], minlength=count + 1)
+        floor_counts[0] = 0
+        chosen = int(np.argmax(floor_counts))
+        cells = np.argwhere(navigable & (labels == chosen))
+        seed_index = cells[len(cells) // 2]
+    else:
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        sizes[0] = 0
+        chosen, seed_index = int(np.argmax(sizes)), None
+    explorable = labels == chosen if chosen > 0 else np.zeros(occupied.shape, bool)
+    return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=navigable & explorable,
+                          seed=seed_index)
