@@ -123,6 +123,35 @@ def test_shop_is_explored_from_a_sampled_start(tmp_path):
     assert metrics["explorable_m3"] > 500
 
 
+def test_topdown_shows_the_explorable_region(tmp_path):
+    """Green where the explorable space reaches the cut height (1.8 m): the whole shop under the
+    reachable rule; under the enclosed rule the shop is amber (explorable only below the windows'
+    height or above)."""
+    from PIL import Image
+
+    from frontiernet.cli.main import main
+    from frontiernet.cli.scene import AMBER, GREEN
+
+    scene, _ = shop()
+    path = tmp_path / "shop.ply"
+    scene.to_trimesh().export(path)
+    (tmp_path / "enclosed.yaml").write_text("voxels:\n  explorable: enclosed\n")
+
+    def centre(*extra):
+        out = tmp_path / f"top{len(extra)}.png"
+        assert main(["scene", "topdown", str(path), "--out", str(out), "--pixel-size", "0.1", *extra]) == 0
+        image = np.asarray(Image.open(out).convert("RGB"), np.int64)
+        return image[image.shape[0] // 2 + 15, image.shape[1] // 2 + 15]  # beside the seed's cross
+
+    def hue(pixel):
+        return np.argmax([np.dot(pixel - pixel.mean(), np.subtract(c, np.mean(c))) for c in (GREEN, AMBER)])
+
+    assert hue(centre()) == 0
+    assert hue(centre("--config", str(tmp_path / "enclosed.yaml"))) == 1
+    plain = centre("--no-explorable", "--force")
+    assert abs(plain[1] - plain[0]) < 30  # no tint
+
+
 @pytest.mark.parametrize("lintel", [2.2, None], ids=["roofed-with-lintel", "roofless-full-height"])
 def test_a_3m_entrance_keeps_the_room(lintel):
     """Roofed: the default config. Roofless with a full-height 3 m gap: only with wall_gap_m = 4 (the

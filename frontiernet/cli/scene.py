@@ -31,6 +31,11 @@ def add_parser(subparsers) -> None:
     topdown.add_argument("--pixel-size", type=float, default=0.05, help="metres per pixel (default 0.05)")
     topdown.add_argument("--cut-height", type=float, default=1.8,
                          help="metres above the floor where the view is cut, > 0 (default 1.8)")
+    topdown.add_argument("--no-explorable", action="store_true",
+                         help="leave out the explorable region (drawn by default: columns of the space "
+                              "exploration is scored on, green where it reaches the cut height, amber where "
+                              "it lies only above or below it, outlined, its seed a red cross)")
+    topdown.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings of the explorable region)")
     topdown.set_defaults(func=run_topdown)
 
 
@@ -77,6 +82,11 @@ def run_info(args) -> int:
     return 0
 
 
+GREEN, AMBER = (40, 220, 90), (240, 170, 30)
+"""RGB of the explorable region in ``scene topdown``: columns explorable at the cut height, and
+columns explorable only above or below it."""
+
+
 def run_topdown(args) -> int:
     from ..io import check_image_name, check_output_file, ensure_dir, write_image
     from ..scenes.preview import topdown_image
@@ -84,7 +94,21 @@ def run_topdown(args) -> int:
     check_image_name(args.out)  # before the work: a bad --out fails at once
     check_output_file(args.out, args.force)
     ensure_dir(Path(args.out).parent)
-    image = topdown_image(load_scene(args.spec), pixel_size=args.pixel_size, cut_height=args.cut_height)
+    scene = load_scene(args.spec)
+    image = topdown_image(scene, pixel_size=args.pixel_size, cut_height=args.cut_height)
+    note = ""
+    if not args.no_explorable:
+        from ..scenes.preview import overlay_columns
+        from ..simulator.voxels import voxelize_scene
+
+        voxels = voxelize_scene(scene, load_config("sim", args.config).voxels)
+        seed = None if voxels.seed is None else voxels.index_to_world(voxels.seed)[:2]
+        at_cut = voxels.explorable[:, :, voxels.layer(scene.bounds[0, 2] + args.cut_height)]
+        for columns, color, mark in ((voxels.explorable.any(axis=2) & ~at_cut, AMBER, None), (at_cut, GREEN, seed)):
+            image = overlay_columns(image, scene, args.pixel_size, columns, voxels.origin[:2], voxels.voxel_size,
+                                    color=color, seed=mark)
+        note = (f"; explorable {voxels.explorable_volume_m3:.1f} m^3: green at the cut height, amber only "
+                f"above or below it{'' if seed is None else ', red cross its seed'}")
     write_image(args.out, image)
-    print(f"wrote {args.out} ({image.shape[1]} x {image.shape[0]} px)")
+    print(f"wrote {args.out} ({image.shape[1]} x {image.shape[0]} px{note})")
     return 0

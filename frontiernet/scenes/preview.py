@@ -78,6 +78,42 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
     return np.clip(image, 0, 255).astype(np.uint8)
 
 
+def overlay_columns(image: np.ndarray, scene: Scene, pixel_size: float, columns: np.ndarray, origin: np.ndarray,
+                    cell_size: float, color=(40, 220, 90), seed: np.ndarray | None = None) -> np.ndarray:
+    """Tint the pixels of a :func:`topdown_image` over the marked cells of a plan grid, outline them.
+
+    Args:
+        image: (H, W, 3) uint8 top view of `scene` at `pixel_size` metres per pixel.
+        columns: (X, Y) bool cells (e.g. voxel columns holding explorable voxels); cell ``(i, j)``
+            spans ``origin + [i, i+1) * cell_size`` on x (likewise y), origin (2,) world metres.
+        color: RGB of the tint (35 %) and of the outline.
+        seed: None, or (2,) world x, y metres marked with a red cross.
+    Returns:
+        A new (H, W, 3) uint8 image.
+    """
+    import cv2
+
+    lo, hi = scene.bounds
+    xs = np.arange(lo[0] + pixel_size / 2, hi[0], pixel_size)[:image.shape[1]]
+    ys = np.arange(hi[1] - pixel_size / 2, lo[1], -pixel_size)[:image.shape[0]]
+    i = np.floor((xs - origin[0]) / cell_size).astype(np.int64)
+    j = np.floor((ys - origin[1]) / cell_size).astype(np.int64)
+    ok_i, ok_j = (i >= 0) & (i < columns.shape[0]), (j >= 0) & (j < columns.shape[1])
+    mask = np.zeros(image.shape[:2], bool)
+    mask[np.ix_(ok_j, ok_i)] = columns[np.ix_(i[ok_i], j[ok_j])].T
+    out = image.astype(np.float32)
+    out[mask] = 0.65 * out[mask] + 0.35 * np.asarray(color, np.float32)
+    out = np.clip(out, 0, 255).astype(np.uint8)
+    edge = mask & ~cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    out[edge] = color
+    if seed is not None:
+        c, r = int((seed[0] - lo[0]) / pixel_size), int((hi[1] - seed[1]) / pixel_size)
+        size = max(3, min(image.shape[:2]) // 60)
+        cv2.line(out, (c - size, r - size), (c + size, r + size), (230, 30, 30), 2)
+        cv2.line(out, (c - size, r + size), (c + size, r - size), (230, 30, 30), 2)
+    return out
+
+
 def _solid_above(scene: Scene, up: dict, inside: np.ndarray, up_material: np.ndarray) -> np.ndarray:
     """True where the upward hit is the top face of a solid (its normal points up, i.e. we are inside)."""
     v = scene.vertices[scene.triangles[np.where(inside, up["primitive_ids"], 0)]]

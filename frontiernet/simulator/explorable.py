@@ -175,7 +175,7 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
         floor_counts[0] = 0
         chosen = int(np.argmax(floor_counts))
         cells = np.argwhere(navigable & (labels == chosen))
-        seed_index = cells[len(cells) // 2]
+        seed_index = cells[np.argmin(((cells - cells.mean(axis=0)) ** 2).sum(axis=1))]  # nearest their centroid
     else:
         sizes = np.bincount(labels.ravel(), minlength=count + 1)
         sizes[0] = 0

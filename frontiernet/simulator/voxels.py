@@ -59,6 +59,8 @@ class VoxelGrid:
         enclosed: (X, Y, Z) bool or None, every free voxel inside the building's walls
             (a superset of `explorable`: also wall interiors and closed cabinets); tells
             "inside an obstacle" from "outside the building".
+        seed: (3,) int64 voxel index the ``reachable`` rule grew `explorable` from (a navigable
+            floor voxel), or None.
     """
 
     origin: np.ndarray
@@ -66,6 +68,7 @@ class VoxelGrid:
     occupied: np.ndarray
     explorable: np.ndarray
     enclosed: np.ndarray | None = None
+    seed: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.origin = np.asarray(self.origin, np.float64).reshape(3)
@@ -206,17 +209,18 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig | None" = None) -> VoxelGri
 
         space = reachable_space(occupied, origin, size, conf, seed=meta.explorable_seed,
                                 box=meta.explorable_bounds, where=meta.spec)
-        interior, explorable = space.enclosed, space.explorable
+        interior, explorable, seed = space.enclosed, space.explorable, space.seed
     else:
         if meta.explorable_seed is not None or meta.explorable_bounds is not None:
             raise InputError(f"{meta.spec}: the options seed= and bounds= need voxels.explorable: reachable "
                              "(this run uses enclosed)")
-        interior = enclosed_free(~occupied, size, gap)
+        interior, seed = enclosed_free(~occupied, size, gap), None
         explorable = largest_component(interior) if bool(conf.keep_largest_component) else interior
     if not explorable.any():
         raise InputError(f"{meta.spec}: the scene has no explorable free space at voxel size "
                          f"{size} m (rule {rule}: no {'building envelope' if rule == 'reachable' else 'enclosed interior'})")
-    return VoxelGrid(origin=origin, voxel_size=size, occupied=occupied, explorable=explorable, enclosed=interior)
+    return VoxelGrid(origin=origin, voxel_size=size, occupied=occupied, explorable=explorable, enclosed=interior,
+                     seed=seed)
 
 
 # ----------------------------------------------------------------------------- surfaces
