@@ -288,3 +288,15 @@ def test_bad_values_through_the_cli_exit_2(site, one_line_error):
         voxels(load_scene(str(site)), "both")
     with pytest.raises(InputError, match="need voxels.explorable: reachable"):
         voxels(load_scene(f"{site}?seed=3,2.5"), "enclosed")
+
+
+def test_scene_info_names_the_rule_and_the_seed(site, capsys):
+    import json
+
+    from frontiernet.cli.main import main
+
+    assert main(["scene", "info", f"{site}?seed=11.5,1.5"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["explorable_rule"] == "reachable"
+    assert np.hypot(info["explorable_seed"][0] - 11.5, info["explorable_seed"][1] - 1.5) < 0.5
+    assert info["explorable_volume_m3"] == pytest.approx(3 * 3 * 2.2, rel=0.15)

@@ -70,6 +70,8 @@ def scene_info(spec: str, sim_conf) -> dict:
         "voxels_explorable": int(voxels.explorable.sum()),
         "voxels_outside": int(voxels.occupied.size - voxels.occupied.sum() - voxels.explorable.sum()),
         "explorable_volume_m3": round(float(voxels.explorable_volume_m3), 3),
+        "explorable_rule": str(sim_conf.voxels.explorable),
+        "explorable_seed": None if voxels.seed is None else np.round(voxels.index_to_world(voxels.seed), 3).tolist(),
         "load_seconds": round(load_s, 3),
         "voxelize_seconds": round(voxel_s, 3),
         "metadata": scene.metadata.extra,
