@@ -5,6 +5,11 @@ model's channels) for: torch eager with torch's default threads (the baseline), 
 2 and 1 threads, the library's Predictor (channels-last layout; default threads, and 1),
 TorchScript, and onnxruntime (default threads, and 2). Also the training
 throughput (forward + backward + AdamW step, images/s) at the training crop.
+
+``--encoders A,B,...`` compares encoders instead (:func:`bench_encoders`): randomly initialised
+networks that differ from the model only in ``network.encoder``, timed in turns in the library's
+Predictor layout (channels-last; default threads, and 1) and in training, as speed-ups over the
+first encoder listed.
 """
 
 from __future__ import annotations
@@ -70,11 +75,69 @@ def bench_inference(model_path=None, sizes=(320, 480), repeats: int = 10, train_
     return results
 
 
-def _training_throughput(model, channels: int, crop: int, batch: int, conf, inference_fps: float) -> dict:
-    """Images/s of a training step on this machine's device (GPU when there is one)."""
+def bench_encoders(encoders: list[str], model_path=None, sizes=(320, 480), repeats: int = 10,
+                   train_crop: int = 192, train_batch: int = 8) -> dict:
+    """Inference ms and training images/s of FrontierNet with each of `encoders` (torchvision names,
+    ``frontiernet.model.ENCODERS``), the other network settings those of the model (None: the
+    shipped one), random weights; each figure also as the speed-up over ``encoders[0]``."""
     import torch
 
-    from frontiernet.benchmark.perf import median_seconds
+    from frontiernet.benchmark.perf import median_seconds_interleaved
+    from frontiernet.model import FrontierNet, NetworkConfig, load_model
+    from frontiernet.model.predictor import torch_threads
+
+    _, conf = load_model(model_path)
+    torch.manual_seed(0)
+    models = {name: FrontierNet(NetworkConfig.from_dict({**conf["network"], "encoder": name})).eval()
+              for name in encoders}
+    channels = models[encoders[0]].config.in_channels
+    default_threads = torch.get_num_threads()
+    results = {"model": str(model_path or "shipped"), "inputs": conf["network"]["inputs"], "baseline": encoders[0],
+               "torch_threads_default": default_threads, "layout": "channels-last (the library's Predictor)",
+               "parameters_m": {name: round(sum(p.numel() for p in model.parameters()) / 1e6, 2)
+                                for name, model in models.items()}, "sizes": {}}
+    for model in models.values():
+        model.to(memory_format=torch.channels_last)
+    for size in sizes:
+        tensor = torch.randn(1, channels, size, size).contiguous(memory_format=torch.channels_last)
+        rows = {}
+        for threads in sorted({default_threads, 1}, reverse=True):
+            def forward(model, threads=threads):
+                def run():
+                    with torch_threads(threads), torch.inference_mode():
+                        model(tensor)
+                return run
+            seconds = median_seconds_interleaved({name: forward(model) for name, model in models.items()}, repeats)
+            for name, value in seconds.items():
+                rows.setdefault(name, {})[f"ms_{threads}_threads"] = round(1000 * value, 1)
+                rows[name][f"speedup_{threads}_threads"] = round(seconds[encoders[0]] / value, 2)
+        results["sizes"][str(size)] = rows
+    steps = {}
+    for model in models.values():
+        model.to(memory_format=torch.contiguous_format)
+    for name, model in models.items():
+        steps[name], device = _training_step(model, channels, train_crop, train_batch, conf)
+    training = {"device": torch.cuda.get_device_name(0) if device.type == "cuda" else "cpu", "crop": train_crop,
+                "batch": train_batch, "rows": {}}
+    for threads in sorted({default_threads, 1} if device.type == "cpu" else {default_threads}, reverse=True):
+        def with_threads(step, threads=threads):
+            def run():
+                with torch_threads(threads):
+                    step()
+            return run
+        seconds = median_seconds_interleaved({name: with_threads(step) for name, step in steps.items()}, repeats=3,
+                                             warmup=1)
+        for name, value in seconds.items():
+            training["rows"].setdefault(name, {})[f"images_per_s_{threads}_threads"] = round(train_batch / value, 2)
+            training["rows"][name][f"speedup_{threads}_threads"] = round(seconds[encoders[0]] / value, 2)
+    results["training"] = training
+    return results
+
+
+def _training_step(model, channels: int, crop: int, batch: int, conf):
+    """A training step (forward, loss, backward, AdamW) of `model`, moved to this machine's device
+    (GPU when there is one) and set training, on a random batch; and that device."""
+    import torch
 
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     model = model.to(device).train()
@@ -91,6 +154,16 @@ def _training_throughput(model, channels: int, crop: int, batch: int, conf, infe
         if device.type == "cuda":
             torch.cuda.synchronize()
 
+    return step, device
+
+
+def _training_throughput(model, channels: int, crop: int, batch: int, conf, inference_fps: float) -> dict:
+    """Images/s of a training step on this machine's device (GPU when there is one)."""
+    import torch
+
+    from frontiernet.benchmark.perf import median_seconds
+
+    step, device = _training_step(model, channels, crop, batch, conf)
     seconds = median_seconds(step, repeats=3, warmup=1)
     model.eval().cpu()
     return {"device": torch.cuda.get_device_name(0) if device.type == "cuda" else "cpu", "crop": crop, "batch": batch,
@@ -104,6 +177,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--model", default=None, help="model file (default: the shipped model)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[320, 480], help="square input sizes")
     parser.add_argument("--repeats", type=int, default=10, help="timed repetitions (median is reported)")
+    parser.add_argument("--encoders", metavar="A,B,...",
+                        help="compare these encoders instead (comma-separated, e.g. resnet18,mobilenet_v3_large,"
+                             "efficientnet_b0): random weights, the model's other network settings; speed-ups over "
+                             "the first")
     parser.add_argument("--json", action="store_true", help="print JSON only")
     parser.set_defaults(func=run)
 
@@ -120,6 +197,8 @@ def run(args) -> int:
         raise InputError(f"{args.model}: bench inference times a torch model against its own ONNX and TorchScript "
                          "exports, so it needs the model file (.safetensors) or a training checkpoint (.ckpt), "
                          "not an export")
+    if args.encoders is not None:
+        return _run_encoders(args)
     results = bench_inference(args.model, tuple(args.sizes), args.repeats)
     if args.json:
         print(json.dumps(results, indent=2))
@@ -135,3 +214,36 @@ def run(args) -> int:
     print(f"  training on {training['device']}: {training['images_per_s']} images/s at {training['crop']} px crops, "
           f"batch {training['batch']}")
     return 0
+
+
+def _run_encoders(args) -> int:
+    from frontiernet.errors import InputError
+    from frontiernet.model import ENCODERS
+
+    encoders = [name.strip() for name in args.encoders.split(",") if name.strip()]
+    unknown = [name for name in encoders if name not in ENCODERS]
+    if not encoders or unknown or len(set(encoders)) != len(encoders):
+        raise InputError(f"--encoders must list distinct names of {', '.join(ENCODERS)}, got {args.encoders!r}")
+    results = bench_encoders(encoders, args.model, tuple(args.sizes), args.repeats)
+    if args.json:
+        print(json.dumps(results, indent=2))
+        return 0
+    base = results["baseline"]
+    print(f"encoders on the network of model {results['model']} ({results['inputs']}), random weights, "
+          f"{results['layout']}; speed-up over {base} in the same run (timed in turns)")
+    for size, rows in results["sizes"].items():
+        print(f"  {size} x {size}, inference")
+        for name, row in rows.items():
+            print(f"    {name:20s} {results['parameters_m'][name]:6.2f} M params  {_cells(row, 'ms', 'ms')}")
+    training = results["training"]
+    print(f"  training on {training['device']}, {training['crop']} px crops, batch {training['batch']}")
+    for name, row in training["rows"].items():
+        print(f"    {name:20s}  {_cells(row, 'images_per_s', 'images/s')}")
+    return 0
+
+
+def _cells(row: dict, key: str, unit: str) -> str:
+    """'value unit xSPEEDUP (T thr)' for each thread count T in a bench_encoders row."""
+    threads = [name.rsplit("_", 2)[1] for name in row if name.startswith("speedup_")]
+    return "  ".join(f"{row[f'{key}_{t}_threads']:8.1f} {unit} x{row[f'speedup_{t}_threads']:.2f} ({t} thr)"
+                     for t in threads)

@@ -148,6 +148,7 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["bench", "render", "--scene", "procedural:0", "--repeats=-1"], "--repeats must be an integer >= 1, got -1"),
     (["bench", "render", "--scene", "procedural:0", "--batch", "0"], "--batch must be an integer >= 1, got 0"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
+    (["bench", "inference", "--encoders", "resnet18,vgg16"], "--encoders must list distinct names of resnet18"),
     (["sequence", "--input", "{tmp}", "--intrinsics", "nan,525,320,240", "--out", "{tmp}/s"], "finite pixels"),
 ])
 def test_bad_options_are_one_line_before_any_work(argv, message, tmp_path, one_line_error):

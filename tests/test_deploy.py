@@ -72,6 +72,24 @@ def test_exported_models_take_any_size(exported):
         assert np.abs(logits - reference[1]).max() < 1e-4
 
 
+@pytest.mark.parametrize("encoder", ["mobilenet_v3_large", "efficientnet_b0"])
+def test_light_encoders_export_and_agree(encoder, tmp_path):
+    """MobileNetV3 (hardswish, squeeze-excitation) and EfficientNet (SiLU) export to ONNX at the
+    opset used and to TorchScript, record their encoder, and match torch at an odd size."""
+    torch.manual_seed(0)
+    net = FrontierNet(NetworkConfig(encoder=encoder, decoder_channels=(32, 16, 16, 8, 8), head_channels=8)).eval()
+    model = save_model(tmp_path / "light.safetensors", net, MODEL_CONF)
+    rgb = np.random.default_rng(2).integers(0, 255, (75, 101, 3), dtype=np.uint8)
+    depth = np.full((75, 101), 1.5, np.float32)
+    reference = load_runtime(model, threads=1).predict(rgb, depth)
+    for fmt, suffix in (("onnx", "onnx"), ("torchscript", "pt")):
+        runtime = load_runtime(export(model, fmt, tmp_path / f"light.{suffix}"), threads=1)
+        assert runtime.conf["network"]["encoder"] == encoder
+        distance, logits = runtime.predict(rgb, depth)
+        assert np.abs(distance - reference[0]).max() < 1e-4, fmt
+        assert np.abs(logits - reference[1]).max() < 1e-4, fmt
+
+
 def test_onnx_runs_on_the_threads_torch_was_given_unless_told(exported):
     """A benchmark worker limits torch to its share of the cores; an ONNX model it opens keeps to it."""
     previous = torch.get_num_threads()
@@ -198,3 +216,14 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
     capsys.readouterr()
     assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "c")]) == 0
     assert (tmp_path / "c" / "overlay.png").is_file() and "depth" not in np.load(tmp_path / "c" / "outputs.npz")
+
+
+def test_bench_encoders_times_each_encoder_against_the_first():
+    from deploy.bench import bench_encoders
+
+    results = bench_encoders(["resnet18", "mobilenet_v3_small"], sizes=(40,), repeats=1, train_crop=32, train_batch=2)
+    assert results["baseline"] == "resnet18" and results["parameters_m"]["mobilenet_v3_small"] < 2
+    for rows in (results["sizes"]["40"], results["training"]["rows"]):
+        assert set(rows) == {"resnet18", "mobilenet_v3_small"}
+        assert all(value == 1.0 for key, value in rows["resnet18"].items() if key.startswith("speedup_"))
+        assert "speedup_1_threads" in rows["mobilenet_v3_small"]

@@ -13,7 +13,7 @@ import torch
 import torchvision
 
 from frontiernet.errors import InputError
-from frontiernet.model import (FrontierNet, NetworkConfig, Predictor, check_images, decode_distance,
+from frontiernet.model import (FEATURE_ENCODERS, FrontierNet, NetworkConfig, Predictor, check_images, decode_distance,
                                encode_distance, load_imagenet_encoder, load_model, resize_and_crop, save_model)
 from frontiernet.config import load_config
 from omegaconf import OmegaConf
@@ -47,12 +47,56 @@ def test_padding_does_not_leak_into_the_image():
     assert alone.shape == padded.shape == (1, 1, 64, 64)
 
 
-@pytest.mark.parametrize("encoder", ["resnet34", "resnet50"])
-def test_larger_encoders_build_and_run(encoder):
+@pytest.mark.parametrize("encoder", ["resnet34", "resnet50", *FEATURE_ENCODERS])
+def test_other_encoders_build_and_run(encoder):
     net = small_net(encoder=encoder)
     with torch.no_grad():
         distance, logits = net(torch.randn(1, 4, 64, 64))
     assert distance.shape == (1, 1, 64, 64) and logits.shape == (1, 11, 64, 64)
+
+
+@pytest.mark.parametrize("encoder", ["resnet18", *FEATURE_ENCODERS])
+def test_encoder_skips_are_at_strides_2_to_32_with_the_listed_channels(encoder):
+    net = small_net(encoder=encoder)
+    with torch.no_grad():
+        features = [net.stem(torch.randn(1, 4, 128, 96))]
+        features.append(net.layers[0](net.pool(features[0])))
+        for layer in net.layers[1:]:
+            features.append(layer(features[-1]))
+    assert [(128 // f.shape[2], 96 // f.shape[3]) for f in features] == [(s, s) for s in (2, 4, 8, 16, 32)]
+    if encoder in FEATURE_ENCODERS:
+        assert [f.shape[1] for f in features] == [width for _, width in FEATURE_ENCODERS[encoder]]
+
+
+@pytest.mark.parametrize("encoder", list(FEATURE_ENCODERS))
+def test_imagenet_weights_of_a_light_encoder(encoder, tmp_path, monkeypatch):
+    """The torchvision state dict (here of a random model) fills the encoder: with RGB input it
+    computes what torchvision's `features` do up to the stride-32 block; RGB-D gets the mean filter."""
+    torch.manual_seed(1)
+    reference = getattr(torchvision.models, encoder)(weights=None).eval()
+    name = {"efficientnet_b0": "efficientnet_b0_rwightman-7f5810bc.pth"}.get(encoder, f"{encoder}-0123abcd.pth")
+    (tmp_path / "checkpoints").mkdir()
+    torch.save(reference.state_dict(), tmp_path / "checkpoints" / name)
+    monkeypatch.setattr(torch.hub, "get_dir", lambda: str(tmp_path))
+    net = small_net("rgb", encoder)
+    names = load_imagenet_encoder(net, "hub")
+    assert "stem.0.0.weight" in names
+    assert not any(name.startswith(("decoder", "distance_head", "gain_head")) for name in names)
+    image = torch.randn(1, 3, 64, 64)
+    last = FEATURE_ENCODERS[encoder][-1][0]
+    with torch.no_grad():
+        y = net.stem(image)
+        for layer in net.layers:
+            y = layer(y)
+        assert torch.equal(y, reference.features[:last](image))
+    rgbd = small_net("rgbd", encoder)
+    load_imagenet_encoder(rgbd, tmp_path / "checkpoints" / name)
+    first = reference.features[0][0].weight
+    assert torch.equal(rgbd.stem[0][0].weight[:, :3], first)
+    assert torch.allclose(rgbd.stem[0][0].weight[:, 3], first.mean(1))
+    torch.save(torchvision.models.resnet18(weights=None).state_dict(), tmp_path / "resnet18.pth")
+    with pytest.raises(InputError, match=f"not a torchvision {encoder} state dict"):
+        load_imagenet_encoder(rgbd, tmp_path / "resnet18.pth")
 
 
 def test_distance_encoding_round_trip_and_threshold():

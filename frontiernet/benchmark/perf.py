@@ -11,7 +11,8 @@ stage of an exploration step against the render of the same run.
 
 Each returns its figures as a JSON-ready dict (times in milliseconds or seconds, as the key
 says); printing them is the command line's. :func:`median_seconds` times anything the same way
-(``bench inference``).
+(``bench inference``), :func:`median_seconds_interleaved` several things in turns
+(``bench inference --encoders``).
 """
 
 from __future__ import annotations
@@ -55,6 +56,22 @@ def median_seconds(function, repeats: int, warmup: int = 2) -> float:
         function()
         times.append(time.perf_counter() - start)
     return float(np.median(times))
+
+
+def median_seconds_interleaved(functions: dict, repeats: int, warmup: int = 2) -> dict:
+    """Median wall time (seconds) of each of `functions` (name -> callable), timed in turns (one run
+    of each per round, `repeats` rounds after `warmup`), so that a machine's load drifting during
+    the run weighs on all of them alike: their ratios are what to read on a busy machine."""
+    for _ in range(warmup):
+        for function in functions.values():
+            function()
+    times = {name: [] for name in functions}
+    for _ in range(repeats):
+        for name, function in functions.items():
+            start = time.perf_counter()
+            function()
+            times[name].append(time.perf_counter() - start)
+    return {name: float(np.median(values)) for name, values in times.items()}
 
 
 def median_each(function, items: list) -> tuple[float, list]:

@@ -1,8 +1,10 @@
-"""The FrontierNet network: a UNet on a torchvision ResNet encoder with two heads.
+"""The FrontierNet network: a UNet on a torchvision encoder with two heads.
 
-docs/design.md section 2, paper section III-C. The encoder is a ResNet (18, 34 or 50) whose first
-convolution takes the configured input channels (RGB + depth prior, RGB only or depth only);
-a shared UNet decoder upsamples back to full resolution; two heads of three convolutions each
+docs/design.md section 2, paper section III-C. The encoder is a torchvision ResNet (18, 34 or 50:
+the paper's family) or one of the lighter torchvision MobileNetV3 (large, small) and
+EfficientNet-B0 (``FEATURE_ENCODERS``); its first convolution takes the configured input channels
+(RGB + depth prior, RGB only or depth only); a shared UNet decoder upsamples back to full
+resolution, with skip features at strides 2, 4, 8 and 16; two heads of three convolutions each
 predict
 
 - the normalised distance field ``y = -log(max(D, d_min) / r)`` (1 channel, non-negative by a
@@ -26,7 +28,20 @@ from torch import nn
 
 from ..errors import InputError
 
-ENCODERS = ("resnet18", "resnet34", "resnet50")
+RESNET_ENCODERS = ("resnet18", "resnet34", "resnet50")
+FEATURE_ENCODERS = {
+    # torchvision models whose encoder is their `features` Sequential: for each output stride 2, 4,
+    # 8, 16, 32 the end index (exclusive) of the blocks that run at that stride, and their channels.
+    # The skip/deepest features are the outputs of blocks [1, 3, 6, 12, 15] (mobilenet_v3_large),
+    # [0, 1, 3, 8, 11] (mobilenet_v3_small), [1, 2, 3, 5, 7] (efficientnet_b0). The last block of
+    # `features`, the classifier's 1x1 expansion to 960 / 576 / 1280 channels, is left out (as in
+    # timm's features_only EfficientNet): the pooled classifier needs it, and 6-8x the channels
+    # would make the first decoder stage's input that much wider.
+    "mobilenet_v3_large": ((2, 16), (4, 24), (7, 40), (13, 112), (16, 160)),
+    "mobilenet_v3_small": ((1, 16), (2, 16), (4, 24), (9, 48), (12, 96)),
+    "efficientnet_b0": ((2, 16), (3, 24), (4, 40), (6, 112), (8, 320)),
+}
+ENCODERS = (*RESNET_ENCODERS, *FEATURE_ENCODERS)
 INPUT_CHANNELS = {"rgbd": 4, "rgb": 3, "depth": 1}
 
 
@@ -103,7 +118,7 @@ def _head(in_channels: int, width: int, out_channels: int) -> nn.Sequential:
 
 
 class FrontierNet(nn.Module):
-    """UNet with a ResNet encoder, a shared decoder and two heads.
+    """UNet with a torchvision encoder, a shared decoder and two heads.
 
     ``forward(x)`` takes the normalised input (B, C, H, W) float32 (see
     :func:`frontiernet.model.inputs.network_input`) and returns
@@ -116,14 +131,19 @@ class FrontierNet(nn.Module):
     def __init__(self, config: NetworkConfig):
         super().__init__()
         self.config = config
-        resnet = getattr(torchvision.models, config.encoder)(weights=None)
-        conv1 = nn.Conv2d(config.in_channels, 64, kernel_size=7, stride=2, padding=3, bias=False)
-        self.stem = nn.Sequential(conv1, resnet.bn1, resnet.relu)               # stride 2, 64 ch
-        self.pool = resnet.maxpool
-        self.layers = nn.ModuleList([resnet.layer1, resnet.layer2, resnet.layer3, resnet.layer4])
-        expansion = 4 if config.encoder == "resnet50" else 1
-        skips = [64] + [c * expansion for c in (64, 128, 256)]                     # strides 2, 4, 8, 16
-        deepest = 512 * expansion                                                  # stride 32
+        # every encoder is stem (stride 2), pool, then four layers (strides 4, 8, 16, 32): forward is
+        # the same for all, and ResNet parameter names are those of the model files written before
+        if config.encoder in FEATURE_ENCODERS:
+            skips, deepest = self._feature_encoder(config)
+        else:
+            resnet = getattr(torchvision.models, config.encoder)(weights=None)
+            conv1 = nn.Conv2d(config.in_channels, 64, kernel_size=7, stride=2, padding=3, bias=False)
+            self.stem = nn.Sequential(conv1, resnet.bn1, resnet.relu)               # stride 2, 64 ch
+            self.pool = resnet.maxpool
+            self.layers = nn.ModuleList([resnet.layer1, resnet.layer2, resnet.layer3, resnet.layer4])
+            expansion = 4 if config.encoder == "resnet50" else 1
+            skips = [64] + [c * expansion for c in (64, 128, 256)]                     # strides 2, 4, 8, 16
+            deepest = 512 * expansion                                                  # stride 32
         stages, previous = [], deepest
         for out_channels, skip in zip(config.decoder_channels, [*reversed(skips), 0]):
             stages.append(DecoderStage(previous, skip, out_channels))
@@ -132,6 +152,20 @@ class FrontierNet(nn.Module):
         self.distance_head = _head(previous, config.head_channels, 1)
         self.gain_head = _head(previous, config.head_channels, config.num_classes)
         self.pad_multiple = int(config.pad_multiple)
+
+    def _feature_encoder(self, config: NetworkConfig) -> tuple[list[int], int]:
+        """Stem, pool (identity) and layers from a torchvision model's `features` blocks, split at
+        the ends in FEATURE_ENCODERS; the first convolution is rebuilt for the input channels (as
+        the ResNet one: same kernel, stride and padding, torch's default initialisation)."""
+        features = getattr(torchvision.models, config.encoder)(weights=None).features
+        first = features[0][0]
+        features[0][0] = nn.Conv2d(config.in_channels, first.out_channels, kernel_size=first.kernel_size,
+                                   stride=first.stride, padding=first.padding, bias=False)
+        ends = [end for end, _ in FEATURE_ENCODERS[config.encoder]]
+        groups = [nn.Sequential(*features[start:end]) for start, end in zip([0, *ends[:-1]], ends)]
+        self.stem, self.pool, self.layers = groups[0], nn.Identity(), nn.ModuleList(groups[1:])
+        channels = [width for _, width in FEATURE_ENCODERS[config.encoder]]
+        return channels[:4], channels[4]
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         # written for TorchScript and ONNX export too: shape arithmetic stays symbolic
@@ -155,11 +189,12 @@ class FrontierNet(nn.Module):
 
 
 def load_imagenet_encoder(model: FrontierNet, source: str | Path) -> list[str]:
-    """Copy ImageNet ResNet weights into the encoder of `model`, in place.
+    """Copy ImageNet weights into the encoder of `model`, in place.
 
     Args:
-        source: a torchvision ResNet state-dict file (``resnet18-f37072fd.pth`` and the like),
-            or ``"hub"`` for that file in the torch hub cache. Nothing is downloaded.
+        source: the torchvision state-dict file of the model's encoder (``resnet18-f37072fd.pth``,
+            ``mobilenet_v3_large-8738ca79.pth``, ``efficientnet_b0_rwightman-7f5810bc.pth`` and the
+            like), or ``"hub"`` for that file in the torch hub cache. Nothing is downloaded.
     Returns:
         The names of the encoder parameters that were set.
     The first convolution's RGB filters are copied to the RGB channels; a depth channel gets
@@ -170,25 +205,48 @@ def load_imagenet_encoder(model: FrontierNet, source: str | Path) -> list[str]:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # noqa: BLE001  a corrupt file or a pickle with code in it
         raise InputError(f"{path}: not a loadable torchvision state dict ({error.__class__.__name__})") from None
-    rgb_filters = state.get("conv1.weight")
+    resnet = model.config.encoder in RESNET_ENCODERS
+    first_conv = "conv1.weight" if resnet else "features.0.0.weight"
+    rgb_filters = state.get(first_conv)
     if rgb_filters is None or rgb_filters.shape[1] != 3:
-        raise InputError(f"{path}: not a torchvision ResNet state dict (no 3-channel conv1.weight)")
+        kind = "ResNet" if resnet else model.config.encoder
+        raise InputError(f"{path}: not a torchvision {kind} state dict (no 3-channel {first_conv})")
     inputs = model.config.inputs
     conv1 = {"rgbd": torch.cat([rgb_filters, rgb_filters.mean(1, keepdim=True)], 1),
              "rgb": rgb_filters, "depth": rgb_filters.mean(1, keepdim=True)}[inputs]
-    mapping = {"stem.0.weight": conv1}
-    for name, value in state.items():
-        if name.startswith("bn1."):
-            mapping["stem.1." + name[4:]] = value
-        elif name.startswith("layer"):
-            index, rest = name[5], name[7:]
-            mapping[f"layers.{int(index) - 1}.{rest}"] = value
+    if resnet:
+        mapping = {"stem.0.weight": conv1}
+        for name, value in state.items():
+            if name.startswith("bn1."):
+                mapping["stem.1." + name[4:]] = value
+            elif name.startswith("layer"):
+                index, rest = name[5], name[7:]
+                mapping[f"layers.{int(index) - 1}.{rest}"] = value
+    else:
+        mapping = _feature_encoder_mapping(model.config.encoder, state)
+        mapping["stem.0.0.weight"] = conv1
     own = model.state_dict()
     bad = [n for n, v in mapping.items() if n not in own or own[n].shape != v.shape]
     if bad:
         raise InputError(f"{path}: does not fit a {model.config.encoder} encoder (first mismatch: {bad[0]})")
     model.load_state_dict(mapping, strict=False)
     return sorted(mapping)
+
+
+def _feature_encoder_mapping(encoder: str, state: dict) -> dict:
+    """Our names for the `features.{block}.*` tensors of a torchvision state dict (the last block,
+    left out of the encoder, and the classifier are skipped)."""
+    ends = [end for end, _ in FEATURE_ENCODERS[encoder]]
+    place = {}  # block index -> our prefix
+    for group, (start, end) in enumerate(zip([0, *ends[:-1]], ends)):
+        for block in range(start, end):
+            place[block] = f"stem.{block}" if group == 0 else f"layers.{group - 1}.{block - start}"
+    mapping = {}
+    for name, value in state.items():
+        parts = name.split(".", 2)
+        if parts[0] == "features" and len(parts) == 3 and parts[1].isdigit() and int(parts[1]) in place:
+            mapping[f"{place[int(parts[1])]}.{parts[2]}"] = value
+    return mapping
 
 
 def _resolve_pretrained(encoder: str, source: str | Path) -> Path:
@@ -198,8 +256,8 @@ def _resolve_pretrained(encoder: str, source: str | Path) -> Path:
             raise InputError(f"{path}: ImageNet weights file not found (network.pretrained)")
         return path
     checkpoints = Path(torch.hub.get_dir()) / "checkpoints"
-    found = sorted(checkpoints.glob(f"{encoder}-*.pth"))
+    found = sorted(checkpoints.glob(f"{encoder}[-_]*.pth"))  # efficientnet_b0_rwightman-7f5810bc.pth
     if not found:
-        raise InputError(f"network.pretrained=hub: no {encoder}-*.pth in {checkpoints}; put torchvision's "
-                         f"ImageNet file there (nothing is downloaded) or set network.pretrained=null")
+        raise InputError(f"network.pretrained=hub: no {encoder}-*.pth or {encoder}_*.pth in {checkpoints}; put "
+                         f"torchvision's ImageNet file there (nothing is downloaded) or set network.pretrained=null")
     return found[-1]
