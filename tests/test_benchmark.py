@@ -393,6 +393,16 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         resumable_plan(published, protocol("planner.approach_radius_m=1.5"))
     with pytest.raises(InputError, match=r"\(conf.planner.clearance_m: 0.3 in the plan, 0.35 now\)"):
         resumable_plan(published, protocol("planner.clearance_m=0.35"))
+    # a plan made after runs had a sim section but before the explorable-space rule (sim.voxels.explorable
+    # and its four settings) ran the enclosed rule: it resumes when the run asks for that rule
+    between = json.loads(json.dumps(stored))
+    between["settings"]["conf"]["sim"] = protocol()["conf"]["sim"]
+    for key in ("explorable", "wall_gap_m", "floor_headroom_m", "floor_clearance_m", "seed_search_m"):
+        del between["settings"]["conf"]["sim"]["voxels"][key]
+    (tmp_path / "plan.json").write_text(json.dumps(between))
+    assert resumable_plan(tmp_path, protocol("sim.voxels.explorable=enclosed"))["start_poses"] == stored["start_poses"]
+    with pytest.raises(InputError, match=r"\(conf.sim.voxels.explorable: 'enclosed' in the plan, 'reachable' now\)"):
+        resumable_plan(tmp_path, protocol())
     del stored["settings"]["conf"]["planner"]["clearance_m"]
     (tmp_path / "plan.json").write_text(json.dumps(stored))
     with pytest.raises(InputError, match=r"\(conf.planner.clearance_m: absent in the plan, 0.3 now\)"):

@@ -35,6 +35,14 @@ MIN_BUDGET = 4  # Vox@25 needs a step at a quarter of the budget
 
 KEYS_ADDED_AFTER_PLANS = {
     "planner.approach_radius_m": 0.0,  # 0cebd7e: 0 = the paper's tree edge only, as before the key
+    # 5ce9d0d: the explorable-space rule; plans made before it used the enclosed rule, which ignores
+    # the reachable rule's four settings (listed with their defaults). A plan without them resumes
+    # with --set sim.voxels.explorable=enclosed (the same voxels on every published scene)
+    "sim.voxels.explorable": "enclosed",
+    "sim.voxels.wall_gap_m": 1.5,
+    "sim.voxels.floor_headroom_m": 1.0,
+    "sim.voxels.floor_clearance_m": 0.2,
+    "sim.voxels.seed_search_m": 0.5,
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config
