@@ -69,6 +69,13 @@ FRONTIERNET=("$PYTHON" "$SITE/bin/frontiernet")
 stage install install  # every time: the checkout may have changed since the last run
 "$PYTHON" -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" >&2
 
+# the node's per-core datagen figures, once (~10 s): datagen ran at 1.6 views/s a core on the first node against
+# 4-5 here, and this tells the ground-truth pipeline from the rest (pose sampling, encoding, writing)
+if [ ! -f "$WORK/datagen_bench.txt" ]; then
+    { lscpu | grep -i "model name" || true; "${FRONTIERNET[@]}" datagen bench --scene procedural:5 --views 8; } \
+        > "$WORK/datagen_bench.txt" 2>&1 || echo "datagen bench failed (see $WORK/datagen_bench.txt)" >&2
+fi
+
 DATA="$WORK/data"
 DATAGEN=(datagen --scenes "$SCENES" --views-per-scene "$VIEWS" --seed 0 --out "$DATA" --workers "$CORES" --no-progress)
 if [ ! -f "$DATA/summary.json" ]; then  # datagen writes summary.json last
@@ -112,6 +119,6 @@ cat "$STAGES" >&2
 if [ -n "${RESULTS:-}" ]; then  # e.g. a lent machine's $OUT: at most 8 files of 16 MiB come back
     mkdir -p "$RESULTS"
     tar -C "$WORK" -czf "$RESULTS/$NAME.run.tar.gz" stages.tsv "runs/$NAME/metrics.csv" "runs/$NAME/summary.json" \
-        "runs/$NAME/evaluate.json" "runs/$NAME/config.yaml" $(cd "$WORK" && ls data/summary.json 2> /dev/null)
+        "runs/$NAME/evaluate.json" "runs/$NAME/config.yaml" $(cd "$WORK" && ls data/summary.json datagen_bench.txt 2> /dev/null)
     split -b 15M -d "$RUN/model_fp16.safetensors" "$RESULTS/$NAME.model_fp16.safetensors.part"  # cat *.part* > file
 fi
