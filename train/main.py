@@ -36,7 +36,7 @@ from frontiernet.model import FrontierNet, load_model, save_model
 
 from .config import plain
 from .data import FrontierDataModule
-from .module import FrontierNetModule
+from .module import FrontierNetModule, check_schedule
 
 log = logging.getLogger(__name__)
 
@@ -100,11 +100,7 @@ def check_loop_settings(conf, train_samples: int) -> None:
         value = conf.optim[key]
         if not isinstance(value, (int, float)) or not value >= (1e-300 if key == "lr" else 0):
             raise InputError(f"optim.{key}: must be a number {'> 0' if key == 'lr' else '>= 0'}, got {value}")
-    for key, allowed in (("schedule", ("cosine", "constant")), ("horizon", ("steps", "time"))):
-        if conf.optim.get(key, allowed[0]) not in allowed:
-            raise InputError(f"optim.{key}: must be one of {', '.join(allowed)}, got {conf.optim[key]!r}")
-    if conf.optim.get("horizon") == "time" and not conf.trainer.max_time:
-        raise InputError("optim.horizon: 'time' ends the schedule at trainer.max_time, which is not set")
+    check_schedule(conf.optim, bool(conf.trainer.max_time))
     channels_last_wanted(conf.trainer)
     interval = conf.trainer.val_check_interval
     if isinstance(interval, int) and not isinstance(interval, bool) and not 1 <= interval <= batches \

@@ -9,10 +9,21 @@ import lightning as L
 from lightning.pytorch.callbacks import Timer
 import torch
 
+from frontiernet.errors import InputError
 from frontiernet.model import FrontierNet, NetworkConfig, load_imagenet_encoder
 
 from .losses import frontier_loss
 from .metrics import FrontierMetrics
+
+
+def check_schedule(optim: dict, has_max_time: bool) -> None:
+    """Refuse, naming the key, an ``optim.schedule`` or ``optim.horizon`` the module cannot follow
+    (``has_max_time``: whether ``trainer.max_time`` is set, which the time horizon ends at)."""
+    for key, allowed in (("schedule", ("cosine", "constant")), ("horizon", ("steps", "time"))):
+        if optim.get(key, allowed[0]) not in allowed:
+            raise InputError(f"optim.{key}: must be one of {', '.join(allowed)}, got {optim[key]!r}")
+    if optim.get("horizon") == "time" and not has_max_time:
+        raise InputError("optim.horizon: 'time' ends the schedule at trainer.max_time, which is not set")
 
 
 class FrontierNetModule(L.LightningModule):
@@ -89,12 +100,7 @@ class FrontierNetModule(L.LightningModule):
         final = float(optim["final_lr_fraction"])
         horizon = optim.get("horizon", "steps")
         timer = next((c for c in self.trainer.callbacks if isinstance(c, Timer)), None)
-        if schedule not in ("cosine", "constant"):
-            raise ValueError(f"optim.schedule must be 'cosine' or 'constant', got {schedule!r}")
-        if horizon not in ("steps", "time"):
-            raise ValueError(f"optim.horizon must be 'steps' or 'time', got {horizon!r}")
-        if horizon == "time" and (timer is None or timer.time_remaining() is None):
-            raise ValueError("optim.horizon=time needs trainer.max_time")
+        check_schedule(optim, timer is not None and timer.time_remaining() is not None)
 
         def factor(step: int) -> float:
             if step < warmup:
