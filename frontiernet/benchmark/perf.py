@@ -48,14 +48,7 @@ def default_bench_scene(spec: str | None) -> str:
 
 def median_seconds(function, repeats: int, warmup: int = 2) -> float:
     """Median wall time (seconds) of `function()` over `repeats` runs after `warmup` runs."""
-    for _ in range(warmup):
-        function()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
+    return median_seconds_interleaved({"function": function}, repeats, warmup)["function"]
 
 
 def median_seconds_interleaved(functions: dict, repeats: int, warmup: int = 2) -> dict:
