@@ -23,10 +23,22 @@ RUNTIME_SECTIONS = ("raycast",)
 dataset can be resumed on a machine with another ray-cast engine (both give the same labels)."""
 
 
+KEYS_ADDED_AFTER_DATASETS = {"ground_truth.gain.volume": "unobserved", "ground_truth.gain.spread": "blend"}
+"""Keys added after datasets had been made, with the value that reproduces the labels of before: at
+that value a key is left out of :func:`config_hash`, so those datasets still resume."""
+
+
 def config_hash(conf: DictConfig) -> str:
-    """Short SHA-256 of the resolved config (stable across key order) without :data:`RUNTIME_SECTIONS`:
-    names a dataset's settings."""
+    """Short SHA-256 of the resolved config (stable across key order) without :data:`RUNTIME_SECTIONS`
+    and without the keys of :data:`KEYS_ADDED_AFTER_DATASETS` at their old value: names a dataset's settings."""
     settings = {key: value for key, value in OmegaConf.to_container(conf, resolve=True).items()
                 if key not in RUNTIME_SECTIONS}
+    for dotted, old_value in KEYS_ADDED_AFTER_DATASETS.items():
+        *sections, key = dotted.split(".")
+        section = settings
+        for name in sections:
+            section = section.get(name) if isinstance(section, dict) else None
+        if isinstance(section, dict) and section.get(key, old_value) == old_value:
+            section.pop(key, None)
     text = json.dumps(settings, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:16]

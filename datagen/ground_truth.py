@@ -15,7 +15,12 @@ a scene voxelised at 0.1 m:
    model and range sees from the voxel at its best viewpoint looking from V_in towards
    V_out: the best of headings within +-90 degrees of the direction from the observed to
    the unobserved free voxels around it (and tilted like it).
-   Measured at ~10 % of V_ft, blended to the rest.
+   Measured at ~10 % of V_ft, blended to the rest. Two choices change the definition
+   (:func:`gain_definition`, ``ground_truth.gain.volume`` / ``.spread``): ``volume:
+   occluded`` counts only V_out inside this view's frustum (the space the frontier's
+   occluder hides from this camera, not the space beside or behind it), and ``spread:
+   region`` gives every voxel of a connected frontier region the largest gain measured in
+   it (one gain per region) instead of the blend of the nearest samples.
 4. **F_p**: pixels whose ray (from the near clipping plane to its hit) passes within
    ``r_ray_m`` of a frontier voxel's centre; the pixel's *ray gain* is the largest gain
    among those voxels.
@@ -89,6 +94,28 @@ class GroundTruth:
                 "gain": self.gain, "gain_class": self.gain_class}
 
 
+GAIN_VOLUMES = ("unobserved", "occluded")
+GAIN_SPREADS = ("blend", "region")
+DEFAULT_GAIN_DEFINITION = "unobserved/blend"
+"""The gain definition of datasets and model files that do not name one (made before the choice)."""
+
+
+def gain_definition(gain_conf) -> str:
+    """The gain label's definition, ``"<volume>/<spread>"``, of a ``ground_truth.gain`` section
+    (keys absent: :data:`DEFAULT_GAIN_DEFINITION`'s); InputError naming the key for an unknown value.
+
+    ``volume``: ``unobserved`` (every V_out voxel the gain view sees) | ``occluded`` (only those
+    inside the labelled view's frustum); ``spread``: ``blend`` (inverse-distance blend of the
+    nearest measured voxels) | ``region`` (the largest gain measured in each connected region).
+    """
+    volume, spread = str(gain_conf.get("volume", "unobserved")), str(gain_conf.get("spread", "blend"))
+    if volume not in GAIN_VOLUMES:
+        raise InputError(f"ground_truth.gain.volume must be one of {', '.join(GAIN_VOLUMES)}, got {volume!r}")
+    if spread not in GAIN_SPREADS:
+        raise InputError(f"ground_truth.gain.spread must be one of {', '.join(GAIN_SPREADS)}, got {spread!r}")
+    return f"{volume}/{spread}"
+
+
 def _bounding_slices(mask: np.ndarray, margin: int) -> tuple[slice, ...]:
     """Slices of the bounding box of `mask`'s True voxels grown by `margin` (empty mask: empty box)."""
     slices = []
@@ -145,6 +172,7 @@ class GroundTruthGenerator:
         self.yaw_offsets = np.deg2rad(np.asarray(list(gain.yaw_offsets_deg), np.float64))
         if len(self.yaw_offsets) == 0:
             raise InputError("ground_truth.gain.yaw_offsets_deg must list at least one heading")
+        self.gain_volume, self.gain_spread = gain_definition(gain).split("/")
         max_dir = float(np.linalg.norm(self.camera_directions, axis=1).max())
         self.reach_m = self.camera.max_depth * max_dir  # farthest point any pixel ray reaches
 
@@ -198,11 +226,18 @@ class GroundTruthGenerator:
         frontier = free[seen] & observed[seen] & ndimage.binary_dilation(unobserved_free, self.structure)
         frontier_index = np.argwhere(frontier) + [s.start for s in seen]  # (M, 3) box indices
         frontier_world = box_origin + (frontier_index + 0.5) * size
+        region = None
+        if self.gain_spread == "region":  # (M,) int connected region (26-connected) of each frontier voxel
+            labelled, _ = ndimage.label(frontier, ndimage.generate_binary_structure(3, 3))
+            region = labelled[frontier] - 1  # np.argwhere and boolean indexing share C order
         lap("frontier_voxels")
 
         # 3. gain of the frontier voxels
+        counted = ~observed
+        if self.gain_volume == "occluded":  # only V_out this camera's frustum holds (behind its occluders)
+            counted &= self._in_view(tuple(slice(0, n) for n in free.shape), box_origin, T)
         voxel_gain, sampled = self._frontier_gains(frontier_index, frontier_world, origin, box_origin,
-                                                   free, observed, rng)
+                                                   free, observed, counted, rng, region)
         lap("gain_views")
 
         # 4. F_p and the ray gain: the best frontier voxel within r_ray of each pixel's ray
@@ -272,10 +307,14 @@ class GroundTruthGenerator:
         hi = np.clip(hi, 0, voxels.shape)
         return lo, hi, voxels.origin + lo * voxels.voxel_size
 
-    def _frontier_gains(self, frontier_index, frontier_world, camera_origin, box_origin, free, observed,
-                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Gain (m^3) of every frontier voxel: measured at a subsample, blended to the rest.
+    def _frontier_gains(self, frontier_index, frontier_world, camera_origin, box_origin, free, observed, counted,
+                        rng: np.random.Generator, region: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Gain (m^3) of every frontier voxel: measured at a subsample, spread to the rest.
 
+        Args:
+            counted: (X, Y, Z) bool box array, the voxels whose volume counts (V_out, or the part
+                of it in view).
+            region: (M,) int connected region of each voxel (``spread: region``) or None (blend).
         Returns (M,) float64 gains and (M,) bool "measured here".
         """
         conf = self.conf.gain
@@ -284,7 +323,12 @@ class GroundTruthGenerator:
         if m == 0:
             return np.zeros(0), sampled
         count = int(np.clip(round(float(conf.sample_fraction) * m), int(conf.min_samples), int(conf.max_samples)))
-        pick = np.sort(rng.choice(m, size=min(count, m), replace=False))
+        count = min(count, m)
+        if region is None:
+            pick = rng.choice(m, size=count, replace=False)
+        else:
+            pick = self._region_samples(region, count, rng)
+        pick = np.sort(pick)
         sampled[pick] = True
         directions = self._view_directions(frontier_index[pick], frontier_world[pick], camera_origin,
                                            free, observed)
@@ -297,9 +341,26 @@ class GroundTruthGenerator:
         origins = np.ascontiguousarray(np.repeat(frontier_world[pick], len(self.yaw_offsets), axis=0))
         volumes = np.empty(len(origins), np.float64)
         frustum_volume(origins, rotations, self.gain_directions, float(self.camera.max_depth), self.gain_focal_px,
-                       box_origin, self.voxels.voxel_size, free, ~observed, volumes)  # V_out seen through free space
+                       box_origin, self.voxels.voxel_size, free, counted, volumes)  # V_out seen through free space
         sample_gain = volumes.reshape(len(pick), -1).max(axis=1)
-        return self._blend(frontier_world, pick, sample_gain), sampled
+        gain = self._blend(frontier_world, pick, sample_gain)
+        if region is not None:  # one gain per region: the largest measured in it
+            best = np.full(int(region.max()) + 1, -1.0)
+            np.maximum.at(best, region[pick], sample_gain)
+            gain = np.where(best[region] >= 0.0, best[region], gain)
+        return gain, sampled
+
+    @staticmethod
+    def _region_samples(region: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
+        """`count` distinct voxel indices: one random voxel of each connected region, the largest
+        regions first, then random others (regions beyond `count` take the blend of the nearest
+        samples)."""
+        sizes = np.bincount(region)
+        order = np.argsort(-sizes, kind="stable")[:count]
+        first = np.array([rng.choice(np.flatnonzero(region == r)) for r in order], np.int64)
+        rest = np.setdiff1d(np.arange(len(region)), first)
+        more = rng.choice(rest, size=min(count - len(first), len(rest)), replace=False)
+        return np.concatenate([first, more.astype(np.int64)])
 
     def _view_directions(self, index, world, camera_origin, free, observed) -> np.ndarray:
         """(S, 3) unit directions from observed towards unobserved free space around each voxel.

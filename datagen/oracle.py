@@ -33,16 +33,22 @@ class OraclePerception(Perception):
     Args:
         scene, voxels: the scene and its voxel grid (the explorer's).
         sim_conf: the sim config the explorer uses (its camera replaces datagen's).
+        run_conf: the run config; its ``ground_truth`` section (datagen's, settable per run:
+            ``ground_truth.gain.volume=occluded``) replaces the shipped one. None: the shipped one.
         seed: seed of the gain sampling (ground truth measures gain at a random subset of
             frontier voxels).
     """
 
     name = "oracle"
 
-    def __init__(self, scene, voxels, sim_conf=None, seed: int = 0) -> None:
+    def __init__(self, scene, voxels, sim_conf=None, run_conf=None, seed: int = 0) -> None:
+        from frontiernet.exploration.run import run_section
+
         conf = load_datagen_config()
         if sim_conf is not None:
             conf.camera = sim_conf.camera
+        if run_conf is not None:
+            conf.ground_truth = run_section(run_conf, "ground_truth")
         self.generator = GroundTruthGenerator(scene, voxels, conf)
         gt = conf.ground_truth
         self.labels = {"truncation_px": float(gt.truncation_px), "frontier_threshold_px": 0.5,
@@ -63,11 +69,11 @@ def _image_method(name: str, perception: Perception) -> Method:
 
 def oracle_uniform(model, scene, voxels, sim_conf, conf) -> Method:
     """``oracle-uniform``: ground-truth frontier pixels, uniform gain (a ``frontiernet.methods`` factory)."""
-    return _image_method("oracle-uniform", uniform_gain(OraclePerception(scene, voxels, sim_conf), conf))
+    return _image_method("oracle-uniform", uniform_gain(OraclePerception(scene, voxels, sim_conf, conf), conf))
 
 
 def frontiernet_oracle_gain(model, scene, voxels, sim_conf, conf) -> Method:
     """``frontiernet-oracle-gain``: the model's frontier pixels (`model`: its file, None = the
     shipped one), ground-truth gain classes (a ``frontiernet.methods`` factory)."""
     model_perception = make_perception("frontiernet", model, conf=conf)
-    return _image_method("frontiernet-oracle-gain", GainFrom(model_perception, OraclePerception(scene, voxels, sim_conf)))
+    return _image_method("frontiernet-oracle-gain", GainFrom(model_perception, OraclePerception(scene, voxels, sim_conf, conf)))

@@ -75,10 +75,12 @@ def test_distance_field_is_zero_on_F_and_grows_one_pixel_per_pixel(doorway):
     assert D[row, column - 15] == 10.0
 
 
-def test_doorway_gain_is_the_second_rooms_volume_seen_from_it(two_room_scene, two_room_voxels):
+@pytest.mark.parametrize("volume", ["unobserved", "occluded"])
+def test_doorway_gain_is_the_second_rooms_volume_seen_from_it(two_room_scene, two_room_voxels, volume):
     # seen at an angle, the door hides most of room B: its frontier voxels face +x
     camera, yaw = np.array([1.0, 0.6, 1.2]), np.arctan2(1.95 - 0.6, 2.0)
-    generator = GroundTruthGenerator(two_room_scene, two_room_voxels, load_datagen_config())
+    conf = load_datagen_config(overrides=[f"ground_truth.gain.volume={volume}"])
+    generator = GroundTruthGenerator(two_room_scene, two_room_voxels, conf)
     truth = generator(pose_from_heading(*camera, yaw=yaw), np.random.default_rng(0))
     voxels, gains = truth.frontier_voxels, truth.frontier_voxel_gain
     px0, px1 = TWO_ROOM["partition_x"]
@@ -110,6 +112,12 @@ def test_doorway_gain_is_the_second_rooms_volume_seen_from_it(two_room_scene, tw
         return inside & (cast_rays(two_room_scene, rays)["t_hit"] >= 0.999)
 
     unseen = ~seen(camera, rotation_from_yaw_pitch(yaw))
+    if volume == "occluded":  # ... and only what lies in the first camera's frustum (any depth)
+        cam = (points - camera) @ rotation_from_yaw_pitch(yaw)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u, v = K[0, 0] * cam[:, 0] / cam[:, 2] + K[0, 2], K[1, 1] * cam[:, 1] / cam[:, 2] + K[1, 2]
+        unseen &= (cam[:, 2] > conf.ground_truth.near_clip_m) & (u >= -0.5) & (u <= cam_.width - 0.5) \
+            & (v >= -0.5) & (v <= cam_.height - 0.5)
     best = max(np.sum(seen(voxel, rotation_from_yaw_pitch(np.deg2rad(heading))) & unseen) * volume_per_point
                for heading in range(-90, 91, 5))
     assert best > 5.0  # a good part of room B (29 m^3) is visible from the door
@@ -194,8 +202,57 @@ def test_distance_field_of_an_empty_mask_is_r_everywhere():
     ("ground_truth.frontier_connectivity=8", "frontier_connectivity"),
     ("ground_truth.r_ray_m=-1", "r_ray_m"),
     ("ground_truth.gain.label_region=everywhere", "label_region"),
+    ("ground_truth.gain.volume=behind", "ground_truth.gain.volume"),
+    ("ground_truth.gain.spread=smooth", "ground_truth.gain.spread"),
 ])
 def test_bad_ground_truth_settings_are_named(two_room_scene, two_room_voxels, override, message):
     with pytest.raises(InputError, match=message):
         generator = GroundTruthGenerator(two_room_scene, two_room_voxels, load_datagen_config(overrides=[override]))
         generator(pose_from_heading(*CAMERA, yaw=0.0), np.random.default_rng(0))
+
+
+def _angled_door_truth(scene, voxels, *overrides):
+    generator = GroundTruthGenerator(scene, voxels, load_datagen_config(overrides=list(overrides)))
+    return generator(pose_from_heading(1.0, 0.6, 1.2, yaw=np.arctan2(1.95 - 0.6, 2.0)), np.random.default_rng(0))
+
+
+def test_occluded_gain_is_the_part_of_the_unobserved_gain_in_view(two_room_scene, two_room_voxels):
+    unobserved = _angled_door_truth(two_room_scene, two_room_voxels)
+    occluded = _angled_door_truth(two_room_scene, two_room_voxels, "ground_truth.gain.volume=occluded")
+    # the same frontier voxels and samples (the definition changes no random draw)
+    np.testing.assert_array_equal(unobserved.frontier_voxels, occluded.frontier_voxels)
+    np.testing.assert_array_equal(unobserved.gain_sampled, occluded.gain_sampled)
+    sampled = unobserved.gain_sampled
+    a, b = unobserved.frontier_voxel_gain[sampled], occluded.frontier_voxel_gain[sampled]
+    assert np.all(b <= a + 1e-4)  # a subset of the counted voxels
+    assert np.any(b < a - 0.05)  # the parts of room A this view missed no longer count ...
+    assert b.max() > 5.0  # ... room B behind the door still does (its share: the Monte Carlo test above)
+
+
+def test_region_spread_gives_each_connected_frontier_one_gain(two_room_scene, two_room_voxels):
+    from scipy import ndimage
+
+    truth = _angled_door_truth(two_room_scene, two_room_voxels, "ground_truth.gain.spread=region")
+    voxels, gains = truth.frontier_voxels, truth.frontier_voxel_gain
+    grid = np.rint((voxels - voxels.min(0)) / 0.1).astype(int)
+    occupied = np.zeros(grid.max(0) + 1, bool)
+    occupied[tuple(grid.T)] = True
+    labelled, count = ndimage.label(occupied, ndimage.generate_binary_structure(3, 3))
+    region = labelled[tuple(grid.T)]
+    assert count >= 1
+    for r in range(1, count + 1):
+        inside = region == r
+        assert truth.gain_sampled[inside].any()  # every region is measured (fewer regions than samples)
+        assert np.allclose(gains[inside], gains[inside & truth.gain_sampled].max())
+    blended = _angled_door_truth(two_room_scene, two_room_voxels)
+    assert not np.allclose(blended.frontier_voxel_gain, gains)
+
+
+def test_default_gain_definition_keeps_the_dataset_hash():
+    from datagen.config import config_hash
+
+    conf = load_datagen_config()
+    bare = load_datagen_config()
+    del bare.ground_truth.gain["volume"], bare.ground_truth.gain["spread"]
+    assert config_hash(conf) == config_hash(bare)  # datasets made before the keys still resume
+    assert config_hash(load_datagen_config(overrides=["ground_truth.gain.spread=region"])) != config_hash(conf)

@@ -93,3 +93,19 @@ def test_gain_from_keeps_a_same_size_gain_as_it_is(door_frame, two_room_scene, t
     again = OraclePerception(two_room_scene, two_room_voxels, small_sim)(door_frame, door_frame.depth)
     np.testing.assert_array_equal(seen.gain_class, again.gain_class)
     np.testing.assert_array_equal(seen.distance_field, again.distance_field)
+
+
+def test_the_oracles_ground_truth_follows_the_run_config(two_room_scene, two_room_voxels, small_sim, door_frame):
+    from frontiernet.exploration.run import load_run_config
+
+    conf = load_run_config(overrides=["ground_truth.gain.volume=occluded", "ground_truth.gain.spread=region"])
+    oracle = make_method("oracle", None, two_room_scene, two_room_voxels, small_sim, conf).source.perception
+    assert (oracle.generator.gain_volume, oracle.generator.gain_spread) == ("occluded", "region")
+    uniform = hybrid("oracle-uniform", None, two_room_scene, two_room_voxels, small_sim, conf)
+    assert uniform.base.generator.gain_spread == "region"
+    shipped = make_method("oracle", None, two_room_scene, two_room_voxels, small_sim, load_run_config())
+    assert (shipped.source.perception.generator.gain_volume, shipped.source.perception.generator.gain_spread) \
+        == ("unobserved", "blend")
+    with pytest.raises(InputError, match="ground_truth.gain.volume"):
+        make_method("oracle", None, two_room_scene, two_room_voxels, small_sim,
+                    load_run_config(overrides=["ground_truth.gain.volume=behind"]))

@@ -9,7 +9,8 @@ at the perception's working size, which anchoring lifts to 3D frontiers.
 * :mod:`.ablations`: the paper's Fig. 9 ablations ``df-uniform``, ``discontinuity-gain`` and
   ``discontinuity-uniform`` (uniform gain, depth-discontinuity frontiers), built in.
 * Other perceptions register under the entry point group ``frontiernet.perception``
-  (``name = "module:Class"``, the class built as ``Class(scene, voxels, sim_conf)``), e.g.
+  (``name = "module:Class"``, the class built as ``Class(scene, voxels, sim_conf, conf)`` with the
+  run config `conf`), e.g.
   ``datagen``'s ``oracle``: ground-truth frontiers in place of the network, the upper bound
   the issue asks to report. The library never imports those packages.
 """
@@ -183,7 +184,7 @@ def make_perception(method: str, model=None, scene=None, voxels=None, sim_conf=N
         method: a name of :data:`BUILTIN_PERCEPTIONS` (``frontiernet``, ``df-uniform``,
             ``discontinuity-gain``, ``discontinuity-uniform``) or a plugin name (``oracle``).
         model: model file path or None (the shipped model) for the methods that run one.
-        scene, voxels, sim_conf: what plugins are built with.
+        scene, voxels, sim_conf: what plugins are built with (and `conf`).
         conf: the explore config (``configs/explore.yaml``; its ``ablations:`` section; None:
             the shipped one).
     Raises:
@@ -197,4 +198,4 @@ def make_perception(method: str, model=None, scene=None, voxels=None, sim_conf=N
     if method not in plugins:
         valid = ", ".join([*BUILTIN_PERCEPTIONS, *sorted(plugins)])
         raise InputError(f"unknown exploration method '{method}'; valid: {valid}")
-    return plugins[method].load()(scene, voxels, sim_conf)
+    return plugins[method].load()(scene, voxels, sim_conf, conf)

@@ -18,10 +18,19 @@ from ..geometry import parse_pose_text, pose_from_heading
 
 DEPTH_ALIASES = {"gt": "ground_truth"}
 
-RUN_SECTIONS = ("sim", "depth")
-"""Shipped configs a run's config holds as sections beside ``configs/explore.yaml``'s, so that
-``--config`` and ``key=value`` reach them (``sim.camera.max_depth=5``,
-``depth.emulated.fill_depth=20``)."""
+RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": ("datagen", "ground_truth")}
+"""Shipped config (file, section or None for all of it) a run's config holds as sections beside
+``configs/explore.yaml``'s, so that ``--config`` and ``key=value`` reach them (``sim.camera.max_depth=5``,
+``depth.emulated.fill_depth=20``, ``ground_truth.gain.volume=occluded``: the ground truth of the
+``oracle`` methods, datagen's labels)."""
+
+
+def shipped_section(section: str):
+    """The shipped config of run section `section` (a key of :data:`RUN_SECTIONS`)."""
+    from ..config import load_config
+
+    name, key = RUN_SECTIONS[section]
+    return load_config(name) if key is None else load_config(name)[key]
 
 
 def load_run_config(user_file=None, overrides=(), names=("explore",)):
@@ -39,18 +48,16 @@ def load_run_config(user_file=None, overrides=(), names=("explore",)):
     from ..config import load_config, merge_user
 
     conf = load_config(tuple(names))
-    sections = {section: load_config(section) for section in RUN_SECTIONS}
+    sections = {section: shipped_section(section) for section in RUN_SECTIONS}
     sections["depth"].pop("source")
     conf = OmegaConf.merge(conf, sections)
     return merge_user(conf, user_file, overrides)
 
 
 def run_section(conf, section: str):
-    """Section `section` (one of :data:`RUN_SECTIONS`) of a run config; the shipped file when the
+    """Section `section` (one of :data:`RUN_SECTIONS`) of a run config; the shipped one when the
     config has no such section (an ``explore.yaml``-only config)."""
-    from ..config import load_config
-
-    return conf[section] if section in conf else load_config(section)
+    return conf[section] if section in conf else shipped_section(section)
 
 
 def depth_source_name(depth: str | None, conf) -> str:
