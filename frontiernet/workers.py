@@ -1,23 +1,36 @@
-"""Parallel runs on this machine or a Ray cluster: checking the choice, and ending workers with their parent.
+"""Parallel runs on this machine or a Ray cluster: one runner, its checks, and ending workers with their parent.
 
-``frontiernet bench --scenes`` and ``frontiernet datagen`` run tasks in spawned worker processes
-(or Ray tasks). Both check ``--backend`` / ``--workers`` with :func:`check_backend` before they
-write anything, and run their pool inside :func:`process_pool`: when the parent is stopped (Ctrl-C,
-or SIGTERM to the parent alone, as ``kill PID`` sends) its workers are terminated with it. Left
-running they would go on, unseen, beside a resumed run (each datagen worker holds ~630 MB).
+``frontiernet bench --scenes`` and ``frontiernet datagen`` both run their tasks with
+:func:`run_parallel`: in the caller's process (one local worker), in spawned worker processes, or
+as Ray tasks. Both check ``--backend`` / ``--workers`` with :func:`check_backend` before they write
+anything. A task whose worker process dies (killed, out of memory) is run again on a new pool, a
+bounded number of times, then reported failed; one task's death never stops the others. When the
+parent is stopped (Ctrl-C, or SIGTERM to the parent alone, as ``kill PID`` sends) its workers are
+ended with it (:func:`process_pool`; Ray tasks are cancelled). Left running they would go on,
+unseen, beside a resumed run (each datagen worker holds ~630 MB).
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing
+import os
 import signal
 import threading
-from concurrent.futures import ProcessPoolExecutor
+from collections import deque
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any
 
 from .errors import InputError
 
+log = logging.getLogger(__name__)
+
 BACKENDS = ("local", "ray")
+POLL_S = 0.25
+"""Seconds between calls of :func:`run_parallel`'s `poll` while local worker processes run."""
 
 
 def import_ray():
@@ -84,4 +97,130 @@ def process_pool(workers: int, initializer=None, initargs=()):
     pool.shutdown(wait=True)
 
 
-__all__ = ["BACKENDS", "check_backend", "import_ray", "process_pool", "sigterm_as_interrupt", "terminate_workers"]
+def _times(count: int) -> str:
+    return {1: "once", 2: "twice"}.get(count, f"{count} times")
+
+
+def run_parallel(function: Callable, tasks: Sequence[tuple], *, backend: str = "local", workers: int = 1,
+                 on_result: Callable[[int, Any], None] | None = None, died: Callable[[int, str], Any],
+                 retries: int = 1, initializer: Callable | None = None, initargs: tuple = (),
+                 cpus_per_task: int = 1, poll: Callable[[], None] | None = None) -> list:
+    """``function(*task)`` for every task of `tasks`; the results in the order of `tasks`.
+
+    ``local`` with one worker runs the tasks one after the other in this process (no pool, no
+    retry, `initializer` not called: the caller sets up its own process). Otherwise at most
+    `workers` tasks run at once, each in a spawned process (``local``) or as a Ray task (``ray``,
+    :func:`import_ray`; connects to ``RAY_ADDRESS`` when set, else starts a local instance, which is
+    shut down after). `function` should return its failures as results: an exception it raises
+    ends the run (and its workers) here.
+
+    Args:
+        function: a picklable (module-level) function.
+        tasks: one tuple of picklable arguments per task.
+        on_result: called in this process with (task index, result) as each result arrives
+            (completion order), e.g. to advance a progress bar or record what is done for a resume.
+        died: (task index, one-line message) -> the result of a task whose worker died
+            ``retries + 1`` times (or whose Ray task failed); it is passed on like any result.
+        retries: reruns of a task whose worker process died while running it (a local pool breaks
+            as a whole: every task in flight in it is charged one attempt and rerun); Ray's
+            ``max_retries``.
+        initializer, initargs: run once in each spawned worker process (local backend).
+        cpus_per_task: CPUs a Ray task reserves.
+        poll: called in this process about every :data:`POLL_S` seconds while local worker
+            processes run, and once after (e.g. to read progress the workers send).
+    Raises:
+        KeyboardInterrupt: Ctrl-C, or SIGTERM to this process while workers run; every worker
+            process is terminated (every Ray task cancelled) first.
+    """
+    results: list = [None] * len(tasks)
+
+    def deliver(index: int, result) -> None:
+        results[index] = result
+        if on_result is not None:
+            on_result(index, result)
+
+    if backend == "ray":
+        _run_ray(function, tasks, workers, retries, cpus_per_task, deliver, died)
+    elif workers == 1:
+        for index, task in enumerate(tasks):
+            deliver(index, function(*task))
+    else:
+        _run_processes(function, tasks, workers, retries, initializer, initargs, deliver, died, poll)
+    return results
+
+
+def _run_processes(function, tasks, workers, retries, initializer, initargs, deliver, died, poll) -> None:
+    """:func:`run_parallel` on pools of spawned processes: a pool that breaks (a worker died) is
+    replaced, and its tasks in flight are rerun there until they have had ``1 + retries`` tries."""
+    attempts = [0] * len(tasks)
+    todo = deque(range(len(tasks)))
+    with sigterm_as_interrupt():  # (also between two pools)
+        while todo:
+            broken = []
+            with process_pool(min(workers, len(todo)), initializer, initargs) as pool:
+                running = {}
+                while running or (todo and not broken):
+                    while todo and not broken and len(running) < workers:
+                        index = todo.popleft()
+                        attempts[index] += 1
+                        running[pool.submit(function, *tasks[index])] = index
+                    done, _ = wait(running, timeout=POLL_S, return_when=FIRST_COMPLETED)
+                    if poll is not None:
+                        poll()
+                    for future in done:
+                        index = running.pop(future)
+                        try:
+                            result = future.result()
+                        except BrokenProcessPool:  # this pool's workers are gone (the broken pool ends them)
+                            broken.append(index)
+                            continue
+                        deliver(index, result)
+            retry = [index for index in broken if attempts[index] <= retries]
+            if broken:
+                log.warning("a worker process died; retrying %d task(s)", len(retry))
+            for index in broken:
+                if attempts[index] > retries:
+                    deliver(index, died(index, f"worker process died {_times(attempts[index])} "
+                                               "(killed or out of memory)"))
+            todo.extendleft(reversed(retry))
+        if poll is not None:
+            poll()
+
+
+def _run_ray(function, tasks, workers, retries, cpus_per_task, deliver, died) -> None:
+    """:func:`run_parallel` as Ray tasks, `workers` in flight; Ray reruns a task whose worker died."""
+    ray = import_ray()
+    started_here = not ray.is_initialized()
+    if started_here:
+        address = os.environ.get("RAY_ADDRESS")
+        ray.init(address=address or None, num_cpus=None if address else workers * cpus_per_task,
+                 include_dashboard=False, log_to_driver=False, configure_logging=False)
+    remote = ray.remote(num_cpus=cpus_per_task, max_retries=retries)(function)
+    todo = deque(range(len(tasks)))
+    running: dict = {}
+    try:
+        with sigterm_as_interrupt():
+            while todo or running:
+                while todo and len(running) < workers:
+                    index = todo.popleft()
+                    running[remote.remote(*tasks[index])] = index
+                done, _ = ray.wait(list(running), num_returns=1, timeout=1.0)
+                for ref in done:
+                    index = running.pop(ref)
+                    try:
+                        result = ray.get(ref)
+                    except Exception as error:  # the worker died `retries + 1` times, or Ray itself failed
+                        result = died(index, f"Ray task failed: {type(error).__name__}")
+                    deliver(index, result)
+    except BaseException:
+        for ref in running:
+            with contextlib.suppress(Exception):
+                ray.cancel(ref, force=True)
+        raise
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+__all__ = ["BACKENDS", "check_backend", "import_ray", "process_pool", "run_parallel", "sigterm_as_interrupt",
+           "terminate_workers"]

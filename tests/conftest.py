@@ -162,17 +162,18 @@ def _alive(pids: list[int]) -> list[int]:
     return [pid for pid in pids if (fields := _process_stat(pid)) is not None and fields[0] != "Z"]
 
 
-def check_sigterm_ends_workers(args: list[str], workers: int = 2) -> None:
-    """Run ``frontiernet ARGS`` until it has `workers` spawned worker processes, send SIGTERM to the
-    command's own process (as ``kill PID`` does), and check it exits 130 ("interrupted") and no
-    worker is left running. Linux only (reads /proc); kills whatever it started if a check fails."""
+def check_sigterm_ends_workers(args: list[str], workers: int = 2, *, command: list[str] | None = None) -> None:
+    """Run ``frontiernet ARGS`` (or `command`) until it has `workers` spawned worker processes, send
+    SIGTERM to the command's own process (as ``kill PID`` does), and check it exits 130
+    ("interrupted") and no worker is left running. Linux only (reads /proc); kills whatever it
+    started if a check fails."""
     import signal
     import subprocess
     import sys
     import time
 
-    process = subprocess.Popen([sys.executable, "-m", "frontiernet.cli.main", *args], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(command or [sys.executable, "-m", "frontiernet.cli.main", *args],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     found = []
     try:
         deadline = time.monotonic() + 240
