@@ -1,27 +1,30 @@
-"""Run shard tasks: in this process, on local worker processes, or as Ray tasks.
+"""Run shard tasks: in this process, on local worker processes, or as Ray tasks
+(:func:`frontiernet.workers.run_parallel`).
 
 Every backend runs the same function, :func:`run_shard_task`, which never raises: a
 failing scene comes back as a result with its error, so one bad scene never stops a run.
 A worker process that dies (killed, out of memory) costs the shards it was writing one
-retry; a second death marks them failed.
+retry; a second death marks them failed. On Ray (``--backend ray``) the run connects to the
+cluster named by ``RAY_ADDRESS`` (``ray start --head`` on one machine, ``ray start
+--address=...`` on the others), or starts a local Ray instance; every node must see the output
+folder (a shared file system) and the scene files at the same paths.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
 import queue
 import time
-from concurrent.futures import FIRST_COMPLETED, wait
-from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
 from frontiernet.simulator.raycast import select_backend
-from frontiernet.workers import check_backend, process_pool, sigterm_as_interrupt
+from frontiernet.workers import check_backend, run_parallel, sigterm_as_interrupt
 
 log = logging.getLogger(__name__)
 
@@ -124,10 +127,10 @@ def _init_worker(progress_queue, threads: int) -> None:
 
 
 class _Bar:
-    """A rich progress bar counting views (views/s shown), or nothing when disabled."""
+    """A rich progress bar counting views (views/s shown) and failed shards, or nothing when disabled."""
 
     def __init__(self, total: int, enabled: bool) -> None:
-        self.progress = None
+        self.progress, self.failed = None, 0
         if enabled:
             from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
                                        TimeRemainingColumn)
@@ -139,13 +142,14 @@ class _Bar:
             self.start = time.perf_counter()
             self.progress.start()
 
-    def advance(self, views: int = 1, failed: int = 0) -> None:
+    def advance(self, views: int = 1) -> None:
         if self.progress is None:
             return
         self.progress.advance(self.task, views)
         done = self.progress.tasks[0].completed
         rate = done / max(time.perf_counter() - self.start, 1e-9)
-        self.progress.update(self.task, rate=f"{rate:.2f}", failed=f"{failed} failed shard(s)" if failed else "")
+        failed = f"{self.failed} failed shard(s)" if self.failed else ""
+        self.progress.update(self.task, rate=f"{rate:.2f}", failed=failed)
 
     def close(self) -> None:
         if self.progress is not None:
@@ -154,19 +158,27 @@ class _Bar:
 
 def run_tasks(tasks: list[dict], conf_dict: dict, info: dict, *, backend: str = "local", workers: int = 1,
               progress: bool = True, total_views: int = 0) -> list[dict]:
-    """Run shard tasks on a backend; returns one result per task (in completion order)."""
+    """Run shard tasks with :func:`frontiernet.workers.run_parallel`; one result per task, in the
+    order of `tasks`. The progress bar counts views as the workers make them (as shards finish on
+    Ray); a shard whose worker process died twice comes back failed."""
     check_backend(backend, workers)
     if not tasks:
         return []
     bar = _Bar(total_views, progress)
-    try:
-        if backend == "ray":
-            from .ray_backend import run_on_ray
 
-            return run_on_ray(tasks, conf_dict, info, workers, bar)
-        if workers == 1:
-            return _run_inline(tasks, conf_dict, info, bar)
-        return _run_processes(tasks, conf_dict, info, workers, bar)
+    def on_result(index: int, result: dict) -> None:
+        bar.failed += not result["ok"]
+        bar.advance(tasks[index]["num_views"] if backend == "ray" else 0)  # (else the views came by the channel)
+
+    def died(index: int, error: str) -> dict:
+        return {"task": os.path.basename(tasks[index]["path"]), "spec": tasks[index]["spec"], "ok": False,
+                "error": error, "seconds": 0.0}
+
+    try:
+        with _view_channel(backend, workers, bar) as (initializer, initargs, poll):
+            return run_parallel(run_shard_task, [(task, conf_dict, info) for task in tasks], backend=backend,
+                                workers=workers, on_result=on_result, died=died, retries=MAX_ATTEMPTS - 1,
+                                initializer=initializer, initargs=initargs, poll=poll)
     finally:
         bar.close()
 
@@ -181,64 +193,33 @@ class _BarQueue:
         self.bar.advance(item)
 
 
-def _run_inline(tasks, conf_dict, info, bar: _Bar) -> list[dict]:
+@contextlib.contextmanager
+def _view_channel(backend: str, workers: int, bar: _Bar):
+    """How views made reach `bar`: yields (worker initializer, its arguments, poll) for
+    :func:`~frontiernet.workers.run_parallel`. Shards in this process put into the bar directly;
+    worker processes into a queue of a spawned manager process (which survives a worker killed
+    mid-put), read by poll; Ray tasks send nothing (the bar advances by shard)."""
     global _PROGRESS
-    _PROGRESS = _BarQueue(bar)
-    try:
-        return [run_shard_task(task, conf_dict, info) for task in tasks]
-    finally:
-        _PROGRESS = None
-
-
-def _run_processes(tasks, conf_dict, info, workers: int, bar: _Bar) -> list[dict]:
-    """Run on a pool of spawned processes; restart the pool when a worker dies. When the run is
-    stopped (Ctrl-C, or SIGTERM to this process alone) the workers and the progress queue's
-    manager end with it (:func:`frontiernet.workers.process_pool`)."""
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    attempts = {task["path"]: 0 for task in tasks}
-    results: list[dict] = []
-    remaining = list(tasks)
-    failed = 0
-    with sigterm_as_interrupt():
-        manager = multiprocessing.get_context("spawn").Manager()
+    if backend == "ray":
+        yield None, (), None
+    elif workers == 1:
+        _PROGRESS = _BarQueue(bar)
         try:
-            progress_queue = manager.Queue()
-            while remaining:
-                with process_pool(min(workers, len(remaining)), _init_worker, (progress_queue, threads)) as pool:
-                    pending = {}
-                    for task in remaining:
-                        attempts[task["path"]] += 1
-                        pending[pool.submit(run_shard_task, task, conf_dict, info)] = task
-                    remaining = []
-                    while pending:
-                        done, _ = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
-                        _drain(progress_queue, bar, failed)
-                        for future in done:
-                            task = pending.pop(future)
-                            try:
-                                result = future.result()
-                            except BrokenProcessPool:
-                                remaining.append(task)
-                                continue
-                            results.append(result)
-                            failed += not result["ok"]
-                retry = [task for task in remaining if attempts[task["path"]] < MAX_ATTEMPTS]
-                for task in remaining:
-                    if attempts[task["path"]] >= MAX_ATTEMPTS:
-                        results.append({"task": os.path.basename(task["path"]), "spec": task["spec"], "ok": False,
-                                        "error": "worker process died twice (killed or out of memory)",
-                                        "seconds": 0.0})
-                        failed += 1
-                if remaining:
-                    log.warning("a worker process died; retrying %d shard(s)", len(retry))
-                remaining = retry
-            _drain(progress_queue, bar, failed)
+            yield None, (), None
         finally:
-            manager.shutdown()
-    return results
+            _PROGRESS = None
+    else:
+        with sigterm_as_interrupt():  # a stop while the manager starts ends it too
+            manager = multiprocessing.get_context("spawn").Manager()
+            try:
+                progress_queue = manager.Queue()
+                threads = max(1, (os.cpu_count() or 1) // workers)
+                yield _init_worker, (progress_queue, threads), lambda: _drain(progress_queue, bar)
+            finally:
+                manager.shutdown()
 
 
-def _drain(progress_queue, bar: _Bar, failed: int) -> None:
+def _drain(progress_queue, bar: _Bar) -> None:
     count = 0
     try:
         while True:
@@ -246,4 +227,4 @@ def _drain(progress_queue, bar: _Bar, failed: int) -> None:
     except (queue.Empty, EOFError, OSError):
         pass
     if count:
-        bar.advance(count, failed)
+        bar.advance(count)
