@@ -502,3 +502,38 @@ def test_stopping_the_benchmark_with_sigterm_ends_its_workers(plan_spec, tmp_pat
     workers running their explorations unseen beside the resumed benchmark."""
     check_sigterm_ends_workers(["bench", "--scenes", plan_spec, "--methods", "classic", "--starts", "2", "--repeats",
                                 "1", "--max-steps", "2000", "--workers", "2", "--out", str(tmp_path / "bench")])
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads worker processes from Linux's /proc")
+def test_a_run_whose_worker_is_killed_is_run_again_and_the_benchmark_completes(plan_spec, tmp_path):
+    """A worker killed mid-run (out of memory, `kill -9`) costs its runs one more try, not a failed row."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from conftest import _alive, _spawned_children
+
+    out = tmp_path / "bench"
+    process = subprocess.Popen([sys.executable, "-m", "frontiernet.cli.main", "bench", "--scenes", plan_spec,
+                                "--methods", "classic", "--starts", "2", "--repeats", "1", "--max-steps", "20",
+                                "--workers", "2", "--out", str(out)], stderr=subprocess.PIPE, text=True)
+    found = []
+    try:
+        deadline = time.monotonic() + 120
+        while len(found := _spawned_children(process.pid)) < 2 and time.monotonic() < deadline:
+            assert process.poll() is None, process.communicate()[1][-2000:]
+            time.sleep(0.1)
+        assert len(found) >= 2, "the benchmark started no workers"
+        os.kill(found[-1], signal.SIGKILL)  # (its runs have not ended yet: a worker's imports alone take seconds)
+        _, stderr = process.communicate(timeout=300)
+    finally:  # a failed check leaves nothing running
+        if process.poll() is None:
+            process.kill()
+        for pid in _alive(found):
+            os.kill(pid, signal.SIGKILL)
+    assert process.returncode == 0, stderr[-2000:]
+    assert "a worker process died; retrying" in stderr
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert [row["status"] for row in rows] == ["done", "done"], rows

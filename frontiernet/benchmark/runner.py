@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
-from ..workers import BACKENDS, check_backend, import_ray, process_pool
+from ..workers import BACKENDS, check_backend, run_parallel
 from .store import FinishedRuns, read_metrics
 
 log = logging.getLogger(__name__)
@@ -147,8 +147,11 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
     Args:
         workers: parallel runs (local processes, or Ray tasks in flight); each gets
             ``cores // workers`` threads (at least 1).
-        backend: ``local`` (processes on this machine) or ``ray`` (a Ray cluster: ``ray.init()``
-            connects to ``RAY_ADDRESS`` when set; needs the ``ray`` extra).
+        backend: ``local`` (processes on this machine) or ``ray`` (a Ray cluster: connects to
+            ``RAY_ADDRESS`` when set; needs the ``ray`` extra).
+
+    Runs go through :func:`frontiernet.workers.run_parallel`: a run whose worker process dies is
+    run once more, then its row is failed; Ctrl-C or SIGTERM ends every worker.
     """
     workers = check_backend(backend, workers)
     every = [{**run.as_dict(), "key": run.key} for run in runs]
@@ -160,54 +163,12 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
             done[task["key"]] = row
     tasks = [task for task in every if not task["copy_of"] and task["key"] not in done]
     settings = {**settings, "threads": max(1, (os.cpu_count() or 1) // workers)}
-    rows: list = [None] * len(tasks)
     with _Progress(len(tasks), progress) as bar:
-        if backend == "ray":
-            _run_ray(tasks, settings, workers, rows, bar)
-        elif workers == 1:
-            for index, task in enumerate(tasks):
-                rows[index] = run_one(task, settings)
-                bar.advance(rows[index])
-        else:
-            _run_processes(tasks, settings, workers, rows, bar)
+        rows = run_parallel(run_one, [(task, settings) for task in tasks], backend=backend, workers=workers,
+                            on_result=lambda index, row: bar.advance(row),
+                            died=lambda index, error: _row(tasks[index], "failed", error=error),
+                            cpus_per_task=settings["threads"])
     return with_copies(every, {**done, **{row["key"]: row for row in rows}})
-
-
-def _run_processes(tasks, settings, workers, rows, bar) -> None:
-    """Runs `tasks` in `workers` spawned processes; when the benchmark is stopped (Ctrl-C, or
-    SIGTERM to this process alone) the workers end with it (:func:`frontiernet.workers.process_pool`)."""
-    from concurrent.futures import as_completed
-
-    with process_pool(workers) as pool:
-        futures = {pool.submit(run_one, task, settings): index for index, task in enumerate(tasks)}
-        for future in as_completed(futures):
-            index = futures[future]
-            try:
-                rows[index] = future.result()
-            except Exception as error:  # a worker that died (killed, out of memory)
-                rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
-            bar.advance(rows[index])
-
-
-def _run_ray(tasks, settings, workers, rows, bar) -> None:
-    ray = import_ray()
-    ray.init(ignore_reinit_error=True, log_to_driver=False)
-    remote = ray.remote(num_cpus=settings["threads"])(run_one)
-    pending, index_of, next_task = [], {}, 0
-    while next_task < len(tasks) or pending:
-        while next_task < len(tasks) and len(pending) < workers:
-            ref = remote.remote(tasks[next_task], settings)
-            index_of[ref] = next_task
-            pending.append(ref)
-            next_task += 1
-        done, pending = ray.wait(pending, num_returns=1)
-        for ref in done:
-            index = index_of.pop(ref)
-            try:
-                rows[index] = ray.get(ref)
-            except Exception as error:  # the task's worker died
-                rows[index] = _row(tasks[index], "failed", error=f"worker died: {type(error).__name__}: {error}")
-            bar.advance(rows[index])
 
 
 class _Progress:
