@@ -15,7 +15,7 @@ import numpy as np
 
 from frontiernet.errors import InputError, positive_number
 
-from .labels import distance_field
+from .labels import distance_field, gain_definition
 from .shards import (DEFAULT_TRUNCATION_PX, INFO_NAME, MASK_NAMES, SHARDS_DIR, DatasetError,
                      _corrupt, read_dataset_info, read_shard_meta)
 
@@ -91,6 +91,13 @@ class FrontierDataset:
 
     def __len__(self) -> int:
         return len(self._locations)
+
+    @property
+    def gain_definition(self) -> str:
+        """The definition its gain labels were made with (``config.ground_truth.gain`` of
+        dataset.json; :func:`~frontiernet.frontiers.gain.gain_definition`, the default when absent)."""
+        ground_truth = (self.info.get("config") or {}).get("ground_truth") or {}
+        return gain_definition(ground_truth.get("gain") or {})
 
     def __getitem__(self, index: int) -> dict:
         index = operator.index(index)

@@ -46,7 +46,7 @@ from frontiernet.mapping.traversal import frustum_volume, mark_traversed
 from frontiernet.simulator.camera import Frame, PinholeCamera, Renderer
 from frontiernet.simulator.voxels import VoxelGrid
 
-from .labels import discontinuity_mask, distance_field, gain_classes
+from .labels import discontinuity_mask, distance_field, gain_classes, gain_definition
 from .traversal import max_gain_near_rays
 
 
@@ -92,28 +92,6 @@ class GroundTruth:
         return {"rgb": self.rgb, "depth": self.depth, "frontier_mask": self.frontier_mask,
                 "frontier_projected": self.frontier_projected, "discontinuity": self.discontinuity,
                 "gain": self.gain, "gain_class": self.gain_class}
-
-
-GAIN_VOLUMES = ("unobserved", "occluded")
-GAIN_SPREADS = ("blend", "region")
-DEFAULT_GAIN_DEFINITION = "unobserved/blend"
-"""The gain definition of datasets and model files that do not name one (made before the choice)."""
-
-
-def gain_definition(gain_conf) -> str:
-    """The gain label's definition, ``"<volume>/<spread>"``, of a ``ground_truth.gain`` section
-    (keys absent: :data:`DEFAULT_GAIN_DEFINITION`'s); InputError naming the key for an unknown value.
-
-    ``volume``: ``unobserved`` (every V_out voxel the gain view sees) | ``occluded`` (only those
-    inside the labelled view's frustum); ``spread``: ``blend`` (inverse-distance blend of the
-    nearest measured voxels) | ``region`` (the largest gain measured in each connected region).
-    """
-    volume, spread = str(gain_conf.get("volume", "unobserved")), str(gain_conf.get("spread", "blend"))
-    if volume not in GAIN_VOLUMES:
-        raise InputError(f"ground_truth.gain.volume must be one of {', '.join(GAIN_VOLUMES)}, got {volume!r}")
-    if spread not in GAIN_SPREADS:
-        raise InputError(f"ground_truth.gain.spread must be one of {', '.join(GAIN_SPREADS)}, got {spread!r}")
-    return f"{volume}/{spread}"
 
 
 def _bounding_slices(mask: np.ndarray, margin: int) -> tuple[slice, ...]:

@@ -14,6 +14,6 @@ from __future__ import annotations
 # The label helpers live in the library (anchoring decodes what datagen encodes, the Fig. 9
 # ablations take F_d and D of the robot's depth); re-exported.
 from frontiernet.frontiers.discontinuity import discontinuity_mask, distance_field
-from frontiernet.frontiers.gain import class_lower_bounds, gain_classes
+from frontiernet.frontiers.gain import class_lower_bounds, gain_classes, gain_definition
 
-__all__ = ["class_lower_bounds", "discontinuity_mask", "distance_field", "gain_classes"]
+__all__ = ["class_lower_bounds", "discontinuity_mask", "distance_field", "gain_classes", "gain_definition"]

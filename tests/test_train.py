@@ -196,6 +196,7 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
         assert (run / name).is_file(), name
     model, conf = load_model(run / "model.safetensors")
     assert conf["info"]["val_scenes"] and conf["info"]["train_scenes"] == 2
+    assert conf["labels"]["gain_definition"] == "unobserved/blend"  # the dataset's, recorded
     # the final weights are validated too (epoch 6 is not a validation epoch of the tiny config)
     with open(run / "metrics.csv") as handle:
         validated = [int(row["step"]) for row in csv.DictReader(handle) if row.get("val/loss")]
@@ -306,3 +307,26 @@ def test_bad_training_input_is_one_line_exit_2(tmp_path, capsys, one_line_error)
     assert "none.ckpt: model file not found" in one_line_error()
     assert main(["train", "--config", str(tmp_path / "nope.yaml"), f"data.path={empty}"]) == 2
     assert "nope.yaml: config file not found" in one_line_error()
+
+
+@pytest.mark.slow
+def test_a_model_and_a_dataset_of_other_gain_definitions_are_refused(tiny_dataset, tmp_path, one_line_error):
+    import json
+    import shutil
+
+    other = tmp_path / "occluded"  # the same views, labelled (say) with datagen's occluded gain volume
+    shutil.copytree(tiny_dataset, other, ignore=shutil.ignore_patterns("cache"))
+    info = json.loads((other / "dataset.json").read_text())
+    info["config"]["ground_truth"]["gain"]["volume"] = "occluded"
+    (other / "dataset.json").write_text(json.dumps(info))
+    args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress", f"data.path={other}",
+            f"out={tmp_path}", "trainer.max_epochs=1"]
+    assert main(args + ["name=a", "model.labels.gain_definition=unobserved/blend"]) == 2
+    assert "model.labels.gain_definition: unobserved/blend" in one_line_error()
+    assert main(args + ["name=b", "init_weights=default"]) == 2  # the shipped model: made before, unobserved/blend
+    assert "init_weights: default was trained on gain definition unobserved/blend" in one_line_error()
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists() and not (other / "cache").exists()
+    from frontiernet.model.checkpoint import default_model_path
+
+    assert main(["evaluate", str(default_model_path()), "--data", str(other), "--all", "--max-samples", "2"]) == 2
+    assert "holds gain labels of definition occluded/blend" in one_line_error()

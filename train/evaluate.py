@@ -16,6 +16,7 @@ from torch.utils.data import DataLoader
 
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
+from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.model import load_model
 
 from .data import TrainingSamples, open_training_data
@@ -43,6 +44,11 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
     """
     model, conf = load_model(model_path)
     dataset = open_training_data(data)
+    trained_on = labels_gain_definition(conf["labels"])
+    if trained_on != dataset.gain_definition:
+        raise InputError(f"{data}: holds gain labels of definition {dataset.gain_definition}, but the model "
+                         f"({model_path or 'shipped'}) was trained on {trained_on}; its gain Dice would compare "
+                         f"other volumes")
     recorded = list(conf.get("info", {}).get("val_scenes") or [])
     if scenes:
         chosen = list(scenes)

@@ -31,11 +31,12 @@ from lightning.fabric.utilities.exceptions import MisconfigurationException
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
+from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.io import write_json
 from frontiernet.model import FrontierNet, load_model, save_model
 
 from .config import plain
-from .data import FrontierDataModule
+from .data import FrontierDataModule, open_training_data
 from .module import FrontierNetModule, check_schedule
 
 log = logging.getLogger(__name__)
@@ -76,16 +77,34 @@ def _trainer_args(trainer_conf) -> dict:
     return {key: trainer_conf[key] for key in keys}
 
 
-def _initial_weights(conf) -> FrontierNet | None:
-    """The model of ``conf.init_weights`` (None when unset); its network config replaces
-    ``conf.model.network`` in place, so the run trains (and records) that architecture."""
+def _initial_weights(conf) -> tuple[FrontierNet | None, dict]:
+    """The model of ``conf.init_weights`` and its file's ``labels`` ((None, {}) when unset); its
+    network config replaces ``conf.model.network`` in place, so the run trains (and records) that
+    architecture."""
     source = conf.get("init_weights")
     if not source:
-        return None
+        return None, {}
     model, file_conf = load_model(None if str(source) == "default" else source)
     conf.model.network = OmegaConf.create({**file_conf["network"], "pretrained": None})
     log.info("starting from the weights of %s (%s/%s)", source, model.config.encoder, model.config.inputs)
-    return model
+    return model, dict(file_conf["labels"])
+
+
+def resolve_gain_definition(conf, dataset_definition: str, init_labels: dict) -> None:
+    """Set ``conf.model.labels.gain_definition`` to the dataset's gain definition (the model file
+    records what it learned); InputError when the config names another one, or when the
+    ``init_weights`` model was trained on another (its labels would mean other volumes)."""
+    path = conf.data.path
+    named = conf.model.labels.get("gain_definition")
+    if named and str(named) != dataset_definition:
+        raise InputError(f"model.labels.gain_definition: {named}, but {path} holds gain labels of definition "
+                         f"{dataset_definition} (datagen ground_truth.gain.volume/spread); set it to "
+                         f"{dataset_definition} or null, or train on a dataset made with {named}")
+    if init_labels and labels_gain_definition(init_labels) != dataset_definition:
+        raise InputError(f"init_weights: {conf.init_weights} was trained on gain definition "
+                         f"{labels_gain_definition(init_labels)}, but {path} holds {dataset_definition} labels; "
+                         f"start from a model of that definition or without init_weights")
+    conf.model.labels.gain_definition = dataset_definition
 
 
 def check_loop_settings(conf, train_samples: int) -> None:
@@ -146,7 +165,9 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
     if resume is not None:
         _check_checkpoint(resume)
-    init = _initial_weights(conf) if resume is None else None
+    init, init_labels = _initial_weights(conf) if resume is None else (None, {})
+    if conf.data.path:  # (unset: the data module says so)
+        resolve_gain_definition(conf, open_training_data(conf.data.path).gain_definition, init_labels)
     datamodule = FrontierDataModule(conf, progress)
     datamodule.setup()
     check_loop_settings(conf, len(datamodule.train_set))

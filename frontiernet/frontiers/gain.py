@@ -16,6 +16,35 @@ from ..errors import InputError
 
 GAIN_DECODINGS = ("lower_bound", "midpoint")
 
+GAIN_VOLUMES = ("unobserved", "occluded")
+GAIN_SPREADS = ("blend", "region")
+DEFAULT_GAIN_DEFINITION = "unobserved/blend"
+"""The gain definition of datasets and model files that do not name one (made before the choice)."""
+
+
+def gain_definition(gain_conf) -> str:
+    """The gain label's definition, ``"<volume>/<spread>"``, of datagen's ``ground_truth.gain`` section
+    (a dict or DictConfig; keys absent: :data:`DEFAULT_GAIN_DEFINITION`'s); InputError naming the key
+    for an unknown value. Datagen computes labels by it (``datagen.ground_truth``); a model file
+    records the definition it was trained on as ``labels.gain_definition``.
+
+    ``volume``: ``unobserved`` (every V_out voxel the gain view sees) | ``occluded`` (only those
+    inside the labelled view's frustum); ``spread``: ``blend`` (inverse-distance blend of the
+    nearest measured voxels) | ``region`` (the largest gain measured in each connected region).
+    """
+    volume, spread = str(gain_conf.get("volume", "unobserved")), str(gain_conf.get("spread", "blend"))
+    if volume not in GAIN_VOLUMES:
+        raise InputError(f"ground_truth.gain.volume must be one of {', '.join(GAIN_VOLUMES)}, got {volume!r}")
+    if spread not in GAIN_SPREADS:
+        raise InputError(f"ground_truth.gain.spread must be one of {', '.join(GAIN_SPREADS)}, got {spread!r}")
+    return f"{volume}/{spread}"
+
+
+def labels_gain_definition(labels) -> str:
+    """The gain definition a model's ``labels`` record (``gain_definition``; absent or None: a
+    model trained before the choice, :data:`DEFAULT_GAIN_DEFINITION`)."""
+    return str(labels.get("gain_definition") or DEFAULT_GAIN_DEFINITION)
+
 
 def _edges_m3(bin_edges, bin_unit_m3: float) -> np.ndarray:
     """(K,) float64 class upper bounds in m^3; InputError unless K >= 2, finite, increasing."""
