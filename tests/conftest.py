@@ -78,10 +78,10 @@ def two_room_scene() -> Scene:
 
 @pytest.fixture(scope="session")
 def two_room_voxels(two_room_scene):
-    """The two-room scene voxelised with the default config."""
+    """The two-room scene voxelised with the shipped config."""
     from frontiernet.simulator.voxels import voxelize_scene
 
-    return voxelize_scene(two_room_scene)
+    return voxelize_scene(two_room_scene, sim_section("voxels"))
 
 
 @pytest.fixture(scope="session")
@@ -104,6 +104,15 @@ def explore_section(name: str, **changes) -> dict:
     conf = dict(load_config("explore")[name])
     conf.update(changes)
     return conf
+
+
+def sim_section(name: str, **changes):
+    """A section of ``configs/sim.yaml`` (DictConfig), with `changes` merged on top."""
+    from omegaconf import OmegaConf
+
+    from frontiernet.config import load_config
+
+    return OmegaConf.merge(load_config("sim")[name], changes)
 
 
 def floorplan_spec(folder: Path, name: str, plan: np.ndarray) -> str:

@@ -4,20 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
 
-from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading, rotation_angle
 from frontiernet.simulator.agent import Agent, StepCounter
 from frontiernet.simulator.poses import check_pose, height_above_surface, sample_poses, sample_poses_detailed
 from frontiernet.simulator.raycast import distance_to_surface
 
-from conftest import box_scene, room_boxes
+from conftest import box_scene, room_boxes, sim_section
+
+AGENT = sim_section("agent")
 
 
 def _poses_conf(**changes):
-    return OmegaConf.merge(load_config("sim").poses, changes)
+    return sim_section("poses", **changes)
 
 
 # ----------------------------------------------------------------------------- poses
@@ -43,12 +43,12 @@ def test_sampled_poses_respect_height_clearance_and_free_space(two_room_scene, t
 
 
 def test_pose_sampling_is_deterministic_per_seed(two_room_scene, two_room_voxels):
-    a = sample_poses(two_room_scene, two_room_voxels, 20, 3)
-    b = sample_poses(two_room_scene, two_room_voxels, 20, np.random.default_rng(3))
-    c = sample_poses(two_room_scene, two_room_voxels, 20, 4)
+    a = sample_poses(two_room_scene, two_room_voxels, 20, 3, _poses_conf())
+    b = sample_poses(two_room_scene, two_room_voxels, 20, np.random.default_rng(3), _poses_conf())
+    c = sample_poses(two_room_scene, two_room_voxels, 20, 4, _poses_conf())
     assert np.array_equal(a, b)
     assert not np.allclose(a, c)
-    assert sample_poses(two_room_scene, two_room_voxels, 0, 3).shape == (0, 4, 4)
+    assert sample_poses(two_room_scene, two_room_voxels, 0, 3, _poses_conf()).shape == (0, 4, 4)
 
 
 def test_impossible_pose_sampling_is_an_input_error(two_room_scene, two_room_voxels):
@@ -56,23 +56,23 @@ def test_impossible_pose_sampling_is_an_input_error(two_room_scene, two_room_vox
     with pytest.raises(InputError, match="found only 0 of 5 valid camera poses"):
         sample_poses(two_room_scene, two_room_voxels, 5, 0, conf)
     with pytest.raises(InputError, match="seed"):
-        sample_poses(two_room_scene, two_room_voxels, 5, "x")
+        sample_poses(two_room_scene, two_room_voxels, 5, "x", _poses_conf())
     with pytest.raises(InputError, match="height_range_m"):
         sample_poses(two_room_scene, two_room_voxels, 5, 0, _poses_conf(height_range_m=[2.0, 1.0]))
 
 
 def test_check_pose_accepts_free_space_and_names_bad_poses(two_room_scene, two_room_voxels):
     good = pose_from_heading(1.0, 1.0, 1.2, 0.3)
-    assert np.allclose(check_pose(two_room_scene, two_room_voxels, good), [1.0, 1.0, 1.2])
-    assert np.allclose(check_pose(two_room_scene, two_room_voxels, np.array([5.0, 3.0, 1.0])), [5.0, 3.0, 1.0])
+    assert np.allclose(check_pose(two_room_scene, two_room_voxels, good, _poses_conf()), [1.0, 1.0, 1.2])
+    assert np.allclose(check_pose(two_room_scene, two_room_voxels, np.array([5.0, 3.0, 1.0]), _poses_conf()), [5.0, 3.0, 1.0])
     with pytest.raises(InputError, match=r"pose outside the scene.*\(20\.000, 1\.000, 1\.200\)"):
-        check_pose(two_room_scene, two_room_voxels, pose_from_heading(20.0, 1.0, 1.2, 0.0))
+        check_pose(two_room_scene, two_room_voxels, pose_from_heading(20.0, 1.0, 1.2, 0.0), _poses_conf())
     with pytest.raises(InputError, match=r"pose inside an obstacle.*\(3\.000, 0\.500, 1\.000\)"):
-        check_pose(two_room_scene, two_room_voxels, np.array([3.0, 0.5, 1.0]))  # in the partition
+        check_pose(two_room_scene, two_room_voxels, np.array([3.0, 0.5, 1.0]), _poses_conf())  # in the partition
     with pytest.raises(InputError, match=r"pose inside an obstacle.*0\.010 m from the mesh"):
-        check_pose(two_room_scene, two_room_voxels, np.array([0.01, 2.0, 1.0]))  # touching a wall
+        check_pose(two_room_scene, two_room_voxels, np.array([0.01, 2.0, 1.0]), _poses_conf())  # touching a wall
     with pytest.raises(InputError, match="rigid"):
-        check_pose(two_room_scene, two_room_voxels, np.eye(4) * 2)
+        check_pose(two_room_scene, two_room_voxels, np.eye(4) * 2, _poses_conf())
 
 
 def test_check_pose_outside_the_building_within_bounds():
@@ -82,9 +82,9 @@ def test_check_pose_outside_the_building_within_bounds():
     scene = box_scene(lower, upper, "room-on-ground")
     from frontiernet.simulator.voxels import voxelize_scene
 
-    voxels = voxelize_scene(scene)
+    voxels = voxelize_scene(scene, sim_section("voxels"))
     with pytest.raises(InputError, match=r"pose outside the scene.*outside the building"):
-        check_pose(scene, voxels, np.array([8.0, 8.0, 1.0]))
+        check_pose(scene, voxels, np.array([8.0, 8.0, 1.0]), _poses_conf())
 
 
 # ----------------------------------------------------------------------------- steps
@@ -105,17 +105,17 @@ def test_step_counter_rotation_rule_and_geodesic_angle():
     assert counter.update(pose_from_heading(0, 0, 1, 0, np.deg2rad(11)))  # pitch counts too
     assert not counter.update(pose_from_heading(0.06, 0.06, 1, 0, np.deg2rad(11)))  # 0.085 m
     assert counter.count_path([pose_from_heading(0.3 * i, 0, 1, 0) for i in range(5)]) == 5
-    counter = StepCounter()  # no start pose: the first update only sets the reference
+    counter = StepCounter(0.1, np.deg2rad(10))  # no start pose: the first update only sets the reference
     assert not counter.update(pose_from_heading(5, 5, 1, 1))
     with pytest.raises(InputError, match="positive"):
-        StepCounter(0.0)
+        StepCounter(0.0, np.deg2rad(10))
 
 
 # ----------------------------------------------------------------------------- agent
 
 
 def test_free_move_reaches_target_and_counts_a_step(two_room_scene, two_room_voxels):
-    agent = Agent(two_room_scene, pose_from_heading(1.0, 1.0, 1.2, 0.0), voxels=two_room_voxels)
+    agent = Agent(two_room_scene, pose_from_heading(1.0, 1.0, 1.2, 0.0), AGENT, voxels=two_room_voxels)
     target = pose_from_heading(2.0, 3.0, 1.4, np.pi / 2, 0.1)
     result = agent.move_to(target)
     assert result.reached and not result.collided and not result.left_free_space
@@ -129,9 +129,8 @@ def test_free_move_reaches_target_and_counts_a_step(two_room_scene, two_room_vox
 
 
 def test_move_into_a_wall_stops_before_it(two_room_scene):
-    conf = load_config("sim").agent
-    radius = float(conf.radius_m)
-    agent = Agent(two_room_scene, pose_from_heading(1.5, 0.5, 1.2, 0.0))
+    radius = float(AGENT.radius_m)
+    agent = Agent(two_room_scene, pose_from_heading(1.5, 0.5, 1.2, 0.0), AGENT)
     target = pose_from_heading(4.5, 0.5, 1.2, np.pi)  # through the partition at x = 2.9
     result = agent.move_to(target)
     assert result.collided and not result.reached
@@ -155,7 +154,7 @@ def test_long_move_never_passes_through_a_thin_wall():
     lower.append((4.0, 0.0, 0.0))
     upper.append((4.01, 4.0, 2.5))  # a 1 cm sheet across the room
     scene = box_scene(lower, upper, "thin-sheet")
-    agent = Agent(scene, pose_from_heading(1.0, 2.0, 1.2, 0.0))
+    agent = Agent(scene, pose_from_heading(1.0, 2.0, 1.2, 0.0), AGENT)
     result = agent.move_to(pose_from_heading(7.0, 2.0, 1.2, 0.0))
     assert result.collided and result.T_world_cam[0, 3] < 4.0
     samples = np.linspace(1.0, result.T_world_cam[0, 3], 400)
@@ -168,15 +167,15 @@ def test_agent_leaving_free_space_is_stopped():
     scene = box_scene(lower, upper, "open-top")
     from frontiernet.simulator.voxels import voxelize_scene
 
-    voxels = voxelize_scene(scene)
-    agent = Agent(scene, pose_from_heading(1.5, 1.5, 1.2, 0.0), voxels=voxels)
+    voxels = voxelize_scene(scene, sim_section("voxels"))
+    agent = Agent(scene, pose_from_heading(1.5, 1.5, 1.2, 0.0), AGENT, voxels=voxels)
     result = agent.move_to(pose_from_heading(1.5, 1.5, 6.0, 0.0))  # straight up out of the room
     assert result.left_free_space and not result.collided and not result.reached
     assert voxels.is_explorable(result.T_world_cam[None, :3, 3]).all()
 
 
 def test_agent_steps_follow_the_paper_rule(two_room_scene):
-    agent = Agent(two_room_scene, pose_from_heading(1.0, 2.0, 1.2, 0.0))
+    agent = Agent(two_room_scene, pose_from_heading(1.0, 2.0, 1.2, 0.0), AGENT)
     moves = [agent.move_to(pose_from_heading(1.0 + 0.05 * i, 2.0, 1.2, 0.0)) for i in range(1, 10)]
     assert [m.steps_added for m in moves] == [0, 0, 1] * 3
     turns = [agent.move_to(pose_from_heading(1.45, 2.0, 1.2, np.deg2rad(5 * i))) for i in range(1, 7)]
@@ -186,16 +185,15 @@ def test_agent_steps_follow_the_paper_rule(two_room_scene):
 
 def test_bad_agent_inputs_are_input_errors(two_room_scene):
     with pytest.raises(InputError, match=r"start pose inside an obstacle.*\[0\.05, 2\.0, 1\.2\]"):
-        Agent(two_room_scene, pose_from_heading(0.05, 2.0, 1.2, 0.0))
-    agent = Agent(two_room_scene, pose_from_heading(1.0, 2.0, 1.2, 0.0))
+        Agent(two_room_scene, pose_from_heading(0.05, 2.0, 1.2, 0.0), AGENT)
+    agent = Agent(two_room_scene, pose_from_heading(1.0, 2.0, 1.2, 0.0), AGENT)
     with pytest.raises(InputError, match="target pose"):
         agent.move_to(np.eye(3))
-    conf = OmegaConf.merge(load_config("sim").agent, {"radius_m": -1})
     with pytest.raises(InputError, match="radius_m.*-1"):
-        Agent(two_room_scene, pose_from_heading(1.0, 2.0, 1.2, 0.0), conf)
+        Agent(two_room_scene, pose_from_heading(1.0, 2.0, 1.2, 0.0), sim_section("agent", radius_m=-1))
 
 
 def test_check_pose_accepts_a_camera_close_to_a_wall(two_room_scene, two_room_voxels):
     # 4 cm from the wall: in an occupied voxel, but on the free side of the surface
     for position in ([0.04, 2.0, 1.0], [2.86, 0.5, 1.0], [3.14, 0.5, 1.0], [1.0, 1.0, 2.46]):
-        assert np.allclose(check_pose(two_room_scene, two_room_voxels, np.array(position)), position)
+        assert np.allclose(check_pose(two_room_scene, two_room_voxels, np.array(position), _poses_conf()), position)

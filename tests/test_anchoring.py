@@ -261,7 +261,7 @@ def doorway_frontiers():
     gt_conf = load_datagen_config(overrides=["camera.max_depth=6.0", "camera.width=240", "camera.height=240",
                                              "camera.focal_px=150"])
     pose = pose_from_heading(1.0, 1.95, 1.2, yaw=0.0)
-    truth = GroundTruthGenerator(scene, voxelize_scene(scene), gt_conf)(pose, np.random.default_rng(0))
+    truth = GroundTruthGenerator(scene, voxelize_scene(scene, gt_conf.voxels), gt_conf)(pose, np.random.default_rng(0))
     gain = gt_conf.ground_truth.gain
     labels = {"bin_edges": list(gain.bin_edges), "bin_unit_m3": float(gain.bin_unit_m3), "frontier_threshold_px": 0.5}
     frontiers = anchor_prediction(truth.distance_field, truth.gain_class, truth.depth, truth.K, pose,

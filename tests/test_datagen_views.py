@@ -118,7 +118,7 @@ def test_trajectory_two_storeys(confs):
     from frontiernet.simulator.voxels import voxelize_scene
 
     scene = load_scene("procedural:3?floors=2")
-    voxels = voxelize_scene(scene)
+    voxels = voxelize_scene(scene, load_config("sim").voxels)
     T = sample_trajectory_poses(scene, voxels, 200, np.random.default_rng(1), *confs)
     p = T[:, :3, 3]
     assert voxels.is_explorable(p).all()

@@ -94,7 +94,7 @@ def test_shop_of_the_issue_is_explorable_and_explore_can_start():
     assert new.explorable_volume_m3 == pytest.approx(interior, rel=0.10)
     middle = np.array([7.5, 7.0, 1.2])
     assert new.is_explorable(middle[None]).all()
-    check_pose(scene, new, middle)  # render's check: not "outside the building"
+    check_pose(scene, new, middle, load_config("sim").poses)  # render's check: not "outside the building"
     conf = load_run_config()
     with pytest.raises(InputError, match="no free space at camera height"):  # the issue's explore
         start_sampler(scene, old, conf)[1](np.random.default_rng(0))

@@ -138,7 +138,7 @@ def test_big_room_behind_a_door_has_more_gain_than_a_closet():
     gains = []
     for depth in (5.0, 0.8):
         scene = scene_with_room_behind(depth)
-        generator = GroundTruthGenerator(scene, voxelize_scene(scene), conf)
+        generator = GroundTruthGenerator(scene, voxelize_scene(scene, conf.voxels), conf)
         truth = generator(pose_from_heading(1.2, 1.95, 1.2, yaw=0.0), np.random.default_rng(0))
         assert truth.frontier_mask.any()
         gains.append(float(np.median(truth.gain[truth.frontier_mask])))
@@ -149,7 +149,8 @@ def test_big_room_behind_a_door_has_more_gain_than_a_closet():
 
 def test_closed_room_seen_whole_has_no_frontier_pixels():
     scene = box_scene(*room_boxes(3.0, 3.0, 2.5), "closed-room")
-    generator = GroundTruthGenerator(scene, voxelize_scene(scene), load_datagen_config())
+    conf = load_datagen_config()
+    generator = GroundTruthGenerator(scene, voxelize_scene(scene, conf.voxels), conf)
     truth = generator(pose_from_heading(0.4, 1.5, 1.2, yaw=0.0, pitch=-0.1), np.random.default_rng(0))
     assert np.isfinite(truth.depth).all()  # every wall within range
     assert not truth.frontier_mask.any()

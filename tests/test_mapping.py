@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import box_scene, room_boxes
+from conftest import box_scene, room_boxes, sim_section
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading
@@ -74,7 +74,7 @@ def test_one_frame_free_to_the_wall_occupied_wall_unknown_behind(renderer):
 
 
 def test_map_agrees_with_the_scene_voxels(room, renderer):
-    voxels = voxelize_scene(room)
+    voxels = voxelize_scene(room, sim_section("voxels"))
     occupancy = OccupancyMap.like(voxels, map_conf())
     for T in surround_poses()[::2]:
         frame = renderer.render(T)
@@ -164,7 +164,7 @@ def test_visible_known_volume(room, renderer):
     T = np.stack([pose_from_heading(*CAMERA, yaw=0.0), pose_from_heading(2.0, 1.0, 1.0, yaw=2.0)])
     empty = OccupancyMap.from_bounds(BOUNDS, map_conf())
     np.testing.assert_array_equal(empty.visible_known_volume(T, *args), [0.0, 0.0])
-    voxels = voxelize_scene(room)
+    voxels = voxelize_scene(room, sim_section("voxels"))
     occupancy = OccupancyMap.like(voxels, map_conf())
     for pose in surround_poses():
         frame = renderer.render(pose)

@@ -36,7 +36,7 @@ def engine():
 def rays_from_free_space(scene, n: int, seed: int) -> np.ndarray:
     """(n, 6) float32 rays from explorable voxel centres in random directions of length 0.5-2 m,
     and a quarter from above the roof looking up (they hit nothing)."""
-    voxels = voxelize_scene(scene)
+    voxels = voxelize_scene(scene, load_config("sim").voxels)
     rng = np.random.default_rng(seed)
     cells = rng.choice(np.flatnonzero(voxels.explorable), n)
     origins = voxels.index_to_world(np.stack(np.unravel_index(cells, voxels.shape), axis=1))

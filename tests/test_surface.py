@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import box_scene, explore_section, room_boxes
+from conftest import box_scene, explore_section, room_boxes, sim_section
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.exploration.surface import SurfaceCoverage, coverage_auc, even_surface_samples
@@ -28,7 +28,7 @@ def surface_conf(**changes) -> dict:
 def room():
     lower, upper = room_boxes(*ROOM, wall=0.25)
     scene = box_scene(lower, upper, "surface-room")
-    voxels = voxelize_scene(scene)
+    voxels = voxelize_scene(scene, sim_section("voxels"))
     return scene, voxels, SurfaceCoverage(scene, surface_conf(), seed=0, voxels=voxels), Renderer(scene, SMALL)
 
 
@@ -85,11 +85,6 @@ def test_samples_are_evenly_spaced_and_deterministic(room):
 
     spacing, _ = cKDTree(points).query(points, k=2)  # Poisson disk: no two samples close together
     assert spacing[:, 1].min() > 0.5 * np.sqrt(float(scene.triangle_areas().sum()) / (5 * 2000))
-
-
-def test_without_voxels_it_voxelises_the_scene(room):
-    scene, _, surface, _ = room
-    np.testing.assert_array_equal(SurfaceCoverage(scene, surface_conf(), seed=0).points, surface.points)
 
 
 # -- coverage and Chamfer -------------------------------------------------------------------------------
@@ -173,7 +168,7 @@ def test_auc_of_constant_ramp_and_early_stop():
 def test_bad_config_raises_input_error(room, changes, named):
     scene, voxels, _, _ = room
     with pytest.raises(InputError, match=named):
-        SurfaceCoverage(scene, surface_conf(**changes), voxels=voxels)
+        SurfaceCoverage(scene, surface_conf(**changes), seed=0, voxels=voxels)
 
 
 def test_bad_inputs_raise_input_error(room):
@@ -181,7 +176,7 @@ def test_bad_inputs_raise_input_error(room):
     conf = surface_conf()
     del conf["tolerance_voxels"]
     with pytest.raises(InputError, match="tolerance_voxels"):
-        SurfaceCoverage(scene, conf, voxels=voxels)
+        SurfaceCoverage(scene, conf, seed=0, voxels=voxels)
     with pytest.raises(InputError, match="seed"):
         SurfaceCoverage(scene, surface_conf(), seed=-1, voxels=voxels)
     with pytest.raises(InputError, match="coverage_map must be an OccupancyMap"):
@@ -203,7 +198,8 @@ def test_shared_house(shared_data):
     if not path.is_file():
         pytest.skip(f"{path} not found")
     scene = load_scene(str(path))
-    surface = SurfaceCoverage(scene, load_config("explore"), seed=0)
+    surface = SurfaceCoverage(scene, load_config("explore"), seed=0,
+                              voxels=voxelize_scene(scene, sim_section("voxels")))
     assert surface.num_sampled == 20000 and 0.5 * 20000 < surface.num_samples < 0.95 * 20000
     voxels_conf = load_config("explore").map
     assert surface.covered_fraction(OccupancyMap.from_bounds(scene.bounds, voxels_conf)) == 0.0

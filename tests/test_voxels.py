@@ -86,7 +86,7 @@ def test_open_door_to_outside_ground_keeps_inside_only():
     lower, upper = room_boxes(4.0, 4.0, 2.5, door=(1.5, 2.4))
     lower.append((-8, -8, -0.3))  # ground plane around the house
     upper.append((12, 12, -0.2))
-    grid = voxelize_scene(box_scene(lower, upper, "door-to-outside"))
+    grid = voxelize_scene(box_scene(lower, upper, "door-to-outside"), _conf())
     assert grid.is_explorable(np.array([[2.0, 2.0, 1.0], [3.8, 1.9, 1.0], [0.2, 0.2, 2.3]])).all()
     outside = np.array([[6.0, 2.0, 1.0], [4.6, 1.9, 1.0], [-5.0, -5.0, 0.5], [10.0, 10.0, 2.5]])
     assert not grid.is_explorable(outside).any()
@@ -95,7 +95,7 @@ def test_open_door_to_outside_ground_keeps_inside_only():
 
 def test_room_without_ceiling_still_has_an_interior():
     lower, upper = room_boxes(3.0, 3.0, 2.5, ceiling=False)
-    grid = voxelize_scene(box_scene(lower, upper, "no-ceiling"))
+    grid = voxelize_scene(box_scene(lower, upper, "no-ceiling"), _conf())
     assert grid.is_explorable(np.array([[1.5, 1.5, 2.0]])).all()
     assert grid.explorable_volume_m3 == pytest.approx(3 * 3 * 2.5, rel=0.15)
 
@@ -119,7 +119,7 @@ def test_bad_voxel_size_is_an_input_error(two_room_scene, value):
 def test_scene_without_interior_is_an_input_error():
     plane = box_scene([(0, 0, -0.1)], [(5, 5, 0)], "ground-only")
     with pytest.raises(InputError, match="no explorable free space"):
-        voxelize_scene(plane)
+        voxelize_scene(plane, _conf())
 
 
 def test_too_many_voxels_is_an_input_error(two_room_scene):
@@ -129,7 +129,7 @@ def test_too_many_voxels_is_an_input_error(two_room_scene):
 
 def test_house_without_ceiling_has_a_plausible_interior(shared_data):
     scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"))
-    grid = voxelize_scene(scene)
+    grid = voxelize_scene(scene, _conf())
     # 19 x 11.4 m x 3 m = 650 m^3 footprint box, minus walls, furniture and the outside notches
     assert 380 < grid.explorable_volume_m3 < 620
     living = np.array([[-4.5, -0.5, 1.2], [-4.5, -0.5, 0.5], [0.0, 0.0, 2.5], [5.0, 0.0, 1.2]])
@@ -141,7 +141,7 @@ def test_house_without_ceiling_has_a_plausible_interior(shared_data):
 def test_kth_plan_interior_is_explorable(shared_data):
     folder = shared_data / "floorplans" / "kth" / "50052750"
     scene = load_scene(f"floorplan:{folder}")
-    grid = voxelize_scene(scene)
+    grid = voxelize_scene(scene, _conf())
     plan_shape = tuple(scene.metadata.extra["plan_shape"])
     starts = json.loads((folder / "start_poses.json").read_text())["start_poses"]
     rows, cols = np.array([s["raw_pixel_row_col"] for s in starts]).T

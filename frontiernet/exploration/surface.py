@@ -49,12 +49,8 @@ class SurfaceSettings:
     completeness_threshold_m: float
 
     @classmethod
-    def from_config(cls, conf=None) -> SurfaceSettings:
-        """From the section, or a whole explore config holding it; the shipped one when None."""
-        if conf is None:
-            from ..config import load_config
-
-            conf = load_config("explore")
+    def from_config(cls, conf) -> SurfaceSettings:
+        """From the section, or a whole explore config holding it."""
         if isinstance(conf, SurfaceSettings):
             return conf
         conf = conf.get("surface", conf)
@@ -91,11 +87,10 @@ class SurfaceCoverage:
 
     Args:
         scene: a :class:`~frontiernet.scenes.Scene` (world frame, Z-up, metres).
-        conf: the ``surface`` section of ``configs/explore.yaml`` (or the whole config); the
-            shipped one when None.
-        seed: seeds the sampling (non-negative integer).
-        voxels: the scene's :class:`~frontiernet.simulator.voxels.VoxelGrid`, for the explorable
-            filter; voxelised with ``configs/sim.yaml`` when None.
+        conf: the ``surface`` section of ``configs/explore.yaml`` (or the whole config).
+        seed: seeds the sampling (non-negative integer; a run's ``surface.seed``).
+        voxels: the scene's :class:`~frontiernet.simulator.voxels.VoxelGrid` (the run's), for the
+            explorable filter.
     Attributes:
         points: (P, 3) float64 world metres, the kept samples (read-only); num_sampled: the
             number drawn on the whole mesh before the explorable filter.
@@ -103,12 +98,8 @@ class SurfaceCoverage:
         InputError: a bad config value or seed; no sample near the explorable volume.
     """
 
-    def __init__(self, scene, conf=None, seed: int = 0, *, voxels=None) -> None:
+    def __init__(self, scene, conf, seed: int, *, voxels) -> None:
         self.settings = SurfaceSettings.from_config(conf)
-        if voxels is None:
-            from ..simulator.voxels import voxelize_scene
-
-            voxels = voxelize_scene(scene)
         points = even_surface_samples(scene.vertices, scene.triangles, self.settings.num_points, seed)
         self.num_sampled = len(points)
         # metres from each voxel centre to the nearest explorable one; a sample takes the least over

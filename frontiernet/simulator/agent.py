@@ -40,12 +40,8 @@ if TYPE_CHECKING:
 _TOL = 1e-9  # poses exactly at a threshold (0.05 + 0.05 m) do not count as a step
 
 
-def agent_config(conf: "DictConfig | None") -> "DictConfig":
-    """The ``agent`` section from `conf` (a whole sim config or the section), default when None."""
-    if conf is None:
-        from ..config import load_config
-
-        conf = load_config("sim")
+def agent_config(conf: "DictConfig") -> "DictConfig":
+    """The ``agent`` section from `conf` (a whole sim config or the section)."""
     return conf["agent"] if "agent" in conf else conf
 
 
@@ -69,8 +65,7 @@ class StepCounter:
             when None the first :meth:`update` only sets the reference.
     """
 
-    def __init__(self, translation_m: float = 0.1, rotation_rad: float = np.deg2rad(10.0),
-                 T_start: np.ndarray | None = None) -> None:
+    def __init__(self, translation_m: float, rotation_rad: float, T_start: np.ndarray | None = None) -> None:
         if not (translation_m > 0 and rotation_rad > 0):
             raise InputError(f"step thresholds must be positive, got {translation_m} m and {rotation_rad} rad")
         self.translation_m = float(translation_m)
@@ -79,8 +74,9 @@ class StepCounter:
         self.reference = None if T_start is None else np.asarray(T_start, np.float64).copy()
 
     @classmethod
-    def from_config(cls, conf: "DictConfig | None" = None, T_start: np.ndarray | None = None) -> "StepCounter":
-        """Thresholds from the ``agent`` section (``step_translation_m``, ``step_rotation_deg``)."""
+    def from_config(cls, conf: "DictConfig", T_start: np.ndarray | None = None) -> "StepCounter":
+        """Thresholds from the ``agent`` section (``step_translation_m``, ``step_rotation_deg``) of
+        ``configs/sim.yaml`` (or the whole sim config)."""
         conf = agent_config(conf)
         return cls(float(conf.step_translation_m), float(np.deg2rad(conf.step_rotation_deg)), T_start)
 
@@ -155,7 +151,7 @@ class Agent:
         InputError: bad config values or a start pose inside an obstacle.
     """
 
-    def __init__(self, scene: "Scene", T_start: np.ndarray, conf: "DictConfig | None" = None,
+    def __init__(self, scene: "Scene", T_start: np.ndarray, conf: "DictConfig",
                  voxels: VoxelGrid | None = None) -> None:
         conf = agent_config(conf)
         self.scene, self.voxels = scene, voxels

@@ -50,12 +50,8 @@ class SampledPoses:
     clearances: np.ndarray
 
 
-def poses_config(conf: "DictConfig | None") -> "DictConfig":
-    """The ``poses`` section from `conf` (a whole sim config or the section), default when None."""
-    if conf is None:
-        from ..config import load_config
-
-        conf = load_config("sim")
+def poses_config(conf: "DictConfig") -> "DictConfig":
+    """The ``poses`` section from `conf` (a whole sim config or the section)."""
     return conf["poses"] if "poses" in conf else conf
 
 
@@ -80,7 +76,7 @@ def height_above_surface(scene: "Scene", positions: np.ndarray) -> np.ndarray:
 
 
 def sample_poses_detailed(scene: "Scene", voxels: VoxelGrid, n: int, rng_or_seed,
-                          conf: "DictConfig | None" = None) -> SampledPoses:
+                          conf: "DictConfig") -> SampledPoses:
     """Sample `n` valid camera poses (see module docstring); deterministic per seed.
 
     Args:
@@ -146,8 +142,7 @@ def sample_poses_detailed(scene: "Scene", voxels: VoxelGrid, n: int, rng_or_seed
                         heights=rows[:, 5].copy(), clearances=rows[:, 6].copy())
 
 
-def sample_poses(scene: "Scene", voxels: VoxelGrid, n: int, rng_or_seed,
-                 conf: "DictConfig | None" = None) -> np.ndarray:
+def sample_poses(scene: "Scene", voxels: VoxelGrid, n: int, rng_or_seed, conf: "DictConfig") -> np.ndarray:
     """(n, 4, 4) float64 ``T_world_cam`` of valid camera poses; see :func:`sample_poses_detailed`."""
     return sample_poses_detailed(scene, voxels, n, rng_or_seed, conf).T_world_cam
 
@@ -175,20 +170,19 @@ def _reaches_explorable(scene: "Scene", voxels: VoxelGrid, position: np.ndarray)
     return bool((cast_rays(scene, rays)["t_hit"] > 1.0).any())  # t in units of the segment length
 
 
-def check_pose(scene: "Scene", voxels: VoxelGrid | None, pose: np.ndarray, clearance: float | None = None,
-               conf: "DictConfig | None" = None) -> np.ndarray:
+def check_pose(scene: "Scene", voxels: VoxelGrid | None, pose: np.ndarray, conf: "DictConfig") -> np.ndarray:
     """Check that a camera pose is usable in `scene`; return its (3,) float64 position.
 
     Args:
         scene: the scene.
         voxels: its voxel grid, or None to skip the explorable-volume check.
         pose: (4, 4) ``T_world_cam`` (a rigid transform) or a (3,) position, world metres.
-        clearance: minimum distance (metres) to the mesh; ``poses.render_clearance_m``
-            when None.
+        conf: the ``poses`` section of ``configs/sim.yaml`` (or the whole sim config): the
+            camera keeps ``render_clearance_m`` (metres) from the mesh.
     Raises:
         InputError: a malformed pose; "pose outside the scene" (outside the scene's
             bounds, or outside the building); "pose inside an obstacle" (closer than
-            `clearance` to the mesh, or inside a wall or closed object).
+            ``render_clearance_m`` to the mesh, or inside a wall or closed object).
     """
     arr = np.asarray(pose, np.float64)
     if arr.shape == (4, 4):
@@ -203,8 +197,7 @@ def check_pose(scene: "Scene", voxels: VoxelGrid | None, pose: np.ndarray, clear
         raise InputError(f"pose must be a 4x4 T_world_cam or an (x, y, z) position, got shape {arr.shape}")
     if not np.isfinite(position).all():
         raise InputError(f"pose position must be finite, got {position.tolist()}")
-    if clearance is None:
-        clearance = float(poses_config(conf).render_clearance_m)
+    clearance = float(poses_config(conf).render_clearance_m)
     lo, hi = scene.bounds
     if np.any(position < lo - 1e-6) or np.any(position > hi + 1e-6):
         raise InputError(f"pose outside the scene: camera position {_fmt(position)} m is outside the bounds of "

@@ -159,12 +159,8 @@ EXPLORABLE_RULES = ("reachable", "enclosed")
 (module docstring) that the published benchmark used."""
 
 
-def voxels_config(conf: "DictConfig | None") -> "DictConfig":
-    """The ``voxels`` section from `conf` (a whole sim config or the section), default when None."""
-    if conf is None:
-        from ..config import load_config
-
-        conf = load_config("sim")
+def voxels_config(conf: "DictConfig") -> "DictConfig":
+    """The ``voxels`` section from `conf` (a whole sim config or the section)."""
     return conf["voxels"] if "voxels" in conf else conf
 
 
@@ -172,13 +168,13 @@ def _positive(conf, key: str, *, allow_zero: bool = False) -> float:
     return positive_number(conf[key], f"voxels.{key}", "metres", allow_zero=allow_zero)
 
 
-def voxelize_scene(scene: "Scene", conf: "DictConfig | None" = None) -> VoxelGrid:
+def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
     """Voxelise `scene` into occupied / explorable / outside voxels (see module docstring).
 
     Args:
         scene: a :class:`~frontiernet.scenes.Scene` (world frame, Z-up, metres).
-        conf: the ``voxels`` section of ``configs/sim.yaml`` (or the whole sim config);
-            loaded when None.
+        conf: the ``voxels`` section of ``configs/sim.yaml`` (or the whole sim config), as
+            the run resolved it.
     Returns:
         A :class:`VoxelGrid` whose lateral extent is the scene bounds plus
         ``lateral_margin_m`` and whose z-range is the scene bounds.

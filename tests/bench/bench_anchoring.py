@@ -56,7 +56,8 @@ def baseline(depth: np.ndarray, mask: np.ndarray) -> None:
 def predicted_views(scene_spec: str, views: int, seed: int) -> list[dict]:
     """Rendered views with the shipped model's outputs: depth, D, gain classes, K, pose."""
     scene = load_scene(scene_spec)
-    poses = sample_poses(scene, voxelize_scene(scene), views, seed)
+    sim = load_config("sim")
+    poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), views, seed, sim.poses)
     renderer = Renderer(scene, PinholeCamera(SIZE, SIZE, FOCAL, FOCAL, (SIZE - 1) / 2, (SIZE - 1) / 2, MAX_DEPTH))
     predictor = Predictor(threads=2)
     out = []
