@@ -12,6 +12,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from frontiernet.config import load_config
 from frontiernet.depth import SOURCES, make_depth_source
 from frontiernet.errors import InputError
 
@@ -43,8 +44,6 @@ def test_unknown_source_lists_valid_names():
 
 
 def test_whole_config_with_overrides_builds_named_source():
-    from frontiernet.config import load_config
-
     conf = load_config("depth", overrides=["source=emulated", "emulated.scale_sigma=0.3"])
     source = make_depth_source(conf)
     assert source.name == "emulated" and source.scale_sigma == 0.3
@@ -202,7 +201,7 @@ def test_emulated_far_wall_is_far_and_leaves_no_phantom_wall_in_the_map():
     assert far[centre] > 5.0  # far, wrong by the error model
 
     def phantom_voxels(depth) -> int:  # occupied voxels in the corridor's open middle, away from walls
-        occupancy = OccupancyMap.from_bounds(np.array([[-0.5, -0.5, -0.5], [10.5, 2.5, 3.0]]))
+        occupancy = OccupancyMap.from_bounds(np.array([[-0.5, -0.5, -0.5], [10.5, 2.5, 3.0]]), load_config("explore").map)
         occupancy.integrate(depth, frame.K, T)
         centres = occupancy.index_to_world(np.argwhere(occupancy.occupied_mask()))
         middle = (np.abs(centres[:, 1] - 1.0) < 0.6) & (centres[:, 2] > 0.5) & (centres[:, 2] < 2.0)

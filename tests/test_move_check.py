@@ -74,7 +74,7 @@ def test_an_unseen_wall_end_beside_a_move_is_looked_at_before_the_move(pillar):
 
 
 def test_nearest_unknown_in_disk_is_the_nearest_unobserved_cell_of_the_layer():
-    occupancy = OccupancyMap.from_bounds(np.array([[-0.45] * 3, [4.45, 3.45, 2.95]]))
+    occupancy = OccupancyMap.from_bounds(np.array([[-0.45] * 3, [4.45, 3.45, 2.95]]), load_config("explore").map)
     scene = room_scene(False)
     renderer = Renderer(scene, SMALL)
     T = pose_from_heading(1.0, 1.5, 1.2, yaw=0.0)  # looks along +x: everything behind x = 1 is unknown

@@ -27,14 +27,10 @@ class MapSettings:
     invalid_depth: str
 
     @classmethod
-    def from_config(cls, conf=None) -> MapSettings:
-        """From the ``map`` section (DictConfig or dict), a whole explore config, or None (defaults)."""
+    def from_config(cls, conf) -> MapSettings:
+        """From the ``map`` section (DictConfig or dict) or a whole explore config."""
         if isinstance(conf, MapSettings):
             return conf
-        if conf is None:
-            from ..config import load_config
-
-            conf = load_config("explore")
         conf = conf.get("map", conf)
         try:
             values = {key: conf[key] for key in cls.__dataclass_fields__}

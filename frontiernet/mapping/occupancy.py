@@ -46,7 +46,7 @@ class OccupancyMap:
         origin: (3,) float64 world position (metres) of the corner of voxel (0, 0, 0).
         shape: (X, Y, Z) number of voxels per axis.
         conf: the ``map`` section of ``configs/explore.yaml`` (DictConfig, dict or
-            :class:`MapSettings`); the shipped defaults when None.
+            :class:`MapSettings`).
     Raises:
         InputError: a bad origin, shape or config value.
     """
@@ -57,7 +57,7 @@ class OccupancyMap:
     in_grid = VoxelGrid.in_grid
     bounds = VoxelGrid.bounds
 
-    def __init__(self, origin: np.ndarray, shape: tuple[int, int, int], conf=None) -> None:
+    def __init__(self, origin: np.ndarray, shape: tuple[int, int, int], conf) -> None:
         self.settings = MapSettings.from_config(conf)
         self.origin = np.asarray(origin, np.float64)
         if self.origin.shape != (3,) or not np.all(np.isfinite(self.origin)):
@@ -73,7 +73,7 @@ class OccupancyMap:
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
-    def like(cls, voxels: VoxelGrid, conf=None) -> OccupancyMap:
+    def like(cls, voxels: VoxelGrid, conf) -> OccupancyMap:
         """An empty map over the same grid (origin, voxel size, shape) as a scene's `voxels`.
 
         Raises:
@@ -86,7 +86,7 @@ class OccupancyMap:
         return cls(voxels.origin, voxels.shape, settings)
 
     @classmethod
-    def from_bounds(cls, bounds: np.ndarray, conf=None) -> OccupancyMap:
+    def from_bounds(cls, bounds: np.ndarray, conf) -> OccupancyMap:
         """An empty map covering `bounds`, (2, 3) float64 world [min, max] corners in metres
         (the upper side is rounded up to whole voxels)."""
         settings = MapSettings.from_config(conf)
@@ -403,7 +403,7 @@ class OccupancyMap:
             from ..simulator.camera import PinholeCamera
 
             centre = (width - 1) / 2.0
-            camera = PinholeCamera(width, width, focal, focal, centre, centre)
+            camera = PinholeCamera(width, width, focal, focal, centre, centre, np.inf)  # directions only: no range
             self._view_directions[key] = camera.ray_directions().reshape(-1, 3).astype(np.float64)
         return self._view_directions[key]
 
