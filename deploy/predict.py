@@ -17,7 +17,7 @@ from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import intrinsics_matrix
 from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
-from frontiernet.model.inputs import beyond_range_invalid, fill_invalid_nearest, resize_and_crop
+from frontiernet.model.inputs import beyond_range_invalid, fill_invalid_nearest
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 from frontiernet.sequences.images import read_depth, read_rgb
 from frontiernet.sequences.single import LEVEL_FRAME, frame_frontiers
@@ -40,7 +40,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         intrinsics: (fx, fy, cx, cy) pixels of the image: also anchor the frontier pixels to 3D
             frontiers and write ``frontiers.json`` (:mod:`frontiernet.sequences.single`; needs depth).
     Returns:
-        The arrays (see :meth:`frontiernet.model.Runtime.predict_at_size`), with ``frontiers``
+        The arrays (see :meth:`frontiernet.model.Runtime.predict_frame`), with ``frontiers``
         when `intrinsics` were given.
     """
     if model is None:  # the shipped model that takes what was given: RGB + depth, or an RGB photo alone
@@ -63,13 +63,11 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     if depth_m is not None:  # as the simulated sensor the network learnt from: nothing beyond its range
         depth_m = fill_invalid_nearest(depth_m) if fill_invalid else depth_m
         depth_m = np.nan_to_num(beyond_range_invalid(depth_m, runtime.conf["input"]["max_depth_m"]), nan=0.0)
-    size = runtime.conf["inference"]["size"] if size is None else size
     K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
     if rgb is not None and depth_m is not None and rgb.shape[:2] != depth_m.shape:
         raise InputError(f"{depth}: depth map is {depth_m.shape[1]} x {depth_m.shape[0]} but the image is "
                          f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
-    rgb_in, depth_in, K = resize_and_crop(rgb, depth_m, K_image, size) if size else (rgb, depth_m, K_image)
-    result = runtime.predict_at_size(rgb_in, depth_in, None)  # the model ignores an input it does not take
+    result, K = runtime.predict_frame(rgb, depth_m, K_image, size=size)  # an input the model does not take is ignored
     out = ensure_dir(out)
     labels = runtime.labels
     shown = result["rgb"]
@@ -85,6 +83,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     np.savez_compressed(buffer, **arrays)
     atomic_write(out / "outputs.npz", lambda temporary: temporary.write_bytes(buffer.getvalue()))
     if intrinsics is not None:
+        depth_in = result["depth"]  # at the working size, 0 invalid
         result["frontiers"] = frame_frontiers(result["distance_field"], result["gain_class"],
                                               np.where(depth_in > 0, depth_in, np.nan).astype(np.float32), K, K_image,
                                               labels, load_config("explore").anchoring)

@@ -64,7 +64,8 @@ class ModelPerception(Perception):
     """FrontierNet on each frame through a runtime (:class:`~frontiernet.model.Runtime`).
 
     Args:
-        runtime: anything with ``conf`` and ``predict_at_size`` (torch Predictor, ONNX, TorchScript).
+        runtime: anything with ``conf``, ``labels`` and ``predict_frame`` (torch Predictor, ONNX,
+            TorchScript).
         size: working size (None: the model's ``inference.size``).
     """
 
@@ -75,12 +76,8 @@ class ModelPerception(Perception):
         self.size = int(size or runtime.conf["inference"]["size"])
 
     def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
-        from ..model import invalid_to_zero
-        from ..model.inputs import resize_and_crop
-
-        rgb, depth_small, K = resize_and_crop(frame.rgb, depth, frame.K, self.size)
-        result = self.runtime.predict_at_size(rgb, invalid_to_zero(depth_small), None)
-        return PerceptionResult(rgb, depth_small, K, result["distance_field"], result["gain_class"],
+        result, K = self.runtime.predict_frame(frame.rgb, depth, frame.K, size=self.size)
+        return PerceptionResult(result["rgb"], result["depth"], K, result["distance_field"], result["gain_class"],
                                 dict(self.runtime.labels))
 
 

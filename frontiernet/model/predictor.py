@@ -1,6 +1,7 @@
-"""Runtimes: ``predict(rgb, depth) -> (distance_field, gain_logits)`` for any model format.
+"""Runtimes: ``predict(rgb, depth) -> (distance_field, gain_logits)`` for any model format, and
+``predict_frame(rgb, depth, K)``: a camera frame resized to the working size, intrinsics adjusted.
 
-:class:`Runtime` holds what every format shares (input checks and normalisation, output
+:class:`Runtime` holds what every format shares (resizing, input checks and normalisation, output
 decoding); :class:`Predictor` runs a torch model file or checkpoint. ``deploy.runtime`` adds
 ONNX (onnxruntime) and TorchScript behind the same call.
 """
@@ -15,7 +16,7 @@ import torch
 
 from .checkpoint import load_model
 from ..errors import InputError
-from .inputs import decode_distance, network_input, resize_and_crop
+from .inputs import decode_distance, invalid_to_zero, network_input, resize_and_crop
 
 
 @contextmanager
@@ -69,23 +70,40 @@ class Runtime:
         distance_px = decode_distance(np.asarray(distance, np.float32)[0, 0], self.labels)
         return distance_px, np.asarray(logits, np.float32)[0]
 
-    def predict_at_size(self, rgb: np.ndarray | None, depth: np.ndarray | None, size: int | None) -> dict:
-        """Resize (short side to `size`, centre crop; None or 0: as is), predict, decode.
+    def predict_frame(self, rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndarray | None = None, *,
+                      size: int | None = None, crop: bool = True) -> tuple[dict, np.ndarray | None]:
+        """The network on one camera frame at its working size: resize so the short side is `size`
+        px and centre-crop to a square (the public demo's recipe), adjust the intrinsics, predict,
+        decode.
 
+        Args:
+            rgb: (H, W, 3) uint8 RGB, or None (depth-only models).
+            depth: (H, W) float32 metres, invalid as NaN, inf, 0 or negative (the network is given
+                0 there), or None (RGB-only models). A model ignores an input it does not take.
+            K: (3, 3) intrinsics of the frame (pixels), or None.
+            size: working size (None: the model's ``inference.size``; 0: the frame's own size).
+            crop: centre-crop to ``size x size``; False keeps the whole frame, its long side rounded to
+                a multiple of the network's ``pad_multiple`` (see :func:`~.inputs.resize_and_crop`).
         Returns:
-            ``rgb`` and ``depth`` as the network saw them (None stays None), ``distance_field``
-            (H, W) float32 px, ``gain_logits`` (K, H, W) float32, ``gain_class`` (H, W) uint8 and
-            ``frontier_mask`` (H, W) bool (``D < l``, l from the model's labels).
+            outputs at the working size (h, w): ``rgb`` and ``depth`` as the network saw them
+            (resized; depth keeps the caller's invalid marks; None stays None), ``distance_field``
+            (h, w) float32 px, ``gain_logits`` (K, h, w) float32, ``gain_class`` (h, w) uint8 and
+            ``frontier_mask`` (h, w) bool (``D < l``, l from the model's labels);
+            and the (3, 3) float64 intrinsics at that size (None when `K` is None; `K` itself at size 0).
+        Raises:
+            InputError: RGB and depth of different sizes, or an input the model cannot take.
         """
         if rgb is not None and depth is not None and rgb.shape[:2] != depth.shape:
             raise InputError(f"depth map is {depth.shape[1]} x {depth.shape[0]} but the image is "
                              f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
+        size = self.conf["inference"]["size"] if size is None else size
         if size:
-            rgb, depth, _ = resize_and_crop(rgb, depth, None, int(size))
-        distance_px, logits = self.predict(rgb, depth)
+            multiple = 1 if crop else int(self.conf["network"]["pad_multiple"])
+            rgb, depth, K = resize_and_crop(rgb, depth, K, int(size), crop, multiple)
+        distance_px, logits = self.predict(rgb, None if depth is None else invalid_to_zero(depth))
         return {"rgb": rgb, "depth": depth, "distance_field": distance_px, "gain_logits": logits,
                 "gain_class": logits.argmax(0).astype(np.uint8),
-                "frontier_mask": distance_px < float(self.labels["frontier_threshold_px"])}
+                "frontier_mask": distance_px < float(self.labels["frontier_threshold_px"])}, K
 
 
 class Predictor(Runtime):

@@ -76,18 +76,15 @@ def perceive_frame(frame, runtime, depth_source, conf) -> dict:
     ``conf.crop``, centre-cropped to a square as the public demo does (without: the network sees
     the whole frame). With ``conf.fill_invalid_depth`` the network's depth has its holes filled
     from the nearest valid pixel first (the map keeps them as no return)."""
-    from ..model import invalid_to_zero
-    from ..model.inputs import beyond_range_invalid, fill_invalid_nearest, resize_and_crop
+    from ..model.inputs import beyond_range_invalid, fill_invalid_nearest
 
     rgb = frame.rgb()
     depth = frame_depth(frame, rgb, depth_source)
     network_depth = fill_invalid_nearest(depth) if conf["fill_invalid_depth"] else depth
-    size = int(conf["size"] or runtime.conf["inference"]["size"])
-    small_rgb, small_depth, K = resize_and_crop(rgb, network_depth, frame.camera.K, size, bool(conf["crop"]),
-                                                int(runtime.conf["network"]["pad_multiple"]))
-    small_depth = beyond_range_invalid(small_depth, runtime.conf["input"]["max_depth_m"])
-    result = runtime.predict_at_size(small_rgb, invalid_to_zero(small_depth), None)
-    return {"rgb": small_rgb, "depth": small_depth, "K": K,
+    network_depth = beyond_range_invalid(network_depth, runtime.conf["input"]["max_depth_m"])
+    result, K = runtime.predict_frame(rgb, network_depth, frame.camera.K, size=conf["size"] or None,
+                                      crop=bool(conf["crop"]))
+    return {"rgb": result["rgb"], "depth": result["depth"], "K": K,
             "distance_field": result["distance_field"].astype(np.float16),
             "gain_class": result["gain_class"].astype(np.uint8), "full_depth": depth.astype(np.float16)}
 
