@@ -191,7 +191,7 @@ def test_emulated_far_wall_is_far_and_leaves_no_phantom_wall_in_the_map():
     scene = box_scene(*room_boxes(10.0, 2.0, 2.5), "corridor")
     camera = PinholeCamera(96, 72, 60.0, 60.0, 47.5, 35.5, 3.5)
     T = pose_from_heading(1.0, 1.0, 1.25, 0.0)
-    frame = Renderer(scene, camera).render(T)
+    frame = Renderer(scene, camera, (0, 0, 0)).render(T)
     centre = (35, 47)
     assert np.isnan(frame.depth[centre]) and frame.hit_depth[centre] == pytest.approx(9.0, abs=1e-3)
     source = make_depth_source("emulated")

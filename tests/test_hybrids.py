@@ -40,7 +40,7 @@ def small_sim():
 def door_frame(two_room_scene, small_sim):
     """A view from the first room through the door into the second (a frontier with gain)."""
     camera = PinholeCamera.from_config(small_sim.camera)
-    return Renderer(two_room_scene, camera).render(pose_from_heading(1.0, 1.95, 1.2, 0.0))
+    return Renderer(two_room_scene, camera, (0, 0, 0)).render(pose_from_heading(1.0, 1.95, 1.2, 0.0))
 
 
 def hybrid(name, model, scene, voxels, sim, conf=None):

@@ -50,7 +50,7 @@ def doorway_boxes():
 
 def seen_map(boxes, bounds, xy, yaws_deg) -> tuple[OccupancyMap, np.ndarray]:
     """The map after level frames from (x, y, Z) at these headings, and the last pose."""
-    renderer = Renderer(box_scene(*boxes, "map-frontiers"), SMALL)
+    renderer = Renderer(box_scene(*boxes, "map-frontiers"), SMALL, (0, 0, 0))
     occupancy = OccupancyMap.from_bounds(bounds, load_config("explore").map)
     for yaw in yaws_deg:
         T = pose_from_heading(xy[0], xy[1], Z, np.radians(yaw))

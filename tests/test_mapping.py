@@ -33,7 +33,7 @@ def room():
 
 @pytest.fixture(scope="module")
 def renderer(room):
-    return Renderer(room, SMALL)
+    return Renderer(room, SMALL, (0, 0, 0))
 
 
 def map_conf(**changes) -> dict:
@@ -173,7 +173,7 @@ def test_visible_known_volume(room, renderer):
     # the same frusta in the true scene: everything explorable, up to the walls
     truth = np.empty(2)
     centre = (args[0] - 1) / 2.0
-    directions = PinholeCamera(args[0], args[0], args[1], args[1], centre, centre).ray_directions().reshape(-1, 3)
+    directions = PinholeCamera(args[0], args[0], args[1], args[1], centre, centre, np.inf).ray_directions().reshape(-1, 3)
     frustum_volume(T[:, :3, 3].copy(), T[:, :3, :3].copy(), directions.astype(np.float64), args[2], args[1],
                    voxels.origin, voxels.voxel_size, ~voxels.occupied, voxels.explorable, truth)
     assert truth.min() > 5.0

@@ -34,7 +34,7 @@ def explorer_facing_away_from_the_west(pillar: bool) -> Explorer:
     scene = room_scene(pillar)
     conf, sim = load_config("explore"), load_config("sim")
     voxels = voxelize_scene(scene, sim.voxels)
-    explorer = Explorer(scene, voxels, Renderer(scene, SMALL), make_method("classic"),
+    explorer = Explorer(scene, voxels, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic"),
                         make_depth_source("ground_truth", load_config("depth")), conf, sim,
                         pose_from_heading(*ROBOT, yaw=np.pi / 2))
     for yaw_deg in (90, 45, 0, -45, -90):
@@ -76,7 +76,7 @@ def test_an_unseen_wall_end_beside_a_move_is_looked_at_before_the_move(pillar):
 def test_nearest_unknown_in_disk_is_the_nearest_unobserved_cell_of_the_layer():
     occupancy = OccupancyMap.from_bounds(np.array([[-0.45] * 3, [4.45, 3.45, 2.95]]), load_config("explore").map)
     scene = room_scene(False)
-    renderer = Renderer(scene, SMALL)
+    renderer = Renderer(scene, SMALL, (0, 0, 0))
     T = pose_from_heading(1.0, 1.5, 1.2, yaw=0.0)  # looks along +x: everything behind x = 1 is unknown
     frame = renderer.render(T)
     occupancy.integrate(frame.depth, frame.K, T)

@@ -209,7 +209,7 @@ def two_room_map(two_room_scene, two_room_voxels):
     door up to the sensor range, x ~ 5 m, into the right room), as the explorer builds it."""
     conf = load_config("explore")
     occupancy = OccupancyMap.like(two_room_voxels, conf.map)
-    renderer = Renderer(two_room_scene, SMALL)
+    renderer = Renderer(two_room_scene, SMALL, (0, 0, 0))
     for yaw in range(0, 360, 45):
         T = pose_from_heading(1.5, 2.0, Z, np.radians(yaw), np.radians(-5.0))
         frame = renderer.render(T)

@@ -83,7 +83,7 @@ def test_embree_depth_and_hit_mask_match_open3d_on_the_house(shared_data, engine
     scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"))
     sim = load_config("sim")
     poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), 4, 0, sim.poses)
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
+    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     engine("open3d")
     reference = renderer.render_batch(poses)
     engine("embree")

@@ -48,7 +48,7 @@ def test_obj_texture_is_sampled_with_barycentric_uvs(tmp_path):
     scene = load_scene(str(tmp_path / "quad.obj"))
     assert scene.triangle_uvs is not None and scene.materials[0].texture is not None
     camera = PinholeCamera(64, 64, 40.0, 40.0, 31.5, 31.5, 5.0)
-    frame = Renderer(scene, camera).render(pose_from_heading(0, 0, 1.0, np.pi / 2, LOOK_DOWN))
+    frame = Renderer(scene, camera, (0, 0, 0)).render(pose_from_heading(0, 0, 1.0, np.pi / 2, LOOK_DOWN))
     # Looking down with yaw +90 deg: image right = world +x, image up = world +y.
     assert tuple(frame.rgb[20, 20]) == (255, 0, 0)      # world (-x, +y): u low, v high
     assert tuple(frame.rgb[20, 43]) == (0, 255, 0)      # world (+x, +y)
@@ -64,7 +64,7 @@ def test_ply_vertex_colours_are_interpolated(tmp_path):
     scene = load_scene(str(tmp_path / "colored.ply"))
     assert scene.vertex_colors is not None and scene.materials[0].use_vertex_colors
     camera = PinholeCamera(32, 32, 20.0, 20.0, 15.5, 15.5, 5.0)
-    frame = Renderer(scene, camera).render(pose_from_heading(0, 0, 1.0, 0.0, LOOK_DOWN))
+    frame = Renderer(scene, camera, (0, 0, 0)).render(pose_from_heading(0, 0, 1.0, 0.0, LOOK_DOWN))
     assert np.abs(frame.rgb[16, 16].astype(int) - [200, 100, 50]).max() <= 1
 
 

@@ -47,7 +47,7 @@ def write_redwood(folder, frames, K, with_depth: bool = True) -> None:
 def two_room_sequence(two_room_scene, tmp_path_factory):
     """8 frames turning on the spot in the left room of the two-room scene, towards the door at x = 3."""
     camera = PinholeCamera(160, 120, 100.0, 100.0, 79.5, 59.5, 3.5)
-    renderer = Renderer(two_room_scene, camera)
+    renderer = Renderer(two_room_scene, camera, (0, 0, 0))
     poses = [pose_from_heading(1.2 + 0.1 * i, 1.9, 1.2, np.radians(-40 + 10 * i)) for i in range(8)]
     frames = []
     for T in poses:
@@ -129,7 +129,7 @@ def test_gravity_alignment_levels_a_tilted_world():
 
 
 def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys, one_line_error):
-    renderer = Renderer(two_room_scene, PinholeCamera(64, 48, 40.0, 40.0, 31.5, 23.5, 3.5))
+    renderer = Renderer(two_room_scene, PinholeCamera(64, 48, 40.0, 40.0, 31.5, 23.5, 3.5), (0, 0, 0))
     T = pose_from_heading(1.5, 2.0, 1.2, 0.0)
     frame = renderer.render(T)
     write_redwood(tmp_path / "no_depth", [(frame.rgb, frame.depth, T)] * 2, renderer.camera.K, with_depth=False)

@@ -52,7 +52,7 @@ def rendered(tmp_path_factory):
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.camera import PinholeCamera, Renderer
 
-    renderer = Renderer(load_scene(SCENE), PinholeCamera(**CAMERA, max_depth=20.0))
+    renderer = Renderer(load_scene(SCENE), PinholeCamera(**CAMERA, max_depth=20.0), (0, 0, 0))
     folder = tmp_path_factory.mktemp("walk") / "images"
     folder.mkdir()
     poses, depths = _walk(), {}

@@ -29,7 +29,7 @@ def room():
     lower, upper = room_boxes(*ROOM, wall=0.25)
     scene = box_scene(lower, upper, "surface-room")
     voxels = voxelize_scene(scene, sim_section("voxels"))
-    return scene, voxels, SurfaceCoverage(scene, surface_conf(), seed=0, voxels=voxels), Renderer(scene, SMALL)
+    return scene, voxels, SurfaceCoverage(scene, surface_conf(), seed=0, voxels=voxels), Renderer(scene, SMALL, (0, 0, 0))
 
 
 def mapped(room, poses, like_voxels: bool = True) -> OccupancyMap:

@@ -119,7 +119,7 @@ def test_frontier_camera_pose_looks_along_its_direction():
 def room_map(*yaws_deg: float) -> OccupancyMap:
     """The room's map after level frames from (0.8, 1.5, 1.2) at these headings, in order."""
     lower, upper = room_boxes(*ROOM, wall=0.25)
-    renderer = Renderer(box_scene(lower, upper, "tracking-room"), SMALL)
+    renderer = Renderer(box_scene(lower, upper, "tracking-room"), SMALL, (0, 0, 0))
     occupancy = OccupancyMap.from_bounds(BOUNDS, load_config("explore").map)
     for yaw in yaws_deg:
         T = level_pose(0.8, 1.5, yaw)

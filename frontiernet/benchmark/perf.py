@@ -104,7 +104,7 @@ def bench_render(spec: str | None, repeats: int, batch: int, raycast: str | None
     start = time.perf_counter()
     voxels = voxelize_scene(scene, sim.voxels)
     voxel_s = time.perf_counter() - start
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
+    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     poses = sample_poses(scene, voxels, max(batch, 1), 0, sim.poses)
     rays = renderer.rays(poses[:1]).reshape(-1, 6)
     batch_rays = renderer.rays(poses).reshape(-1, 6)
@@ -149,7 +149,7 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
     sim, explore = load_config("sim"), load_config("explore")
     scene = load_scene(spec)
     voxels = voxelize_scene(scene, sim.voxels)
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
+    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     poses = sample_poses(scene, voxels, max(frames, 1), 0, sim.poses)
     renderer.render(poses[0])  # warm-up
     render, rendered = median_each(renderer.render, list(poses))

@@ -1,7 +1,8 @@
 """The simulated camera: RGB, metric z-depth, normals and hit mask by Open3D ray casting.
 
-Defaults from the paper (docs/design.md): 480 x 480 pixels, f = 300 px (77.32 degrees field
-of view), depth beyond 3.5 m invalid. Pixel centres sit at integer coordinates (OpenCV),
+The camera of a run is the ``camera`` section of ``configs/sim.yaml`` (:meth:`PinholeCamera.from_config`),
+there with the paper's values (docs/design.md): 480 x 480 pixels, f = 300 px (77.32 degrees
+field of view), depth beyond 3.5 m invalid. Pixel centres sit at integer coordinates (OpenCV),
 so the principal point of a W x H image is ((W - 1) / 2, (H - 1) / 2).
 
 Open3D's ``RaycastingScene`` is built once per scene (:mod:`.raycast`). Rays are cast
@@ -26,13 +27,13 @@ from .raycast import INVALID_ID, cast_rays
 class PinholeCamera:
     """Pinhole intrinsics (pixels) and the depth sensor's range (metres)."""
 
-    width: int = 480
-    height: int = 480
-    fx: float = 300.0
-    fy: float = 300.0
-    cx: float = 239.5
-    cy: float = 239.5
-    max_depth: float = 3.5
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    max_depth: float
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0:
@@ -50,7 +51,7 @@ class PinholeCamera:
                    (width - 1) / 2.0, (height - 1) / 2.0, float(conf.max_depth))
 
     @classmethod
-    def from_K(cls, K: np.ndarray, width: int, height: int, max_depth: float = 3.5) -> "PinholeCamera":
+    def from_K(cls, K: np.ndarray, width: int, height: int, max_depth: float) -> "PinholeCamera":
         K = np.asarray(K, np.float64)
         return cls(int(width), int(height), float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]),
                    float(max_depth))
@@ -196,11 +197,17 @@ def _make_rays(directions, T, rays):  # pragma: no cover
 
 
 class Renderer:
-    """Renders a scene through a :class:`PinholeCamera` at any ``T_world_cam`` pose(s)."""
+    """Renders a scene through a :class:`PinholeCamera` at any ``T_world_cam`` pose(s).
 
-    def __init__(self, scene: Scene, camera: PinholeCamera | None = None, background=(0, 0, 0)) -> None:
+    Args:
+        scene: the scene (world frame, Z-up, metres).
+        camera: intrinsics and range (a run's: :meth:`PinholeCamera.from_config` of ``camera``).
+        background: (3,) RGB 0-255 where a ray hits nothing (``camera.background``).
+    """
+
+    def __init__(self, scene: Scene, camera: PinholeCamera, background) -> None:
         self.scene = scene
-        self.camera = camera or PinholeCamera()
+        self.camera = camera
         self.background = np.asarray(background, np.uint8).reshape(3)
         self._directions = self.camera.ray_directions()  # (H, W, 3) camera frame
         self._shader = _Shader(scene)

@@ -58,7 +58,7 @@ def predicted_views(scene_spec: str, views: int, seed: int) -> list[dict]:
     scene = load_scene(scene_spec)
     sim = load_config("sim")
     poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), views, seed, sim.poses)
-    renderer = Renderer(scene, PinholeCamera(SIZE, SIZE, FOCAL, FOCAL, (SIZE - 1) / 2, (SIZE - 1) / 2, MAX_DEPTH))
+    renderer = Renderer(scene, PinholeCamera(SIZE, SIZE, FOCAL, FOCAL, (SIZE - 1) / 2, (SIZE - 1) / 2, MAX_DEPTH), (0, 0, 0))
     predictor = Predictor(threads=2)
     out = []
     for T in poses:

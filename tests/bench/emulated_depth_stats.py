@@ -54,7 +54,7 @@ def main() -> None:
     scene, sim = load_scene(spec), load_config("sim")
     _, draw = start_sampler(scene, voxelize_scene(scene, sim.voxels), load_config("explore"))
     rng = np.random.default_rng(1)
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
+    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     frames = [renderer.render(draw(rng)) for _ in range(args.views)]
     max_range = float(sim.camera.max_depth)
     print(f"{spec}: {args.views} views, {np.mean([np.mean(~np.isfinite(f.depth)) for f in frames]):.0%} of "

@@ -42,7 +42,7 @@ def main(plan_path: str, scenes: int) -> None:
         voxels = voxelize_scene(scene, sim.voxels)
         hybrid = make_method("frontiernet-oracle-gain", None, scene, voxels, sim, conf).source.perception
         model, oracle = hybrid.base, hybrid.gain_source
-        renderer = Renderer(scene, PinholeCamera.from_config(sim.camera))
+        renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
         sums = np.zeros(8)
         for x, y, z, yaw in poses:
             for turn in (0, 90, 180, 270):
