@@ -3,6 +3,7 @@ depth-discontinuity frontiers F_d, and their registration in make_perception."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -31,6 +32,7 @@ from frontiernet.model import FrontierNet, NetworkConfig, save_model
 
 SIZE = 48  # working size of the model-free tests (pixels)
 LABELS = model_labels()
+SETTINGS = DiscontinuitySettings.from_config(load_config("explore").ablations.discontinuity)  # the shipped F_d
 
 
 def frame_with(depth: np.ndarray) -> SimpleNamespace:
@@ -82,7 +84,7 @@ def test_uniform_gain_beyond_the_models_classes_is_an_input_error():
 
 def test_discontinuities_give_zero_distance_on_a_depth_step_and_the_truncation_far_from_it():
     depth = step_depth()
-    perception = DiscontinuityFrontiers(None, DiscontinuitySettings(), size=SIZE)
+    perception = DiscontinuityFrontiers(None, SETTINGS, size=SIZE)
     seen = perception(frame_with(depth), depth)
     r = int(LABELS["truncation_px"])
     assert seen.distance_field.shape == (SIZE, SIZE) and seen.distance_field.dtype == np.float32
@@ -98,30 +100,30 @@ def test_discontinuities_give_zero_distance_on_a_depth_step_and_the_truncation_f
 def test_discontinuities_treat_invalid_depth_as_far():
     depth = np.full((SIZE, SIZE), 2.0, np.float32)
     depth[:, SIZE // 2:] = np.nan  # no return within the sensor's range on the right
-    seen = DiscontinuityFrontiers(None, size=SIZE)(frame_with(depth), depth)
+    seen = DiscontinuityFrontiers(None, SETTINGS, size=SIZE)(frame_with(depth), depth)
     frontier = seen.distance_field < DISCONTINUITY_THRESHOLD_PX
     assert frontier[:, SIZE // 2 - 1:SIZE // 2 + 1].any(axis=1).all()  # where valid borders "far"
     assert not frontier[:, :SIZE // 2 - 2].any() and not frontier[:, SIZE // 2 + 1:].any()
     everything_invalid = np.full((SIZE, SIZE), np.nan, np.float32)
-    seen = DiscontinuityFrontiers(None, size=SIZE)(frame_with(everything_invalid), everything_invalid)
+    seen = DiscontinuityFrontiers(None, SETTINGS, size=SIZE)(frame_with(everything_invalid), everything_invalid)
     assert (seen.distance_field == LABELS["truncation_px"]).all()  # no crash, no frontier
 
 
 def test_discontinuities_keep_the_base_gain_and_resize_without_one():
     depth = step_depth(96)  # the frame is 96 px, the working size 48 px: resized and cropped
-    seen = DiscontinuityFrontiers(None, size=SIZE)(frame_with(depth), depth)
+    seen = DiscontinuityFrontiers(None, SETTINGS, size=SIZE)(frame_with(depth), depth)
     assert seen.rgb.shape == (SIZE, SIZE, 3) and seen.depth.shape == (SIZE, SIZE)
     assert seen.K[0, 0] == pytest.approx(15.0)
-    with_gain = DiscontinuityFrontiers(StubPerception())(frame_with(depth), depth)
+    with_gain = DiscontinuityFrontiers(StubPerception(), SETTINGS)(frame_with(depth), depth)
     np.testing.assert_array_equal(with_gain.gain_class, StubPerception()(frame_with(depth), depth).gain_class)
     assert (with_gain.distance_field[:, 48 - 1:48 + 1].min(axis=1) == 0).all()
 
 
 def test_the_window_is_datagens_scaled_to_the_working_size():
-    settings = DiscontinuitySettings.from_config(load_config("explore").ablations.discontinuity)
+    settings = SETTINGS
     assert settings.window_at(480) == 3 and settings.window_at(320) == 2 and settings.window_at(48) == 2
     with pytest.raises(InputError, match="ablations.discontinuity"):
-        DiscontinuitySettings(window_px=1)
+        replace(SETTINGS, window_px=1)
 
 
 def test_the_ablation_config_matches_datagen_and_the_simulator():

@@ -180,11 +180,13 @@ def test_discontinuity_marks_occlusion_edges_not_slanted_floors():
     v = np.arange(200, dtype=np.float32)[:, None]
     floor = np.broadcast_to(300 * 1.0 / np.maximum(v - 99.5, 1e-3), (200, 200)).astype(np.float32)
     floor = np.where(floor <= 3.5, floor, np.nan).astype(np.float32)
-    mask = discontinuity_mask(floor, invalid_is_far=False)
+    disc = load_datagen_config().ground_truth.discontinuity
+    rule = (int(disc.window_px), float(disc.relative_jump), float(disc.min_jump_m))
+    mask = discontinuity_mask(floor, *rule, invalid_is_far=False)
     assert not mask[110:].any()  # a floor seen from 1 m up: smooth
     step = np.full((50, 50), 3.0, np.float32)
     step[:, 25:] = 1.5  # a door frame in front of a wall
-    mask = discontinuity_mask(step)
+    mask = discontinuity_mask(step, *rule, bool(disc.invalid_is_far))
     assert mask[:, 24:26].all() and not mask[:, :23].any() and not mask[:, 27:].any()
 
 

@@ -117,7 +117,8 @@ class GainFrom(Perception):
 
 @dataclass(frozen=True)
 class DiscontinuitySettings:
-    """F_d parameters (:func:`~frontiernet.frontiers.discontinuity.discontinuity_mask`).
+    """F_d parameters (:func:`~frontiernet.frontiers.discontinuity.discontinuity_mask`):
+    ``ablations.discontinuity`` of ``configs/explore.yaml`` (:meth:`from_config`).
 
     Datagen's ``ground_truth.discontinuity`` (``configs/datagen.yaml``). ``window_px`` is in
     pixels of an image ``source_size_px`` wide (datagen's renders: configs/sim.yaml camera, 480
@@ -125,11 +126,11 @@ class DiscontinuitySettings:
     the nearer depth) and ``min_jump_m`` (metres) do not depend on the resolution.
     """
 
-    window_px: int = 3
-    source_size_px: int = 480
-    relative_jump: float = 0.1
-    min_jump_m: float = 0.1
-    invalid_is_far: bool = True
+    window_px: int
+    source_size_px: int
+    relative_jump: float
+    min_jump_m: float
+    invalid_is_far: bool
 
     def __post_init__(self) -> None:
         if not (self.window_px >= 2 and self.source_size_px >= 1 and self.relative_jump >= 0
@@ -168,17 +169,17 @@ class DiscontinuityFrontiers(Perception):
         base: a perception whose gain classes (and rgb, depth, K, labels) are kept, e.g. the
             model; None: no model, the frame is resized and cropped here and the gain class
             is 0 (no gain) everywhere: wrap it in :class:`UniformGain`.
-        settings: the F_d parameters.
+        settings: the F_d parameters (the run's ``ablations.discontinuity``).
         size: working size without a base (None: the model's ``inference.size``, 320 px).
         labels: label encoding without a base (None: ``configs/model.yaml`` ``labels:``).
     """
 
     name = "discontinuity"
 
-    def __init__(self, base: Perception | None = None, settings: DiscontinuitySettings | None = None,
+    def __init__(self, base: Perception | None, settings: DiscontinuitySettings,
                  size: int | None = None, labels: dict | None = None) -> None:
         self.base = base
-        self.settings = settings or DiscontinuitySettings()
+        self.settings = settings
         self.size = None if base is not None else int(size or model_size())
         self.labels = None if base is not None else dict(labels or model_labels())
 

@@ -16,8 +16,8 @@ import numpy as np
 from scipy import ndimage
 
 
-def discontinuity_mask(depth: np.ndarray, window_px: int = 3, relative_jump: float = 0.1,
-                       min_jump_m: float = 0.1, invalid_is_far: bool = True) -> np.ndarray:
+def discontinuity_mask(depth: np.ndarray, window_px: int, relative_jump: float, min_jump_m: float,
+                       invalid_is_far: bool) -> np.ndarray:
     """F_d: pixels whose depth window spans a jump (a thresholded depth gradient).
 
     A pixel is a discontinuity when, over the ``window_px`` x ``window_px`` window around
@@ -27,6 +27,8 @@ def discontinuity_mask(depth: np.ndarray, window_px: int = 3, relative_jump: flo
 
     Args:
         depth: (H, W) float32 metres, NaN where invalid.
+        window_px, relative_jump, min_jump_m: the rule above (datagen's values:
+            ``ground_truth.discontinuity`` of ``configs/datagen.yaml``).
         invalid_is_far: invalid pixels count as farther than every valid one (the end of
             the sensor's range is an edge); otherwise they are ignored.
     Returns:
@@ -48,8 +50,7 @@ def discontinuity_mask(depth: np.ndarray, window_px: int = 3, relative_jump: flo
     return mask
 
 
-def distance_field(frontier_mask: np.ndarray, truncation_px: float = 10.0,
-                   return_nearest: bool = False):
+def distance_field(frontier_mask: np.ndarray, truncation_px: float, return_nearest: bool = False):
     """D: Euclidean distance (pixels) from each pixel to the nearest pixel of F, truncated.
 
     Exactly 0 on F; ``truncation_px`` everywhere when F is empty (paper: r = 10 px).

@@ -37,8 +37,9 @@ def frontier_overlay(rgb: np.ndarray | None, distance_px: np.ndarray, gain_class
     return picture
 
 
-def distance_picture(distance_px: np.ndarray, truncation_px: float = 10.0) -> np.ndarray:
-    """(H, W, 3) uint8: the distance field, bright at frontiers, dark at r and beyond."""
+def distance_picture(distance_px: np.ndarray, truncation_px: float) -> np.ndarray:
+    """(H, W, 3) uint8: the distance field, bright at frontiers, dark at r = `truncation_px` (the
+    labels' ``truncation_px``) and beyond."""
     closeness = 1.0 - np.clip(distance_px / float(truncation_px), 0.0, 1.0)
     grey = (closeness * 255).astype(np.uint8)
     return cv2.applyColorMap(grey, cv2.COLORMAP_INFERNO)[..., ::-1].copy()

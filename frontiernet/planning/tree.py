@@ -43,10 +43,11 @@ class PoseGraph:
     """The robot's trajectory as a graph for map-free returns.
 
     Args:
-        link_radius_m: poses closer than this are linked even when not consecutive.
+        link_radius_m: poses closer than this are linked even when not consecutive (metres;
+            ``planner.pose_link_m``).
     """
 
-    def __init__(self, link_radius_m: float = 0.3) -> None:
+    def __init__(self, link_radius_m: float) -> None:
         self.link_radius_m = float(link_radius_m)
         self.positions: list[np.ndarray] = []
 
