@@ -42,16 +42,15 @@ def _scene_state(spec: str, conf):
 
     key = (spec, config_hash(conf))
     if key not in _CACHE:
-        from frontiernet.scenes import load_scene
-        from frontiernet.simulator.voxels import voxelize_scene
+        from frontiernet.simulator.world import build_world
 
         from .ground_truth import GroundTruthGenerator
 
         while len(_CACHE) >= 2:
             _CACHE.pop(next(iter(_CACHE)))
-        scene = load_scene(spec)
-        voxels = voxelize_scene(scene, conf.voxels)
-        _CACHE[key] = (scene, voxels, GroundTruthGenerator(scene, voxels, conf))
+        world = build_world(spec, conf)
+        _CACHE[key] = (world.scene, world.voxels,
+                       GroundTruthGenerator(world.scene, world.voxels, conf, renderer=world.renderer))
     return _CACHE[key]
 
 

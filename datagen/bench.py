@@ -50,10 +50,9 @@ def bench_ground_truth(spec: str | None = None, views: int = 20, backends: list[
 
     from frontiernet.benchmark.perf import default_bench_scene
     from frontiernet.errors import InputError
-    from frontiernet.scenes import load_scene
     from frontiernet.simulator.poses import sample_poses
     from frontiernet.simulator.raycast import INVALID_ID, cast_rays, distance_to_surface, ray_caster, select_backend
-    from frontiernet.simulator.voxels import voxelize_scene
+    from frontiernet.simulator.world import build_world
 
     from .config import load_datagen_config
     from .ground_truth import GroundTruthGenerator
@@ -64,9 +63,9 @@ def bench_ground_truth(spec: str | None = None, views: int = 20, backends: list[
     spec = default_bench_scene(spec)
     conf = load_datagen_config()
     start = time.perf_counter()
-    scene = load_scene(spec)
-    voxels = voxelize_scene(scene, conf.voxels)
-    generator = GroundTruthGenerator(scene, voxels, conf)
+    world = build_world(spec, conf)
+    scene, voxels = world.scene, world.voxels
+    generator = GroundTruthGenerator(scene, voxels, conf, renderer=world.renderer)
     setup_s = time.perf_counter() - start
     free = np.random.default_rng(0).choice(np.flatnonzero(voxels.explorable), DISTANCE_QUERIES)
     points = voxels.index_to_world(np.stack(np.unravel_index(free, voxels.shape), axis=1))  # as pose sampling asks

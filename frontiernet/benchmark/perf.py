@@ -85,26 +85,22 @@ def bench_render(spec: str | None, repeats: int, batch: int, raycast: str | None
     ``render_ms``, ``render_over_cast``, ``batch`` and the ``batched_*`` figures per frame,
     ``load_s``, ``bvh_build_s``, ``voxelize_s`` (and the first and last in casts), ``explorable_m3``.
     """
-    from ..scenes import load_scene
-    from ..simulator.camera import PinholeCamera, Renderer
-    from ..simulator.poses import sample_poses
-    from ..simulator.raycast import active_backend, ray_caster, select_backend
-    from ..simulator.voxels import voxelize_scene
+    from omegaconf import OmegaConf
 
-    if raycast:
-        select_backend(raycast)
+    from ..simulator.poses import sample_poses
+    from ..simulator.raycast import ray_caster
+    from ..simulator.world import build_world
+
     spec = default_bench_scene(spec)
     sim = load_config("sim")
+    if raycast:
+        sim = OmegaConf.merge(sim, {"raycast": {"backend": raycast}})
+    world = build_world(spec, sim)
+    scene, voxels, renderer = world.scene, world.voxels, world.renderer
+    load_s, voxel_s = world.seconds["load"], world.seconds["voxelize"]
     start = time.perf_counter()
-    scene = load_scene(spec)
-    load_s = time.perf_counter() - start
-    start = time.perf_counter()
-    caster = ray_caster(scene)  # sim.yaml's raycast.backend
+    caster = ray_caster(scene)  # the world's engine (raycast, else sim.yaml's raycast.backend)
     bvh_s = time.perf_counter() - start
-    start = time.perf_counter()
-    voxels = voxelize_scene(scene, sim.voxels)
-    voxel_s = time.perf_counter() - start
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     poses = sample_poses(scene, voxels, max(batch, 1), 0, sim.poses)
     rays = renderer.rays(poses[:1]).reshape(-1, 6)
     batch_rays = renderer.rays(poses).reshape(-1, 6)
@@ -113,7 +109,7 @@ def bench_render(spec: str | None, repeats: int, batch: int, raycast: str | None
     cast_batch = median_seconds(lambda: caster.cast_rays(batch_rays), max(repeats // 4, 3)) / len(poses)
     render_batch = median_seconds(lambda: renderer.render_batch(poses), max(repeats // 4, 3)) / len(poses)
     return {
-        "scene": spec, "triangles": scene.num_triangles, "raycast_backend": active_backend(),
+        "scene": spec, "triangles": scene.num_triangles, "raycast_backend": world.raycast_backend,
         "resolution": [renderer.camera.width, renderer.camera.height],
         "cast_rays_ms": round(cast * 1e3, 2),
         "render_ms": round(render * 1e3, 2),
@@ -140,16 +136,13 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
     from omegaconf import OmegaConf
 
     from ..mapping import OccupancyMap
-    from ..scenes import load_scene
-    from ..simulator.camera import PinholeCamera, Renderer
     from ..simulator.poses import sample_poses
-    from ..simulator.voxels import voxelize_scene
+    from ..simulator.world import build_world
 
     spec = default_bench_scene(spec)
     sim, explore = load_config("sim"), load_config("explore")
-    scene = load_scene(spec)
-    voxels = voxelize_scene(scene, sim.voxels)
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
+    world = build_world(spec, sim)
+    scene, voxels, renderer = world.scene, world.voxels, world.renderer
     poses = sample_poses(scene, voxels, max(frames, 1), 0, sim.poses)
     renderer.render(poses[0])  # warm-up
     render, rendered = median_each(renderer.render, list(poses))

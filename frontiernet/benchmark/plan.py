@@ -168,11 +168,10 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     """
     from ..exploration.motion import yaw_of
     from ..exploration.run import camera_z, run_section, start_sampler
-    from ..scenes import load_scene
-    from ..simulator.voxels import voxelize_scene
+    from ..simulator.world import build_world
 
-    scene = load_scene(spec)
-    voxels = voxelize_scene(scene, run_section(conf, "sim").voxels)
+    world = build_world(spec, run_section(conf, "sim"), renderer=False)
+    scene, voxels = world.scene, world.voxels
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
     poses = []

@@ -29,21 +29,19 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     from ..io import check_output_folder, colorize_depth, ensure_dir, write_image, write_json, write_npy
-    from ..scenes import load_scene
-    from ..simulator.camera import PinholeCamera, Renderer
+    from ..simulator.world import build_world
 
     check_output_folder(args.out, args.force)
     conf = load_config("sim", args.config)
     x, y, z, yaw, pitch = parse_pose_text(args.pose)
-    scene = load_scene(args.spec)
-    if not args.no_check:
+    world = build_world(args.spec, conf, voxels=not args.no_check)
+    if world.voxels is not None:
         from ..simulator.poses import check_pose
-        from ..simulator.voxels import voxelize_scene
 
-        check_pose(scene, voxelize_scene(scene, conf.voxels), np.array([x, y, z]), conf=conf.poses)
+        check_pose(world.scene, world.voxels, np.array([x, y, z]), conf=conf.poses)
     out = ensure_dir(args.out)
-    camera = PinholeCamera.from_config(conf.camera)
-    frame = Renderer(scene, camera, conf.camera.background).render(pose_from_heading(x, y, z, yaw, pitch))
+    camera = world.renderer.camera
+    frame = world.renderer.render(pose_from_heading(x, y, z, yaw, pitch))
     write_image(out / "rgb.png", frame.rgb)
     write_npy(out / "depth.npy", frame.depth)
     write_image(out / "depth.png", colorize_depth(frame.depth, camera.max_depth))

@@ -160,10 +160,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     """
     from ..depth import make_depth_source
     from ..io import atomic_write, ensure_dir
-    from ..scenes import load_scene
-    from ..simulator.camera import PinholeCamera, Renderer
-    from ..simulator.raycast import select_backend
-    from ..simulator.voxels import voxelize_scene
+    from ..simulator.world import build_world
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
     from .methods import make_method
@@ -178,10 +175,9 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     # the explorer's own draws read run.seed; config.yaml records what the run used
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
     sim = run_section(conf, "sim")
-    select_backend(sim.raycast.backend)  # the run's ray-cast engine (sim.raycast.backend), not the shipped file's
     clock = time.perf_counter()
-    loaded = load_scene(scene)
-    voxels = voxelize_scene(loaded, sim.voxels)
+    world = build_world(scene, sim)  # the run's ray-cast engine (sim.raycast.backend), not the shipped file's
+    loaded, voxels = world.scene, world.voxels
     if voxels.num_explorable == 0:
         raise InputError(f"{scene}: the scene has no free explorable space")
     rng = np.random.default_rng(seed)
@@ -193,7 +189,6 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     depth_source = make_depth_source(depth_name, run_section(conf, "depth"))
     depth_source.reset(seed)
     exploration_method = make_method(method, model, loaded, voxels, sim, conf)
-    renderer = Renderer(loaded, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
     out = ensure_dir(out)
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
@@ -204,7 +199,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         if recorder is not None:
             recorder(*args)
 
-    explorer = Explorer(loaded, voxels, renderer, exploration_method, depth_source, conf, sim, T_start, on_step=on_step)
+    explorer = Explorer(loaded, voxels, world.renderer, exploration_method, depth_source, conf, sim, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock
     try:
         with pictures:

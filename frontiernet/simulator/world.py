@@ -1,0 +1,72 @@
+"""The simulated world of a run: a scene, its voxel grid and the camera's renderer, built one way.
+
+:func:`build_world` is where a scene spec becomes what the simulator needs, from one sim config
+(``configs/sim.yaml`` as the run resolved it, or any config holding its sections, as datagen's
+does): it makes ``raycast.backend`` this process's ray-cast engine, loads the scene
+(:func:`~frontiernet.scenes.load_scene`), voxelises it (``voxels``) and builds the renderer of
+``camera``, with its background colour (``camera.background``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+from ..scenes import Scene, load_scene
+from .camera import PinholeCamera, Renderer
+from .raycast import select_backend
+from .voxels import VoxelGrid, voxelize_scene
+
+
+@dataclass
+class World:
+    """A scene and what the simulator built from it.
+
+    Attributes:
+        scene: the scene (world frame, Z-up, metres).
+        voxels: its voxel grid (occupied / explorable / outside), or None when not asked for.
+        renderer: the camera's renderer (RGB, z-depth, normals, hit mask), or None when not asked for.
+        raycast_backend: this process's ray-cast engine, ``open3d`` or ``embree``.
+        seconds: wall time of each step taken, seconds: ``load`` (not when given a Scene),
+            ``voxelize``, ``renderer``.
+    """
+
+    scene: Scene
+    voxels: VoxelGrid | None
+    renderer: Renderer | None
+    raycast_backend: str
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def build_world(scene: str | Scene, sim_conf, *, voxels: bool = True, renderer: bool = True) -> World:
+    """The world of `scene` under `sim_conf`, in this order: engine, scene, voxels, renderer.
+
+    Args:
+        scene: a scene spec (``procedural:3``, a mesh file, ...; see :mod:`frontiernet.scenes`)
+            or a loaded :class:`~frontiernet.scenes.Scene`.
+        sim_conf: a config with the sections ``raycast`` (``backend``), ``voxels`` and ``camera``
+            of ``configs/sim.yaml`` (a section left out is not read when its part is not built).
+        voxels: voxelise the scene (``sim_conf.voxels``).
+        renderer: build the renderer of ``sim_conf.camera`` (size, focal length, range, background).
+    Raises:
+        InputError: an unknown or unavailable ray-cast engine, a scene that does not load, bad
+            voxel or camera settings.
+    """
+    backend = select_backend(sim_conf.raycast.backend)
+    seconds = {}
+    if not isinstance(scene, Scene):
+        start = time.perf_counter()
+        scene = load_scene(scene)
+        seconds["load"] = time.perf_counter() - start
+    grid = None
+    if voxels:
+        start = time.perf_counter()
+        grid = voxelize_scene(scene, sim_conf.voxels)
+        seconds["voxelize"] = time.perf_counter() - start
+    rendering = None
+    if renderer:
+        start = time.perf_counter()
+        camera = sim_conf.camera
+        rendering = Renderer(scene, PinholeCamera.from_config(camera), tuple(camera.background))
+        seconds["renderer"] = time.perf_counter() - start
+    return World(scene, grid, rendering, backend, seconds)
