@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -41,14 +40,10 @@ def add_parser(subparsers) -> None:
 
 def scene_info(spec: str, sim_conf) -> dict:
     """Facts about a scene as a JSON-able dict (bounds, triangles, explorable volume...)."""
-    from ..simulator.voxels import voxelize_scene
+    from ..simulator.world import build_world
 
-    start = time.perf_counter()
-    scene = load_scene(spec)
-    load_s = time.perf_counter() - start
-    start = time.perf_counter()
-    voxels = voxelize_scene(scene, sim_conf.voxels)
-    voxel_s = time.perf_counter() - start
+    world = build_world(spec, sim_conf, renderer=False)
+    scene, voxels = world.scene, world.voxels
     bounds = scene.bounds
     return {
         "spec": spec,
@@ -72,8 +67,8 @@ def scene_info(spec: str, sim_conf) -> dict:
         "explorable_volume_m3": round(float(voxels.explorable_volume_m3), 3),
         "explorable_rule": str(sim_conf.voxels.explorable),
         "explorable_seed": None if voxels.seed is None else np.round(voxels.index_to_world(voxels.seed), 3).tolist(),
-        "load_seconds": round(load_s, 3),
-        "voxelize_seconds": round(voxel_s, 3),
+        "load_seconds": round(world.seconds["load"], 3),
+        "voxelize_seconds": round(world.seconds["voxelize"], 3),
         "metadata": scene.metadata.extra,
     }
 
@@ -101,9 +96,9 @@ def run_topdown(args) -> int:
     note = ""
     if not args.no_explorable:
         from ..scenes.preview import overlay_columns
-        from ..simulator.voxels import voxelize_scene
+        from ..simulator.world import build_world
 
-        voxels = voxelize_scene(scene, load_config("sim", args.config).voxels)
+        voxels = build_world(scene, load_config("sim", args.config), renderer=False).voxels
         seed = None if voxels.seed is None else voxels.index_to_world(voxels.seed)[:2]
         at_cut = voxels.explorable[:, :, voxels.layer(scene.bounds[0, 2] + args.cut_height)]
         for columns, color, mark in ((voxels.explorable.any(axis=2) & ~at_cut, AMBER, None), (at_cut, GREEN, seed)):
