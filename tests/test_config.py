@@ -53,8 +53,7 @@ def test_a_value_of_another_kind_than_the_default_is_refused(tmp_path):
 
 
 def test_open_sections_and_other_configs_sections_are_accepted(tmp_path):
-    # sequence.yaml's depth section is open (options of any depth model); its anchoring section
-    # comes from explore.yaml
+    # the sequence config's depth section is depth.yaml's; its anchoring section comes from explore.yaml
     conf = load_sequence_config(None, ["depth.depth_anything_v2.path=/weights/vits.pth",
                                        "anchoring.hdbscan.min_cluster_size=9"])
     assert conf.depth.depth_anything_v2.path == "/weights/vits.pth" and conf.anchoring.hdbscan.min_cluster_size == 9

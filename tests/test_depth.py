@@ -11,6 +11,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
 from frontiernet.config import load_config
 from frontiernet.depth import SOURCES, make_depth_source
@@ -31,7 +32,13 @@ def _step_depth() -> np.ndarray:
     return depth
 
 
-QUIET = {"noise_sigma": 0.0, "noise_sigma_per_m": 0.0, "scale_sigma": 0.0, "blur_sigma_px": 0.0}
+def options(name: str, **changes) -> dict:
+    """Section `name` of the shipped ``configs/depth.yaml`` as a dict, with `changes`."""
+    return {**OmegaConf.to_container(load_config("depth")[name], resolve=True), **changes}
+
+
+EMULATED = options("emulated")
+QUIET = options("emulated", noise_sigma=0.0, noise_sigma_per_m=0.0, scale_sigma=0.0, blur_sigma_px=0.0)
 
 
 # ---------------------------------------------------------------- factory, ground truth
@@ -51,7 +58,15 @@ def test_whole_config_with_overrides_builds_named_source():
 
 def test_unknown_option_is_refused():
     with pytest.raises(InputError, match="unknown option 'scale_sigmaa'; did you mean scale_sigma"):
-        make_depth_source("emulated", {"scale_sigmaa": 0.1})
+        make_depth_source("emulated", options("emulated", scale_sigmaa=0.1))
+    with pytest.raises(InputError, match="missing option.*scale_sigma"):
+        make_depth_source("emulated", {"seed": 0})
+
+
+def test_each_source_takes_exactly_the_keys_of_its_shipped_section():
+    shipped = load_config("depth")
+    for name, source in SOURCES.items():
+        assert sorted(source.options) == sorted(shipped[name]), name
 
 
 def test_ground_truth_passes_depth_through_with_nan_invalid():
@@ -74,7 +89,7 @@ def test_ground_truth_passes_depth_through_with_nan_invalid():
 
 def test_emulated_is_deterministic_per_seed_and_seeds_differ():
     gt = _step_depth()
-    a, b = make_depth_source("emulated"), make_depth_source("emulated")
+    a, b = make_depth_source("emulated", EMULATED), make_depth_source("emulated", EMULATED)
     a.reset(7)
     b.reset(7)
     out_a, out_b = a.estimate(_rgb(), K, gt), b.estimate(_rgb(), K, gt)
@@ -194,7 +209,7 @@ def test_emulated_far_wall_is_far_and_leaves_no_phantom_wall_in_the_map():
     frame = Renderer(scene, camera, (0, 0, 0)).render(T)
     centre = (35, 47)
     assert np.isnan(frame.depth[centre]) and frame.hit_depth[centre] == pytest.approx(9.0, abs=1e-3)
-    source = make_depth_source("emulated")
+    source = make_depth_source("emulated", EMULATED)
     assert source.sees_past_range
     source.reset(0)
     far = source.estimate(frame.rgb, frame.K, frame.hit_depth)
@@ -208,18 +223,18 @@ def test_emulated_far_wall_is_far_and_leaves_no_phantom_wall_in_the_map():
         return int(middle.sum())
 
     assert phantom_voxels(far) == 0
-    old = make_depth_source("emulated", {"fill_depth": 3.5, "scale_per_frame": False, "frame_correlation": 0.0})
+    old = make_depth_source("emulated", options("emulated", fill_depth=3.5, scale_per_frame=False, frame_correlation=0.0))
     old.reset(0)
     assert phantom_voxels(old.estimate(frame.rgb, frame.K, frame.depth)) > 20
 
 
 def test_emulated_bad_config_value_names_key():
     with pytest.raises(InputError, match="fill_invalid"):
-        make_depth_source("emulated", {"fill_invalid": "zero"})
+        make_depth_source("emulated", options("emulated", fill_invalid="zero"))
     with pytest.raises(InputError, match="scale_sigma"):
-        make_depth_source("emulated", {"scale_sigma": -1})
+        make_depth_source("emulated", options("emulated", scale_sigma=-1))
     with pytest.raises(InputError, match=r"frame_correlation: must be in \[0, 1\)"):
-        make_depth_source("emulated", {"frame_correlation": 1.0})
+        make_depth_source("emulated", options("emulated", frame_correlation=1.0))
 
 
 # ---------------------------------------------------------------- Depth Anything V2
@@ -248,7 +263,7 @@ def tiny_depth_anything(tmp_path_factory):
 
 
 def test_depth_anything_loads_local_weights_and_predicts_input_size(tiny_depth_anything):
-    source = make_depth_source("depth_anything_v2", {"path": str(tiny_depth_anything), "device": "cpu"})
+    source = make_depth_source("depth_anything_v2", options("depth_anything_v2", path=str(tiny_depth_anything), device="cpu"))
     assert not source.requires_ground_truth
     out = source.estimate(_rgb(37, 53), K)  # odd size: output must match it, not the 14 px grid
     assert out.shape == (37, 53) and out.dtype == np.float32
@@ -259,7 +274,7 @@ def test_depth_anything_missing_weights_says_where_and_which_files(tmp_path):
     pytest.importorskip("transformers")
     folder = tmp_path / "no_weights_here"
     with pytest.raises(InputError) as info:
-        make_depth_source("depth_anything_v2", {"path": str(folder), "device": "cpu"})
+        make_depth_source("depth_anything_v2", options("depth_anything_v2", path=str(folder), device="cpu"))
     message = str(info.value)
     assert str(folder) in message
     assert all(name in message for name in ("config.json", "model.safetensors", "preprocessor_config.json"))
@@ -274,7 +289,7 @@ def test_depth_anything_absent_from_hub_cache_names_cache(tmp_path, monkeypatch)
     monkeypatch.setenv("HF_HUB_CACHE", str(tmp_path))
     repo = "depth-anything/Depth-Anything-V2-Metric-Indoor-Small-hf"
     with pytest.raises(InputError) as info:
-        make_depth_source("depth_anything_v2", {"repo_id": repo, "device": "cpu"})
+        make_depth_source("depth_anything_v2", options("depth_anything_v2", repo_id=repo, device="cpu"))
     assert str(tmp_path / "models--depth-anything--Depth-Anything-V2-Metric-Indoor-Small-hf") in str(info.value)
 
 
@@ -288,12 +303,12 @@ def test_depth_anything_refuses_relative_model_and_corrupt_weights(tiny_depth_an
     config["depth_estimation_type"] = "relative"
     (relative / "config.json").write_text(json.dumps(config))
     with pytest.raises(InputError, match="relative"):
-        make_depth_source("depth_anything_v2", {"path": str(relative), "device": "cpu"})
+        make_depth_source("depth_anything_v2", options("depth_anything_v2", path=str(relative), device="cpu"))
     corrupt = tmp_path / "corrupt"
     shutil.copytree(tiny_depth_anything, corrupt)
     (corrupt / "model.safetensors").write_bytes(b"not a safetensors file")
     with pytest.raises(InputError, match="cannot load"):
-        make_depth_source("depth_anything_v2", {"path": str(corrupt), "device": "cpu"})
+        make_depth_source("depth_anything_v2", options("depth_anything_v2", path=str(corrupt), device="cpu"))
 
 
 def test_depth_anything_without_transformers_says_what_to_install(monkeypatch, tmp_path):
@@ -301,7 +316,7 @@ def test_depth_anything_without_transformers_says_what_to_install(monkeypatch, t
 
     monkeypatch.setitem(sys.modules, "transformers", None)  # import fails as if not installed
     with pytest.raises(InputError, match=r"pip install frontiernet\[depth\]"):
-        make_depth_source("depth_anything_v2", {"path": str(tmp_path), "device": "cpu"})
+        make_depth_source("depth_anything_v2", options("depth_anything_v2", path=str(tmp_path), device="cpu"))
 
 
 # ---------------------------------------------------------------- Metric3D v2
@@ -339,7 +354,7 @@ def tiny_metric3d(tmp_path):
     (repo / "hubconf.py").write_text(HUBCONF)
     weights = tmp_path / "metric_depth_vit_small_800k.pth"
     torch.save({"model_state_dict": {"gain": torch.tensor(1.0)}}, weights)
-    return {"repo_dir": str(repo), "weights": str(weights), "device": "cpu"}
+    return options("metric3d_v2", repo_dir=str(repo), weights=str(weights), device="cpu")
 
 
 def test_metric3d_decanonical_scale_and_unpadding(tiny_metric3d):
@@ -374,5 +389,5 @@ def test_metric3d_missing_dependency_is_named(tiny_metric3d, tmp_path):
 
 def test_metric3d_missing_repo_says_how_to_get_it(tmp_path):
     with pytest.raises(InputError) as info:
-        make_depth_source("metric3d_v2", {"repo_dir": str(tmp_path / "nothing"), "device": "cpu"})
+        make_depth_source("metric3d_v2", options("metric3d_v2", repo_dir=str(tmp_path / "nothing"), device="cpu"))
     assert "github.com/YvanYin/Metric3D" in str(info.value) and "hubconf.py" in str(info.value)

@@ -41,11 +41,11 @@ def make_depth_source(
     Args:
         name_or_conf: a source name (one of :data:`SOURCES`), or a whole depth config
             (like ``configs/depth.yaml``) whose ``source`` key names the source.
-        conf: with a name: that source's options, either its section alone or a whole
-            depth config holding a section of that name; missing keys take the shipped
-            defaults. Ignored when `name_or_conf` is a config.
+        conf: with a name: that source's options (every key of its section of
+            ``configs/depth.yaml``, as the run resolved it), either the section alone or a whole
+            depth config holding a section of that name. Ignored when `name_or_conf` is a config.
     Raises:
-        InputError: unknown source name, unknown or bad option, absent weights.
+        InputError: unknown source name, missing, unknown or bad option, absent weights.
     """
     if isinstance(name_or_conf, str):
         name = name_or_conf

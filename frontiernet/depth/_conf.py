@@ -1,36 +1,33 @@
-"""Config sections of ``configs/depth.yaml``: shipped defaults merged with user values."""
+"""Options of a depth source: its section of a depth config (``configs/depth.yaml`` as resolved), checked."""
 
 from __future__ import annotations
 
 from typing import Any, Mapping
 
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
 
-from ..config import check_keys, load_config
+from ..config import check_keys
 from ..errors import InputError
 
 
-def source_conf(name: str, conf: Mapping[str, Any] | DictConfig | None = None) -> dict[str, Any]:
-    """Section `name` of the shipped depth config with the keys of `conf` replaced.
+def source_conf(name: str, conf: Mapping[str, Any] | DictConfig | None, options: tuple[str, ...]) -> dict[str, Any]:
+    """Section `name` of a depth config (``configs/depth.yaml`` as the run resolved it) as a plain
+    ``dict``: every key of `options` (the source's option names), no other.
 
-    `conf` is that section (all or some of its keys), or ``None`` for the defaults.
-    Unknown keys raise :class:`InputError` naming them (typos fail loudly).
-    Returns a plain ``dict``.
+    Raises:
+        InputError: not a mapping, a missing option, or an unknown one (named, with its closest
+            spellings: typos fail loudly).
     """
-    defaults = load_config("depth")[name]
-    if conf is None:
-        return OmegaConf.to_container(defaults, resolve=True)
     if isinstance(conf, DictConfig):
         conf = OmegaConf.to_container(conf, resolve=True)
     if not isinstance(conf, Mapping):
-        raise InputError(f"depth.{name}: expected a mapping of options, got {type(conf).__name__}")
-    check_keys(defaults, conf, f"depth.{name}", noun="option")
-    try:
-        merged = OmegaConf.merge(defaults, OmegaConf.create(dict(conf)))
-    except OmegaConfBaseException as error:
-        raise InputError(f"depth.{name}: bad option value ({error})") from None
-    return OmegaConf.to_container(merged, resolve=True)
+        raise InputError(f"depth.{name}: expected a mapping of options (the section of configs/depth.yaml), "
+                         f"got {type(conf).__name__}")
+    check_keys(dict.fromkeys(options), conf, f"depth.{name}", noun="option")
+    missing = [key for key in options if key not in conf]
+    if missing:
+        raise InputError(f"depth.{name}: missing option(s) {', '.join(missing)} (configs/depth.yaml has them)")
+    return dict(conf)
 
 
 def number(conf: Mapping[str, Any], key: str, section: str, minimum: float = 0.0) -> float:

@@ -33,6 +33,8 @@ class DepthSource(ABC):
     #: True when the output depends on the seed given to :meth:`reset` (emulated noise): runs
     #: that differ only in their seed differ.
     seeded: bool = False
+    #: The keys of the source's section of ``configs/depth.yaml``, all of which its constructor takes.
+    options: tuple[str, ...] = ()
 
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode; sources with randomness reseed from `seed`."""

@@ -104,15 +104,16 @@ class DepthAnythingV2(DepthSource):
     """Depth Anything V2 metric depth: (H, W, 3) uint8 RGB -> (H, W) float32 metres, dense.
 
     Args:
-        conf: section ``depth_anything_v2`` of ``configs/depth.yaml`` (all or some keys):
+        conf: section ``depth_anything_v2`` of ``configs/depth.yaml`` (as the run resolved it):
             ``path`` or ``repo_id``, ``device``, ``min_depth``.
     """
 
     name = "depth_anything_v2"
     requires_ground_truth = False
+    options = ("path", "repo_id", "device", "min_depth")
 
-    def __init__(self, conf: Mapping[str, Any] | None = None) -> None:
-        c = source_conf(self.name, conf)
+    def __init__(self, conf: Mapping[str, Any]) -> None:
+        c = source_conf(self.name, conf, self.options)
         self.device = resolve_device(c["device"])
         self.min_depth = number(c, "min_depth", self.name)
         self.processor, self.model = load_depth_anything(c["path"], str(c["repo_id"]), self.device)

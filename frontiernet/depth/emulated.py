@@ -122,16 +122,19 @@ class EmulatedMonocularDepth(DepthSource):
     """Ground truth degraded like a monocular metric-depth model (see module docstring).
 
     Args:
-        conf: section ``emulated`` of ``configs/depth.yaml``, all or some keys.
+        conf: section ``emulated`` of ``configs/depth.yaml`` (as the run resolved it), every key.
     """
 
     name = "emulated"
     requires_ground_truth = True
     sees_past_range = True
     seeded = True
+    options = ("seed", "scale_sigma", "scale_per_frame", "frame_correlation", "edge_threshold", "edge_band_px",
+               "edge_sigma_px", "blur_sigma_px", "noise_sigma", "noise_sigma_per_m", "noise_smooth_px",
+               "fill_invalid", "fill_depth", "min_depth", "max_depth")
 
-    def __init__(self, conf: Mapping[str, Any] | None = None) -> None:
-        c = source_conf(self.name, conf)
+    def __init__(self, conf: Mapping[str, Any]) -> None:
+        c = source_conf(self.name, conf, self.options)
         self.scale_sigma = number(c, "scale_sigma", self.name)
         self.scale_per_frame = bool(c["scale_per_frame"])
         self.frame_correlation = number(c, "frame_correlation", self.name)

@@ -13,8 +13,9 @@ class GroundTruthDepth(DepthSource):
     name = "ground_truth"
     requires_ground_truth = True
 
-    def __init__(self, conf=None) -> None:
-        """`conf` is accepted for a uniform factory signature; there is nothing to tune."""
+    def __init__(self, conf) -> None:
+        """`conf` (the ``ground_truth`` section, empty) is taken for a uniform factory signature;
+        there is nothing to tune."""
 
     def estimate(self, rgb: np.ndarray, K: np.ndarray, gt_depth: np.ndarray | None = None) -> np.ndarray:
         rgb = check_rgb(rgb)

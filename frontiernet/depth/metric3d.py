@@ -102,14 +102,16 @@ class Metric3DV2(DepthSource):
     """Metric3D v2 metric depth: (H, W, 3) uint8 RGB + K -> (H, W) float32 metres, dense.
 
     Args:
-        conf: section ``metric3d_v2`` of ``configs/depth.yaml`` (all or some keys).
+        conf: section ``metric3d_v2`` of ``configs/depth.yaml`` (as the run resolved it), every key.
     """
 
     name = "metric3d_v2"
     requires_ground_truth = False
+    options = ("repo_dir", "model", "weights", "trust_checkpoint", "device", "input_size", "canonical_focal",
+               "pad_value", "mean", "std", "min_depth", "max_depth")
 
-    def __init__(self, conf: Mapping[str, Any] | None = None) -> None:
-        c = source_conf(self.name, conf)
+    def __init__(self, conf: Mapping[str, Any]) -> None:
+        c = source_conf(self.name, conf, self.options)
         self.model_name = str(c["model"])
         if self.model_name not in CHECKPOINTS:
             raise InputError(f"depth.metric3d_v2.model: expected one of {sorted(CHECKPOINTS)}, got '{self.model_name}'")

@@ -144,7 +144,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         raise InputError(f"{input_path}: frame {missing} has no depth file: choose a depth model with --depth "
                          f"(depth_anything_v2 or metric3d_v2)")
     runtime = open_runtime(model, threads=conf.network.threads)
-    depth_source = None if depth == "sensor" else make_depth_source(depth, conf.get("depth"))
+    depth_source = None if depth == "sensor" else make_depth_source(depth, conf.depth)
     cache_paths = perceive_frames(sequence, runtime, depth_source, out / "cache", model_identity(model),
                                   conf.network, progress)
     perceived = time.perf_counter()
@@ -184,11 +184,14 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
 
 def load_sequence_config(user_file=None, overrides=()):
     """``configs/sequence.yaml`` with the ``anchoring``, ``tracking`` and ``map`` sections of
-    ``configs/explore.yaml`` underneath (sequence.yaml's keys win), then a user file and overrides."""
+    ``configs/explore.yaml`` and a ``depth`` section (``configs/depth.yaml`` less its ``source``:
+    the sequence's is ``--depth``) underneath (sequence.yaml's keys win), then a user file and
+    overrides."""
     from omegaconf import OmegaConf
 
     from ..config import load_config, merge_user
 
-    explore = load_config("explore")
-    base = OmegaConf.create({key: explore[key] for key in ("anchoring", "tracking", "map")})
+    explore, depth = load_config("explore"), load_config("depth")
+    depth.pop("source")
+    base = OmegaConf.create({**{key: explore[key] for key in ("anchoring", "tracking", "map")}, "depth": depth})
     return merge_user(OmegaConf.merge(base, load_config("sequence")), user_file, overrides)

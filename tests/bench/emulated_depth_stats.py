@@ -59,7 +59,8 @@ def main() -> None:
     max_range = float(sim.camera.max_depth)
     print(f"{spec}: {args.views} views, {np.mean([np.mean(~np.isfinite(f.depth)) for f in frames]):.0%} of "
           f"their pixels beyond {max_range} m")
-    old, new = make_depth_source("emulated", OLD), make_depth_source("emulated")
+    shipped = load_config("depth").emulated
+    old, new = make_depth_source("emulated", {**shipped, **OLD}), make_depth_source("emulated", shipped)
     print(f"beyond-range pixels estimated inside the range (map hits): old {landed_inside(old, frames, False, max_range):.1%},"
           f" now {landed_inside(new, frames, True, max_range):.1%}")
     abs_rel, delta1, change = [], [], []
