@@ -27,6 +27,16 @@ TWO_ROOM = {
 TWO_ROOM_FREE_VOLUME = 6.0 * 4.0 * 2.5 - (0.2 * 4.0 * 2.5 - 0.2 * 0.9 * 2.0)  # 58.36 m^3
 
 
+@pytest.fixture(scope="session", autouse=True)
+def raycast_engine() -> str:
+    """The shipped sim.yaml's ray-cast engine, selected for the tests that cast without a world
+    (a command's build_world selects its own config's)."""
+    from frontiernet.config import load_config
+    from frontiernet.simulator.raycast import select_backend
+
+    return select_backend(load_config("sim").raycast.backend)
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Path of the shared real data (``../shared/data`` or ``$FRONTIERNET_SHARED_DATA``); skips if absent."""

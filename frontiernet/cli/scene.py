@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import load_config
-from ..scenes import load_scene, spec as spec_module
+from ..scenes import spec as spec_module
 
 
 def add_parser(subparsers) -> None:
@@ -87,18 +87,19 @@ columns explorable only above or below it."""
 def run_topdown(args) -> int:
     from ..io import check_image_name, check_output_file, ensure_dir, write_image
     from ..scenes.preview import topdown_image
+    from ..simulator.world import build_world
 
     check_image_name(args.out)  # before the work: a bad --out fails at once
     check_output_file(args.out, args.force)
     ensure_dir(Path(args.out).parent)
-    scene = load_scene(args.spec)
+    sim = load_config("sim", args.config)
+    scene = build_world(args.spec, sim, voxels=False, renderer=False).scene  # the config's ray-cast engine
     image = topdown_image(scene, pixel_size=args.pixel_size, cut_height=args.cut_height)
     note = ""
     if not args.no_explorable:
         from ..scenes.preview import overlay_columns
-        from ..simulator.world import build_world
 
-        voxels = build_world(scene, load_config("sim", args.config), renderer=False).voxels
+        voxels = build_world(scene, sim, renderer=False).voxels
         seed = None if voxels.seed is None else voxels.index_to_world(voxels.seed)[:2]
         at_cut = voxels.explorable[:, :, voxels.layer(scene.bounds[0, 2] + args.cut_height)]
         for columns, color, mark in ((voxels.explorable.any(axis=2) & ~at_cut, AMBER, None), (at_cut, GREEN, seed)):

@@ -10,7 +10,9 @@ traversal in both; on 200 views of the shared house the hit masks agree on every
 the hit distances within 0.004 mm, and the triangle ids except where two triangles lie
 in one plane, docs/datagen.md). The engine is chosen by
 ``raycast.backend`` of ``configs/sim.yaml``: ``auto`` takes Open3D when it can be
-imported, else Embree; commands with a config apply theirs with :func:`select_backend`.
+imported, else Embree. A process selects its config's engine with :func:`select_backend`
+before it casts (:func:`~frontiernet.simulator.world.build_world` does); casting with none
+selected is a programming error.
 
 All ray queries of a scene (camera rendering, pose checks, collision distance) share one
 engine per scene, built once: the BVH build is the expensive part.
@@ -155,7 +157,7 @@ def _open3d_layout(prim, u, v, normal, ids, uvs, normals):  # pragma: no cover -
 
 _ENGINES = {"open3d": Open3DRayCaster, "embree": EmbreeRayCaster}
 _CACHE: "weakref.WeakKeyDictionary[Scene, dict[str, RayCaster]]" = weakref.WeakKeyDictionary()
-_SELECTED: list[str] = []  # this process's backend once chosen (select_backend or the shipped config)
+_SELECTED: list[str] = []  # this process's backend once chosen by select_backend
 _POOL: list[ThreadPoolExecutor] = []
 os.register_at_fork(after_in_child=_POOL.clear)  # a forked child has none of the parent's threads
 
@@ -203,11 +205,14 @@ def select_backend(name: str) -> str:
 
 
 def active_backend() -> str:
-    """This process's engine: the one selected, else ``raycast.backend`` of the shipped sim.yaml."""
-    if not _SELECTED:
-        from ..config import load_config
+    """This process's engine, the one :func:`select_backend` chose.
 
-        select_backend(load_config("sim").raycast.backend)
+    Raises:
+        RuntimeError: none was selected (the caller forgot its config's ``raycast.backend``).
+    """
+    if not _SELECTED:
+        raise RuntimeError("no ray-cast engine selected in this process: call select_backend(sim.raycast.backend) "
+                           "first (build_world does)")
     return _SELECTED[0]
 
 

@@ -30,6 +30,7 @@ from frontiernet.model.predictor import Predictor
 from frontiernet.scenes import load_scene
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 from frontiernet.simulator.poses import sample_poses
+from frontiernet.simulator.raycast import select_backend
 from frontiernet.simulator.voxels import voxelize_scene
 
 SIZE, FOCAL, MAX_DEPTH = 320, 200.0, 3.5
@@ -57,6 +58,7 @@ def predicted_views(scene_spec: str, views: int, seed: int) -> list[dict]:
     """Rendered views with the shipped model's outputs: depth, D, gain classes, K, pose."""
     scene = load_scene(scene_spec)
     sim = load_config("sim")
+    select_backend(sim.raycast.backend)
     poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), views, seed, sim.poses)
     renderer = Renderer(scene, PinholeCamera(SIZE, SIZE, FOCAL, FOCAL, (SIZE - 1) / 2, (SIZE - 1) / 2, MAX_DEPTH), (0, 0, 0))
     predictor = Predictor(threads=2)

@@ -24,9 +24,7 @@ from frontiernet.benchmark.perf import default_bench_scene
 from frontiernet.config import load_config
 from frontiernet.depth import make_depth_source
 from frontiernet.exploration.run import start_sampler
-from frontiernet.scenes import load_scene
-from frontiernet.simulator.camera import PinholeCamera, Renderer
-from frontiernet.simulator.voxels import voxelize_scene
+from frontiernet.simulator.world import build_world
 
 OLD = {"fill_depth": 3.5, "scale_per_frame": False, "frame_correlation": 0.0}
 """The emulation before it saw past the sensor range (with the clipped ground truth)."""
@@ -51,10 +49,11 @@ def main() -> None:
     parser.add_argument("--scene", default=None)
     args = parser.parse_args()
     spec = default_bench_scene(args.scene)
-    scene, sim = load_scene(spec), load_config("sim")
-    _, draw = start_sampler(scene, voxelize_scene(scene, sim.voxels), load_config("explore"))
+    sim = load_config("sim")
+    world = build_world(spec, sim)
+    _, draw = start_sampler(world.scene, world.voxels, load_config("explore"))
     rng = np.random.default_rng(1)
-    renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
+    renderer = world.renderer
     frames = [renderer.render(draw(rng)) for _ in range(args.views)]
     max_range = float(sim.camera.max_depth)
     print(f"{spec}: {args.views} views, {np.mean([np.mean(~np.isfinite(f.depth)) for f in frames]):.0%} of "

@@ -29,20 +29,17 @@ def main(plan_path: str, scenes: int) -> None:
     from frontiernet.exploration.run import run_section
     from frontiernet.frontiers.gain import decode_gain
     from frontiernet.geometry import pose_from_heading
-    from frontiernet.scenes import load_scene
-    from frontiernet.simulator.camera import PinholeCamera, Renderer
-    from frontiernet.simulator.voxels import voxelize_scene
+    from frontiernet.simulator.world import build_world
 
     conf = load_config("explore")
     sim = run_section(conf, "sim")
     plan = json.loads(open(plan_path).read())
     pitch = np.radians(float(conf.motion.pitch_deg))
     for spec, poses in list(plan["start_poses"].items())[:scenes]:
-        scene = load_scene(spec)
-        voxels = voxelize_scene(scene, sim.voxels)
+        world = build_world(spec, sim)
+        scene, voxels, renderer = world.scene, world.voxels, world.renderer
         hybrid = make_method("frontiernet-oracle-gain", None, scene, voxels, sim, conf).source.perception
         model, oracle = hybrid.base, hybrid.gain_source
-        renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
         sums = np.zeros(8)
         for x, y, z, yaw in poses:
             for turn in (0, 90, 180, 270):
