@@ -18,6 +18,8 @@ from frontiernet.benchmark.report import add_shared_vox, coverage_at, ratio_inte
 from frontiernet.cli.main import main
 from frontiernet.config import load_config
 
+INTERVAL = load_config("bench").report.interval  # the shipped report's bootstrap
+
 
 def bench(*args) -> tuple[int, str, str]:
     out, err = io.StringIO(), io.StringIO()
@@ -52,7 +54,7 @@ def test_the_summary_gives_table_one_per_scene_source_and_over_all_scenes():
             for scene, value in coverage.items() for method in ("ours", "theirs")]
     rows.append({"scene": "house.glb", "method": "theirs", "start": 1, "repeat": 0, "status": "failed",
                  "error": "boom"})  # not in the summary's runs
-    table = table_markdown(rows, scenes, ["ours", "theirs"])
+    table = table_markdown(rows, scenes, ["ours", "theirs"], interval=INTERVAL)
     blocks = table.split("### ")
     procedural = next(b for b in blocks if b.startswith("Summary: procedural (2 scenes)"))
     mesh = next(b for b in blocks if b.startswith("Summary: mesh (1 scene)"))
@@ -72,7 +74,7 @@ def test_each_method_is_compared_with_classic_over_paired_runs():
     rows = [{"method": method, "scene": scene, "start": start, "repeat": 0, "status": "done",
              "vox25_shared": value, "vox50_shared": value, "vox100": value, "success": True}
             for (method, scene, start), value in vox25.items()]
-    table = table_markdown(rows, ["procedural:1", "house.glb"], ["ours", "classic"])
+    table = table_markdown(rows, ["procedural:1", "house.glb"], ["ours", "classic"], interval=INTERVAL)
     versus = next(b for b in table.split("### ") if b.startswith("Against classic (paired runs)"))
     # procedural: 0.2 / 0.2 with one win and one loss; house: 0.4 / 0.2; all: 0.8 / 0.6 over 3 pairs.
     # Intervals resample (scene, start) clusters: procedural's ends are both draws of one start
@@ -81,7 +83,8 @@ def test_each_method_is_compared_with_classic_over_paired_runs():
     assert ("| ours | 1.00x [0.50, 1.50] (1-1) | 1.00x [0.50, 1.50] (1-1) | 2.00x (1-0) | 2.00x (1-0) | "
             "1.33x [0.50, 2.00] (2-1) | 1.33x [0.50, 2.00] (2-1) |") in versus
     assert "| classic |" not in versus
-    assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"])  # no reference, no section
+    # no reference, no section
+    assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"], interval=INTERVAL)
 
 
 def test_the_monocular_penalty_is_each_methods_ratio_to_ground_truth_over_paired_runs():
@@ -95,7 +98,8 @@ def test_the_monocular_penalty_is_each_methods_ratio_to_ground_truth_over_paired
             for depth, values in (("ground_truth", gt), ("emulated", mono))
             for (method, start), value in values.items()]
     rows.append({**rows[-1], "start": 2, "vox25_shared": 0.9})  # classic on emulated from a start without a pair
-    table = table_markdown(rows, ["procedural:1"], ["ours", "classic"], depths=["ground_truth", "emulated"])
+    table = table_markdown(rows, ["procedural:1"], ["ours", "classic"], depths=["ground_truth", "emulated"],
+                           interval=INTERVAL)
     assert re.findall(r"^## (.+)$", table, re.M) == ["ground_truth depth: summary", "emulated depth: summary",
                                                       "ground_truth depth: per scene", "emulated depth: per scene"]
     emulated = table[table.index("## emulated depth: summary"):table.index("### Monocular penalty")]
@@ -108,7 +112,8 @@ def test_the_monocular_penalty_is_each_methods_ratio_to_ground_truth_over_paired
     assert "| classic | 0.50x [0.50, 0.50] (0-2) |" in penalty  # the unpaired start 2 is left out
     assert table.index("Monocular penalty") < table.index("ground_truth depth: per scene")
     only_mono = [row for row in rows if row["depth"] == "emulated"]
-    assert "Monocular penalty" not in table_markdown(only_mono, ["procedural:1"], ["ours"], depths=["emulated"])
+    assert "Monocular penalty" not in table_markdown(only_mono, ["procedural:1"], ["ours"], depths=["emulated"],
+                                                     interval=INTERVAL)
 
 
 def test_runs_on_other_depth_sources_do_not_share_thresholds():
@@ -130,8 +135,8 @@ def test_the_report_gives_the_compute_of_the_runs_made_and_not_of_their_copies()
              "copy_of": ""}]
     for row in rows:
         row.update(vox25_shared=0.2, vox50_shared=0.4, vox100=0.6, success=True)
-    compute = next(b for b in table_markdown(rows, ["house.glb"], ["ours", "classic"]).split("### ")
-                   if b.startswith("Compute"))
+    table = table_markdown(rows, ["house.glb"], ["ours", "classic"], interval=INTERVAL)
+    compute = next(b for b in table.split("### ") if b.startswith("Compute"))
     assert "| ours | 2 | 150 | 0.08 |" in compute and "| classic | 1 | 36 | 0.01 |" in compute
     assert "| all | 3 | 112 | 0.09 |" in compute  # 336 s
 
@@ -160,7 +165,7 @@ def test_the_report_plots_each_scene_and_the_mean_of_each_source_with_several(tm
         (tmp_path / "runs" / key / "metrics.json").write_text(json.dumps({"coverage_per_step": [0.0, 0.1, 0.2, 0.3]}))
         rows.append({"scene": scene, "method": "classic", "start": 0, "repeat": 0, "key": key, "status": "done",
                      "vox100": 0.3, "success": False})
-    plots = write_report(tmp_path, rows, scenes, ["classic"])["plots"]
+    plots = write_report(tmp_path, rows, scenes, ["classic"], interval=INTERVAL)["plots"]
     expected = [f"coverage_{scene_key(scene)}.png" for scene in scenes]
     expected += ["coverage_summary_procedural.png", "coverage_summary_all_scenes.png"]  # no mean of the one mesh
     assert sorted(path.name for path in plots) == sorted(expected)

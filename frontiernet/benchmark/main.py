@@ -7,6 +7,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
+from ..config import load_config
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import RUN_SECTIONS, load_run_config
@@ -76,7 +77,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                            "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
     rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],
                           "depth": depth}, workers, backend, progress)
-    report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None)
+    report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None,
+                          interval=load_config("bench").report.interval)
     return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
@@ -117,8 +119,9 @@ def report(out: str | Path) -> dict:
     pending = len(rows) - len(reported)
     scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
     depths = list(dict.fromkeys(run["depth"] for run in runs if run.get("depth"))) or None
-    return {"rows": reported, **write_report(out, reported, scenes, methods, pending, finished, depths),
-            "pending": pending}
+    written = write_report(out, reported, scenes, methods, pending, finished, depths,
+                           interval=load_config("bench").report.interval)
+    return {"rows": reported, **written, "pending": pending}
 
 
 __all__ = ["main", "report", "resumable_plan"]

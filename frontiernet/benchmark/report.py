@@ -33,7 +33,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import load_config
 from ..errors import InputError
 from ..io import atomic_write
 from ..scenes.spec import parse_spec
@@ -161,18 +160,17 @@ def paired_ratio_cell(pairs: list[tuple[dict, dict]], field: str, interval) -> s
     return f"{ours.mean() / theirs.mean():.2f}x{shown} ({wins}-{losses})"
 
 
-def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], reference: str = REFERENCE,
-                    conf=None) -> list[str]:
+def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], interval,
+                    reference: str = REFERENCE) -> list[str]:
     """Each method against `reference` over paired runs (same scene, start and repeat, both
     finished), per scene source and over all scenes: the ratio of their mean Vox@25 and Vox@50
     (the paper's Table I comparison: FrontierNet / Classic about 1.75 at both) with its bootstrap
-    interval over (scene, start) clusters (:func:`paired_ratio_cell`; `conf`: ``configs/bench.yaml``,
-    None: the shipped one), and how many pairs the method covered more (wins) and less (losses).
+    interval over (scene, start) clusters (:func:`paired_ratio_cell`; `interval`: ``report.interval``
+    of ``configs/bench.yaml``), and how many pairs the method covered more (wins) and less (losses).
     No section unless `reference` is among `methods`."""
     others = [m for m in methods if m != reference]
     if reference not in methods or not others:
         return []
-    interval = (conf if conf is not None else load_config("bench")).report.interval
     by_run = {(r["method"], r["scene"], r["start"], r["repeat"]): r for r in done}
     groups = _source_groups(scenes)
     lines = [f"### Against {reference} (paired runs)", "",
@@ -191,16 +189,16 @@ def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], ref
     return lines + [""]
 
 
-def penalty_markdown(done: list[dict], methods: list[str], depths: list[str] | None, conf=None) -> list[str]:
+def penalty_markdown(done: list[dict], methods: list[str], depths: list[str] | None, interval) -> list[str]:
     """The monocular penalty (the paper's Table I, filled against open dots): for each depth
     source other than ground truth, per method the ratio of its mean Vox@25, Vox@50 (shared
     steps, as in each source's summary) and Vox@100 on that source to its mean on ground truth,
     over paired runs (same method, scene, start and repeat, both finished), over all scenes, as
     :func:`paired_ratio_cell` gives it (interval over (scene, start) clusters; wins: pairs where
-    that source covered more). No section unless ground truth is among several `depths`."""
+    that source covered more; `interval`: ``report.interval`` of ``configs/bench.yaml``). No section
+    unless ground truth is among several `depths`."""
     if not depths or DEPTH_REFERENCE not in depths or len(depths) < 2:
         return []
-    interval = (conf if conf is not None else load_config("bench")).report.interval
     by_run = {(r["depth"], r["method"], r["scene"], r["start"], r["repeat"]): r for r in done}
     lines = []
     for source in [d for d in depths if d != DEPTH_REFERENCE]:
@@ -256,13 +254,14 @@ def metric_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> 
 
 
 def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
-                   depths: list[str] | None = None) -> str:
+                   depths: list[str] | None = None, *, interval) -> str:
     """The summary (:func:`summary_markdown`), each method against ``classic``
     (:func:`versus_markdown`), the compute (:func:`compute_markdown`), then one Table I per metric
     (:func:`metric_markdown`) (`pending`: runs of the plan not finished yet, said at the top).
     With several depth sources (`depths`, rows with their ``depth``): the summary and the
     comparison with classic per source, the monocular penalty (:func:`penalty_markdown`), then
-    compute and the per-metric tables per source, each part under a ``## <source> depth`` heading."""
+    compute and the per-metric tables per source, each part under a ``## <source> depth`` heading.
+    `interval`: ``report.interval`` of ``configs/bench.yaml`` (the comparisons' bootstrap)."""
     done = [r for r in rows if r["status"] == "done"]
     lines = []
     if pending:
@@ -278,8 +277,8 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
 
     for depth in regimes:
         lines += heading(depth, "summary") + summary_markdown(of(depth), scenes, methods)
-        lines += versus_markdown(of(depth), scenes, methods)
-    lines += penalty_markdown(done, methods, depths)
+        lines += versus_markdown(of(depth), scenes, methods, interval)
+    lines += penalty_markdown(done, methods, depths, interval)
     for depth in regimes:
         lines += heading(depth, "per scene") + compute_markdown(of(depth), methods)
         lines += metric_markdown(of(depth), scenes, methods)
@@ -329,13 +328,14 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
 
 
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
-                 finished: FinishedRuns | None = None, depths: list[str] | None = None) -> dict:
+                 finished: FinishedRuns | None = None, depths: list[str] | None = None, *, interval) -> dict:
     """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
     ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
     `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not;
     `finished`: the runs' records (per run or packed; None: read from `out`); `depths`: the
     benchmark's depth sources when it has several (the rows carry theirs; results.csv then has a
-    ``depth`` column after ``method``), else None."""
+    ``depth`` column after ``method``), else None; `interval`: ``report.interval`` of
+    ``configs/bench.yaml``."""
     out = Path(out)
     finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
@@ -355,7 +355,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
             writer.writerows(rows)
 
     atomic_write(out / "results.csv", write_csv)
-    table = table_markdown(rows, scenes, methods, pending, depths)
+    table = table_markdown(rows, scenes, methods, pending, depths, interval=interval)
     atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table))
     plots = []
     for stem, members, title in _plot_sets(scenes, {row["scene"] for row in rows}):
