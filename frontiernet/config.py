@@ -96,6 +96,25 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
     return conf
 
 
+def option_section(conf, options: Sequence[str], where: str) -> dict:
+    """`conf`, a section of options (DictConfig or mapping, as the command resolved it), as a plain
+    ``dict`` holding every key of `options` and no other.
+
+    Raises:
+        InputError: `conf` is not a mapping, or has an unknown key (named with its closest
+            spellings: typos fail loudly) or lacks one; `where` (``depth.emulated``) starts the line.
+    """
+    if isinstance(conf, DictConfig):
+        conf = OmegaConf.to_container(conf, resolve=True)
+    if not isinstance(conf, Mapping):
+        raise InputError(f"{where}: expected a mapping of options, got {type(conf).__name__}")
+    check_keys(dict.fromkeys(options), conf, where, noun="option")
+    missing = [key for key in options if key not in conf]
+    if missing:
+        raise InputError(f"{where}: missing option(s) {', '.join(missing)}")
+    return dict(conf)
+
+
 def _kind(value) -> str | None:
     """What a config value is, as far as a user's value must match the default's: a section, a
     list, a number or a true/false; None (anything goes) for text, null and open sections."""

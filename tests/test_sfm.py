@@ -10,10 +10,12 @@ import pycolmap
 import pytest
 from PIL import Image
 
+from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading, rotation_angle
 from frontiernet.sequences.frames import Camera
 from frontiernet.sequences.sfm import (
+    SFM_OPTIONS,
     metric_scale,
     read_image_folder,
     sfm_config,
@@ -27,6 +29,7 @@ SCENE, START, FRAMES = "procedural:3", (18.36, 7.02, 1.3, -2.825), 16
 STEP_M, TURN_DEG, WALK_DEG, BOB_M = 0.12, 2.0, 60.0, 0.1
 CAMERA = {"width": 640, "height": 480, "fx": 500.0, "fy": 500.0, "cx": 319.5, "cy": 239.5}
 MIN_CLEARANCE_M = 0.5
+SFM = dict(load_config("sequence").sfm)  # the shipped sfm options
 
 
 def _walk() -> np.ndarray:
@@ -69,7 +72,7 @@ def reconstructed(rendered, tmp_path_factory):
     """(sequence, work folder) of the rendered walk, intrinsics given."""
     folder = rendered[0]
     work = tmp_path_factory.mktemp("colmap")
-    sequence = read_image_folder(folder, _camera(), work_dir=work, progress=False)
+    sequence = read_image_folder(folder, _camera(), work_dir=work, conf=SFM, progress=False)
     return sequence, work
 
 
@@ -126,7 +129,7 @@ def test_a_second_run_reuses_the_saved_model(rendered, reconstructed, monkeypatc
 
     for name in ("extract_features", "match_exhaustive", "match_sequential", "incremental_mapping"):
         monkeypatch.setattr(pycolmap, name, must_not_run)
-    again = read_image_folder(rendered[0], work_dir=work, progress=False)
+    again = read_image_folder(rendered[0], work_dir=work, conf=SFM, progress=False)
     assert [f.name for f in again] == [f.name for f in sequence]
     np.testing.assert_allclose(again.poses(), sequence.poses(), atol=1e-6)
     assert any("reused" in note for note in again.notes)
@@ -134,13 +137,13 @@ def test_a_second_run_reuses_the_saved_model(rendered, reconstructed, monkeypatc
     fewer.mkdir()
     shutil.copy(rendered[0] / "000.png", fewer)
     with pytest.raises(InputError, match="not in the folder.*001.png"):
-        read_image_folder(fewer, work_dir=work, progress=False)
+        read_image_folder(fewer, work_dir=work, conf=SFM, progress=False)
 
 
 @pytest.mark.slow
 def test_without_intrinsics_colmap_estimates_them(rendered):
     true_poses = rendered[1]
-    sequence = read_image_folder(rendered[0], progress=False)  # temporary work folder
+    sequence = read_image_folder(rendered[0], conf=SFM, progress=False)  # temporary work folder
     assert len(sequence) >= 0.8 * FRAMES
     camera = sequence.frames[0].camera
     assert camera.model == "SIMPLE_RADIAL" and camera.remap is not None  # frames come out undistorted
@@ -165,7 +168,7 @@ def test_metric_scale_needs_points_on_valid_depth(rendered, reconstructed):
 def test_empty_folder_is_refused(tmp_path):
     (tmp_path / "notes.txt").write_text("no images here")
     with pytest.raises(InputError, match=str(tmp_path)):
-        read_image_folder(tmp_path, progress=False)
+        read_image_folder(tmp_path, conf=SFM, progress=False)
 
 
 def test_mixed_image_sizes_are_refused_naming_the_file(tmp_path):
@@ -173,29 +176,32 @@ def test_mixed_image_sizes_are_refused_naming_the_file(tmp_path):
     Image.new("RGB", (64, 48)).save(tmp_path / "b.jpg")
     Image.new("RGB", (32, 48)).save(tmp_path / "c.png")
     with pytest.raises(InputError, match="c.png.*mixed sizes"):
-        read_image_folder(tmp_path, progress=False)
+        read_image_folder(tmp_path, conf=SFM, progress=False)
 
 
 def test_camera_must_fit_the_images_and_options_are_checked(tmp_path):
     Image.new("RGB", (64, 48)).save(tmp_path / "a.png")
     with pytest.raises(InputError, match="64 x 48"):
-        read_image_folder(tmp_path, Camera.pinhole(50, 50, 31.5, 23.5, 32, 48), progress=False)
+        read_image_folder(tmp_path, Camera.pinhole(50, 50, 31.5, 23.5, 32, 48), conf=SFM, progress=False)
     with pytest.raises(InputError, match="matchng"):
-        read_image_folder(tmp_path, conf={"matchng": "exhaustive"}, progress=False)
+        read_image_folder(tmp_path, conf={**SFM, "matchng": "exhaustive"}, progress=False)
     with pytest.raises(InputError, match="sfm.matching"):
-        sfm_config({"matching": "vocab_tree"})
+        sfm_config({**SFM, "matching": "vocab_tree"})
     with pytest.raises(InputError, match="sfm.sequential_overlap must be a positive integer"):
-        sfm_config({"sequential_overlap": 0})
+        sfm_config({**SFM, "sequential_overlap": 0})
     with pytest.raises(InputError, match="sfm.camera_model"):
-        sfm_config({"camera_model": "FISHEYE_PLUS"})
-    assert sfm_config({"seed": 3})["seed"] == 3
+        sfm_config({**SFM, "camera_model": "FISHEYE_PLUS"})
+    assert sfm_config({**SFM, "seed": 3})["seed"] == 3
+    assert sorted(SFM_OPTIONS) == sorted(SFM)  # the reader takes every shipped option
+    with pytest.raises(InputError, match="missing option.*seed"):
+        sfm_config({key: value for key, value in SFM.items() if key != "seed"})
 
 
 def test_featureless_images_cannot_be_reconstructed(tmp_path):
     for i in range(3):
         Image.new("RGB", (64, 48), (90, 90, 90)).save(tmp_path / f"{i}.png")
     with pytest.raises(InputError, match="could not reconstruct.*0 of 3.*overlap"):
-        read_image_folder(tmp_path, work_dir=tmp_path / "colmap", progress=False)
+        read_image_folder(tmp_path, work_dir=tmp_path / "colmap", conf=SFM, progress=False)
 
 
 class RenderedDepth:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from ..config import check_keys
+from ..config import option_section
 from ..errors import InputError
 
 
@@ -18,16 +18,7 @@ def source_conf(name: str, conf: Mapping[str, Any] | DictConfig | None, options:
         InputError: not a mapping, a missing option, or an unknown one (named, with its closest
             spellings: typos fail loudly).
     """
-    if isinstance(conf, DictConfig):
-        conf = OmegaConf.to_container(conf, resolve=True)
-    if not isinstance(conf, Mapping):
-        raise InputError(f"depth.{name}: expected a mapping of options (the section of configs/depth.yaml), "
-                         f"got {type(conf).__name__}")
-    check_keys(dict.fromkeys(options), conf, f"depth.{name}", noun="option")
-    missing = [key for key in options if key not in conf]
-    if missing:
-        raise InputError(f"depth.{name}: missing option(s) {', '.join(missing)} (configs/depth.yaml has them)")
-    return dict(conf)
+    return option_section(conf, options, f"depth.{name}")
 
 
 def number(conf: Mapping[str, Any], key: str, section: str, minimum: float = 0.0) -> float:

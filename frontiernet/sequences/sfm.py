@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
-from ..config import check_keys, load_config
+from ..config import option_section
 from ..errors import InputError
 from .colmap import COLMAP_PIXEL_CENTRE, sequence_from_reconstruction
 from .frames import Camera, Sequence
@@ -33,14 +33,16 @@ from .readers import check_camera_size, common_image_size, list_images, require_
 SFM_SUFFIXES = (".jpg", ".jpeg", ".png")
 MIN_REGISTERED = 2  # a reconstruction needs two posed images
 MIN_SCALE_POINTS = 20  # sparse points on valid depth that metric_scale needs
+SFM_OPTIONS = ("matching", "exhaustive_max_images", "sequential_overlap", "max_image_size", "max_num_features",
+               "sift_threads", "camera_model", "min_model_size", "seed")
+"""The keys of the ``sfm`` section of ``configs/sequence.yaml``."""
 
 
-def sfm_config(conf=None) -> dict:
-    """The ``sfm`` section of ``configs/sequence.yaml`` with `conf` (a mapping) on top; InputError
-    for an unknown key or matching mode."""
-    options = dict(load_config("sequence")["sfm"])
-    check_keys(options, conf or {}, "sfm config", noun="option")
-    options.update(conf or {})
+def sfm_config(conf) -> dict:
+    """The ``sfm`` section of ``configs/sequence.yaml`` (as the command resolved it: every key of
+    :data:`SFM_OPTIONS`), checked, as a plain dict; InputError for a missing or unknown key or a
+    bad value."""
+    options = option_section(conf, SFM_OPTIONS, "sfm")
     if options["matching"] not in ("auto", "sequential", "exhaustive"):
         raise InputError(f"sfm.matching must be auto, sequential or exhaustive, got {options['matching']!r}")
     if options["camera_model"] not in pycolmap.CameraModelId.__members__ or options["camera_model"] == "INVALID":
@@ -220,7 +222,7 @@ def _work_folder(work_dir):
         yield Path(path)
 
 
-def read_image_folder(root, camera: Camera | None = None, work_dir=None, conf=None, progress: bool = True
+def read_image_folder(root, camera: Camera | None = None, work_dir=None, *, conf, progress: bool = True
                       ) -> Sequence:
     """Poses of a folder of images from pycolmap's incremental structure from motion (CPU).
 
@@ -231,7 +233,7 @@ def read_image_folder(root, camera: Camera | None = None, work_dir=None, conf=No
         work_dir: folder for ``database.db`` and ``sparse/0``; a model found there is loaded
             instead of reconstructing (`camera` and `conf` then have no effect). None: a
             temporary folder, deleted afterwards.
-        conf: mapping of ``sfm`` options replacing ``configs/sequence.yaml``'s.
+        conf: the ``sfm`` section of ``configs/sequence.yaml`` (:func:`sfm_config`).
         progress: show a rich progress line (and keep COLMAP's log to errors); Ctrl-C cancels.
     Returns:
         One frame per registered image, sorted by name, with ``T_world_cam`` (4, 4) float64 in
