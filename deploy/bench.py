@@ -190,9 +190,9 @@ def run(args) -> int:
 
     if args.repeats < 1 or min(args.sizes) < 8:
         raise InputError("--repeats must be >= 1 and --sizes >= 8")
-    from importlib.metadata import entry_points
+    from frontiernet.model.predictor import RUNTIMES
 
-    exports = {entry.name for entry in entry_points(group="frontiernet.runtimes")}  # onnx, pt, ...: exported files
+    exports = set(RUNTIMES.plugins())  # onnx, pt, ...: exported files
     if args.model is not None and Path(args.model).suffix.lower().lstrip(".") in exports:
         raise InputError(f"{args.model}: bench inference times a torch model against its own ONNX and TorchScript "
                          "exports, so it needs the model file (.safetensors) or a training checkpoint (.ckpt), "

@@ -10,9 +10,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..registry import Registry
 
-BENCH_GROUP = "frontiernet.bench"
-"""Entry point group of benchmarks added by packages built on the library."""
+BENCH_ACTIONS = Registry("bench action", "frontiernet.bench")
+"""Benchmarks added by packages built on the library (``deploy``'s ``bench inference``): modules
+with ``add_parser(actions)``; ``render``, ``map`` and ``explore`` are this module's own."""
 
 
 def add_parser(subparsers) -> None:
@@ -35,9 +37,7 @@ def add_parser(subparsers) -> None:
     explore = _scene_bench(actions, "explore", "cost of one exploration step by stage vs a render", run_explore)
     explore.add_argument("--method", default="frontiernet", help="exploration method (see `frontiernet explore -h`)")
     explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
-    from .main import plugin_commands
-
-    for module in plugin_commands(BENCH_GROUP):  # e.g. deploy's `bench inference`
+    for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)
 
 

@@ -3,8 +3,8 @@
 Each subcommand module exposes ``add_parser(subparsers)``, which registers its parser
 and sets ``func`` to the function that runs it with the parsed arguments. Packages built
 on the library (``datagen``, ``train``, ``deploy``, or a user's own) add commands through
-the ``frontiernet.commands`` entry point group, naming such a module; the library never
-imports them.
+the ``frontiernet.commands`` entry point group, naming such a module (:data:`COMMANDS`, a
+:class:`~frontiernet.registry.Registry`); the library never imports them.
 """
 
 from __future__ import annotations
@@ -17,26 +17,14 @@ import sys
 
 from .. import __version__
 from ..errors import InputError
+from ..registry import Registry
 from . import bench, demo, explore, render, scene, sequence
 
-COMMANDS = (scene, render, explore, demo, bench, sequence)
-PLUGIN_GROUP = "frontiernet.commands"
+COMMANDS = Registry("command", "frontiernet.commands", {"scene": scene, "render": render, "explore": explore,
+                                                       "demo": demo, "bench": bench, "sequence": sequence})
+"""The subcommands: name -> a module with ``add_parser(subparsers)``."""
 NEGATIVE_NUMBER = re.compile(r"-\.?\d")
 """What the parser reads as a (negative) number, not an option (CPython's current argparse pattern, ``match``)."""
-
-
-def plugin_commands(group: str = PLUGIN_GROUP) -> list:
-    """Command modules registered under an entry point group (default ``frontiernet.commands``)."""
-    from importlib.metadata import entry_points
-
-    modules = []
-    for entry in sorted(entry_points(group=group), key=lambda e: e.name):
-        try:
-            modules.append(entry.load())
-        except Exception as error:  # a broken plugin must not take the whole CLI down
-            logging.getLogger(__name__).warning("command '%s' (%s) failed to load: %s", entry.name, entry.value,
-                                                error)
-    return modules
 
 
 class _Parser(argparse.ArgumentParser):
@@ -61,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"frontiernet {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for command in (*COMMANDS, *plugin_commands()):
+    for command in COMMANDS.load_all():
         command.add_parser(subparsers)
     return parser
 

@@ -18,18 +18,22 @@ from typing import Any, Mapping
 from omegaconf import DictConfig
 
 from ..errors import InputError
+from ..registry import Registry
 from .base import DepthSource
 from .depth_anything import DepthAnythingV2
 from .emulated import EmulatedMonocularDepth
 from .ground_truth import GroundTruthDepth
 from .metric3d import Metric3DV2
 
-SOURCES: dict[str, type[DepthSource]] = {
+DEPTH_SOURCES = Registry("depth source", None, {
     "ground_truth": GroundTruthDepth,
     "emulated": EmulatedMonocularDepth,
     "depth_anything_v2": DepthAnythingV2,
     "metric3d_v2": Metric3DV2,
-}
+})
+"""The depth sources by name: a :class:`DepthSource` class built as ``Class(section)``, its section
+of the run's depth config. Built in only (no entry point group)."""
+SOURCES: dict[str, type[DepthSource]] = DEPTH_SOURCES.builtin
 
 
 def make_depth_source(
@@ -53,11 +57,10 @@ def make_depth_source(
         if not isinstance(name_or_conf, (Mapping, DictConfig)) or "source" not in name_or_conf:
             raise InputError("depth config: expected a source name or a mapping with a 'source' key")
         name, conf = str(name_or_conf["source"]), name_or_conf
-    if name not in SOURCES:
-        raise InputError(f"depth source '{name}' is unknown; valid: {', '.join(SOURCES)}")
+    source = DEPTH_SOURCES.get(name)
     if conf is not None and ("source" in conf or isinstance(conf.get(name), (Mapping, DictConfig))):
         conf = conf.get(name)  # a whole depth config: take this source's section
-    return SOURCES[name](conf)
+    return source(conf)
 
 
 __all__ = [
@@ -67,5 +70,6 @@ __all__ = [
     "DepthAnythingV2",
     "Metric3DV2",
     "SOURCES",
+    "DEPTH_SOURCES",
     "make_depth_source",
 ]

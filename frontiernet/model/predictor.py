@@ -16,6 +16,7 @@ import torch
 
 from .checkpoint import load_model
 from ..errors import InputError
+from ..registry import Registry
 from .inputs import decode_distance, invalid_to_zero, network_input, resize_and_crop
 
 
@@ -132,32 +133,24 @@ class Predictor(Runtime):
         return distance.float().cpu().numpy(), logits.float().cpu().numpy()
 
 
-RUNTIME_GROUP = "frontiernet.runtimes"
-"""Entry point group of runtimes for other model formats: name = file suffix without the dot
-(``onnx``, ``pt``), value = a Runtime class built as ``Class(path, threads)`` (``deploy`` adds
-ONNX and TorchScript)."""
+RUNTIMES = Registry("model format", "frontiernet.runtimes", {"safetensors": Predictor, "ckpt": Predictor})
+"""Runtimes by model file suffix (without the dot): a Runtime class built as ``Class(path, threads)``.
+Torch files are built in; other formats register under the entry point group
+``frontiernet.runtimes`` (``deploy`` adds ONNX as ``onnx`` and TorchScript as ``pt``, ``ts``,
+``torchscript``)."""
 
 
 def open_runtime(path: str | Path | None = None, threads: int | None = None) -> Runtime:
-    """The runtime for a model file, chosen by its suffix (None: the shipped model, torch).
+    """The runtime for a model file, chosen by its suffix in :data:`RUNTIMES` (None: the shipped
+    model, torch).
 
-    ``.safetensors`` and ``.ckpt`` run in torch (:class:`Predictor`); other suffixes use the
-    runtime registered for them under ``frontiernet.runtimes``.
     Raises:
         InputError: a missing file or a format no installed runtime reads.
     """
-    from importlib.metadata import entry_points
-
     if path is None:
         return Predictor(None, threads=threads)
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: model file not found")
     suffix = path.suffix.lower().lstrip(".")
-    if suffix in ("safetensors", "ckpt"):
-        return Predictor(path, threads=threads)
-    registered = {entry.name: entry for entry in entry_points(group=RUNTIME_GROUP)}
-    if suffix not in registered:
-        known = ", ".join(f".{name}" for name in sorted({"safetensors", "ckpt", *registered}))
-        raise InputError(f"{path}: unknown model format '.{suffix}' (expected {known})")
-    return registered[suffix].load()(path, threads)
+    return RUNTIMES.get(suffix, label=f"{path}: model format")(path, threads)

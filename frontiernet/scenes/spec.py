@@ -41,8 +41,9 @@ import numpy as np
 import yaml
 
 from ..errors import InputError
+from .sources import SCENE_SOURCES
 
-SOURCES = ("mesh", "hm3d", "floorplan", "procedural")
+SOURCES = tuple(SCENE_SOURCES.names())  # the sources a spec may name before ':'
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
 DEFAULT_SPEC = "procedural:0"
 
