@@ -1,12 +1,12 @@
 """The oracle perception: ground-truth frontiers in place of the network.
 
-``frontiernet explore --method oracle`` (registered under the ``frontiernet.perception``
-entry point group). Each frame's frontier mask and gain classes are the ground truth of
+``frontiernet explore --method oracle`` (registered under the ``frontiernet.methods`` entry
+point group, as every method: :func:`oracle`). Each frame's frontier mask and gain classes are the ground truth of
 :class:`~datagen.ground_truth.GroundTruthGenerator` for that view (the labels the network
 is trained on), so the run shows what the rest of the pipeline (anchoring, bookkeeping,
 planning) achieves with perfect single-view perception: an upper bound for the model.
 
-Two hybrids (``frontiernet.methods`` entry points) split it into "where" and "how much"
+Two hybrids (also ``frontiernet.methods`` entry points) split it into "where" and "how much"
 (issue 27, step 3; docs/benchmark.md, "Where the value of gain is lost"):
 
 * ``oracle-uniform``: the ground truth's frontier pixels, one uniform gain class
@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from frontiernet.exploration.ablations import GainFrom
-from frontiernet.exploration.methods import ImageSource, Method
-from frontiernet.exploration.perception import Perception, PerceptionResult, make_perception, uniform_gain
+from frontiernet.exploration.ablations import GainFrom, uniform_gain
+from frontiernet.exploration.methods import Method, MethodContext, image_method, model_perception
+from frontiernet.exploration.perception import Perception, PerceptionResult
 
 from .config import load_datagen_config
 from .ground_truth import GroundTruthGenerator
@@ -62,18 +62,23 @@ class OraclePerception(Perception):
                                 truth.distance_field, truth.gain_class.astype(np.uint8), self.labels)
 
 
-def _image_method(name: str, perception: Perception) -> Method:
-    perception.name = name
-    return Method(name, ImageSource(perception))
+def _oracle_perception(context: MethodContext) -> OraclePerception:
+    """The ground truth of the context's scene, camera and run config (its ``ground_truth`` section)."""
+    return OraclePerception(context.scene, context.voxels, context.sim_conf, context.conf)
 
 
-def oracle_uniform(model, scene, voxels, sim_conf, conf) -> Method:
+def oracle(context: MethodContext) -> Method:
+    """``oracle``: ground-truth frontier pixels and gain classes (a ``frontiernet.methods`` factory)."""
+    return image_method("oracle", _oracle_perception(context), context)
+
+
+def oracle_uniform(context: MethodContext) -> Method:
     """``oracle-uniform``: ground-truth frontier pixels, uniform gain (a ``frontiernet.methods`` factory)."""
-    return _image_method("oracle-uniform", uniform_gain(OraclePerception(scene, voxels, sim_conf, conf), conf))
+    return image_method("oracle-uniform", uniform_gain(_oracle_perception(context), context.conf), context)
 
 
-def frontiernet_oracle_gain(model, scene, voxels, sim_conf, conf) -> Method:
-    """``frontiernet-oracle-gain``: the model's frontier pixels (`model`: its file, None = the
-    shipped one), ground-truth gain classes (a ``frontiernet.methods`` factory)."""
-    model_perception = make_perception("frontiernet", model, conf=conf)
-    return _image_method("frontiernet-oracle-gain", GainFrom(model_perception, OraclePerception(scene, voxels, sim_conf, conf)))
+def frontiernet_oracle_gain(context: MethodContext) -> Method:
+    """``frontiernet-oracle-gain``: the model's frontier pixels (the context's model file, None =
+    the shipped one), ground-truth gain classes (a ``frontiernet.methods`` factory)."""
+    perception = GainFrom(model_perception(context), _oracle_perception(context))
+    return image_method("frontiernet-oracle-gain", perception, context, uses_model=True)

@@ -1,5 +1,5 @@
 """The paper's Fig. 9 ablation perceptions (frontiernet/exploration/ablations.py): uniform gain,
-depth-discontinuity frontiers F_d, and their registration in make_perception."""
+depth-discontinuity frontiers F_d, and the methods built of them (exploration/methods.py)."""
 
 from __future__ import annotations
 
@@ -20,19 +20,15 @@ from frontiernet.exploration.ablations import (
     UniformGain,
     model_labels,
 )
-from frontiernet.exploration.perception import (
-    BUILTIN_PERCEPTIONS,
-    ModelPerception,
-    Perception,
-    PerceptionResult,
-    make_perception,
-)
+from frontiernet.exploration.methods import METHODS, MethodContext, make_method
+from frontiernet.exploration.perception import ModelPerception, Perception, PerceptionResult
 from frontiernet.frontiers.discontinuity import discontinuity_mask, distance_field
 from frontiernet.model import FrontierNet, NetworkConfig, save_model
 
 SIZE = 48  # working size of the model-free tests (pixels)
 LABELS = model_labels()
 SETTINGS = DiscontinuitySettings.from_config(load_config("explore").ablations.discontinuity)  # the shipped F_d
+SIM = load_config("sim")
 
 
 def frame_with(depth: np.ndarray) -> SimpleNamespace:
@@ -145,11 +141,19 @@ def tiny_model(tmp_path_factory):
     return save_model(tmp_path_factory.mktemp("model") / "tiny.safetensors", net, conf)
 
 
+def ablation(method: str, model=None, conf=None) -> Perception:
+    """The perception of image method `method` built for a run of config `conf` (None: the shipped explore.yaml)."""
+    conf = conf if conf is not None else load_config("explore")
+    built = make_method(method, MethodContext(conf, SIM, model=model))
+    return built.source.perception
+
+
 @pytest.mark.parametrize("method, model_runs", [("df-uniform", True), ("discontinuity-gain", True),
                                                 ("discontinuity-uniform", False)])
-def test_make_perception_builds_each_ablation(tiny_model, method, model_runs):
-    perception = make_perception(method, tiny_model)
-    assert perception.name == method
+def test_each_ablation_method_is_built_with_its_perception(tiny_model, method, model_runs):
+    built = make_method(method, MethodContext(load_config("explore"), SIM, model=tiny_model))
+    perception = built.source.perception
+    assert built.name == perception.name == method and built.uses_model == model_runs
     chain, node = [], perception
     while node is not None:
         chain.append(node)
@@ -162,21 +166,20 @@ def test_make_perception_builds_each_ablation(tiny_model, method, model_runs):
         assert (seen.gain_class == load_config("explore").ablations.uniform_gain_class).all()
 
 
-def test_make_perception_takes_the_explore_config():
+def test_the_ablations_take_the_run_config():
     conf = load_config("explore", overrides=["ablations.uniform_gain_class=4"])
     depth = step_depth(96)
-    seen = make_perception("discontinuity-uniform", conf=conf)(frame_with(depth), depth)
+    seen = ablation("discontinuity-uniform", conf=conf)(frame_with(depth), depth)
     assert (seen.gain_class == 4).all() and seen.depth.shape == (320, 320)  # the model's inference.size
     with pytest.raises(InputError, match="ablations"):
-        make_perception("discontinuity-uniform", conf=OmegaConf.create({"run": {}}))
+        ablation("discontinuity-uniform", conf=OmegaConf.create({"run": {"seed": 0}, "anchoring": {}}))
 
 
 def test_an_unknown_method_lists_every_valid_name():
     with pytest.raises(InputError) as error:
-        make_perception("no-such-method")
-    for name in (*BUILTIN_PERCEPTIONS, "oracle"):
-        assert name in str(error.value)
-    assert set(BUILTIN_PERCEPTIONS) == {"frontiernet", "df-uniform", "discontinuity-gain", "discontinuity-uniform"}
+        make_method("no-such-method", MethodContext(load_config("explore"), SIM))
+    for name in ("frontiernet", "df-uniform", "discontinuity-gain", "discontinuity-uniform", "oracle"):
+        assert name in METHODS.names() and name in str(error.value)
 
 
 def test_datagen_still_imports_the_moved_label_functions():

@@ -12,10 +12,10 @@ from datagen.oracle import OraclePerception
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.exploration.ablations import GainFrom
-from frontiernet.exploration.methods import ImageSource, make_method, method_names
-from frontiernet.exploration.perception import make_perception
+from frontiernet.exploration.methods import ImageSource, MethodContext, make_method, method_names
+from frontiernet.exploration.perception import ModelPerception
 from frontiernet.geometry import pose_from_heading
-from frontiernet.model import FrontierNet, NetworkConfig, save_model
+from frontiernet.model import FrontierNet, NetworkConfig, open_runtime, save_model
 from frontiernet.model.inputs import resize_and_crop
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
@@ -43,17 +43,25 @@ def door_frame(two_room_scene, small_sim):
     return Renderer(two_room_scene, camera, (0, 0, 0)).render(pose_from_heading(1.0, 1.95, 1.2, 0.0))
 
 
+def method_of(name, model, scene, voxels, sim, conf=None):
+    """The method `name` built for a run of `scene` with the sim config `sim` and the run config `conf`
+    (None: the shipped explore.yaml)."""
+    conf = conf if conf is not None else load_config("explore")
+    return make_method(name, MethodContext(conf, sim, model, scene, voxels))
+
+
 def hybrid(name, model, scene, voxels, sim, conf=None):
-    method = make_method(name, model, scene, voxels, sim, conf if conf is not None else load_config("explore"))
+    method = method_of(name, model, scene, voxels, sim, conf)
     assert method.name == name and isinstance(method.source, ImageSource) and method.goal == "utility"
     assert method.source.perception.name == name
+    assert method.uses_model == (name == "frontiernet-oracle-gain")  # the run records the model file
     return method.source.perception
 
 
-def test_the_hybrids_are_listed_and_an_unknown_name_lists_them():
-    assert {"oracle-uniform", "frontiernet-oracle-gain"} <= set(method_names())
+def test_the_hybrids_are_listed_and_an_unknown_name_lists_them(small_sim):
+    assert {"oracle", "oracle-uniform", "frontiernet-oracle-gain"} <= set(method_names())
     with pytest.raises(InputError, match="valid: .*frontiernet-oracle-gain.*oracle-uniform"):
-        make_method("oracle-unifrom")
+        make_method("oracle-unifrom", MethodContext(load_config("explore"), small_sim))
 
 
 def test_oracle_uniform_has_the_ground_truth_frontiers_and_the_uniform_gain(two_room_scene, two_room_voxels,
@@ -73,7 +81,7 @@ def test_frontiernet_oracle_gain_has_the_models_frontiers_and_the_ground_truth_g
         tiny_model, two_room_scene, two_room_voxels, small_sim, door_frame):
     seen = hybrid("frontiernet-oracle-gain", tiny_model, two_room_scene, two_room_voxels, small_sim)(
         door_frame, door_frame.depth)
-    model = make_perception("frontiernet", tiny_model)(door_frame, door_frame.depth)
+    model = ModelPerception(open_runtime(tiny_model))(door_frame, door_frame.depth)
     truth = OraclePerception(two_room_scene, two_room_voxels, small_sim)(door_frame, door_frame.depth)
     np.testing.assert_array_equal(seen.distance_field, model.distance_field)  # where: the model's (64 px)
     np.testing.assert_array_equal(seen.depth, model.depth)
@@ -99,13 +107,12 @@ def test_the_oracles_ground_truth_follows_the_run_config(two_room_scene, two_roo
     from frontiernet.exploration.run import load_run_config
 
     conf = load_run_config(overrides=["ground_truth.gain.volume=occluded", "ground_truth.gain.spread=region"])
-    oracle = make_method("oracle", None, two_room_scene, two_room_voxels, small_sim, conf).source.perception
+    oracle = hybrid("oracle", None, two_room_scene, two_room_voxels, small_sim, conf)
     assert (oracle.generator.gain_volume, oracle.generator.gain_spread) == ("occluded", "region")
     uniform = hybrid("oracle-uniform", None, two_room_scene, two_room_voxels, small_sim, conf)
     assert uniform.base.generator.gain_spread == "region"
-    shipped = make_method("oracle", None, two_room_scene, two_room_voxels, small_sim, load_run_config())
-    assert (shipped.source.perception.generator.gain_volume, shipped.source.perception.generator.gain_spread) \
-        == ("unobserved", "blend")
+    shipped = hybrid("oracle", None, two_room_scene, two_room_voxels, small_sim, load_run_config())
+    assert (shipped.generator.gain_volume, shipped.generator.gain_spread) == ("unobserved", "blend")
     with pytest.raises(InputError, match="ground_truth.gain.volume"):
-        make_method("oracle", None, two_room_scene, two_room_voxels, small_sim,
-                    load_run_config(overrides=["ground_truth.gain.volume=behind"]))
+        method_of("oracle", None, two_room_scene, two_room_voxels, small_sim,
+                  load_run_config(overrides=["ground_truth.gain.volume=behind"]))

@@ -13,8 +13,9 @@ import pytest
 
 from conftest import explore_section
 from frontiernet.cli.main import main
+from frontiernet.config import load_config
 from frontiernet.errors import InputError
-from frontiernet.exploration.methods import ImageSource, MapSource, Method, make_method, method_names
+from frontiernet.exploration.methods import ImageSource, MapSource, Method, MethodContext, make_method, method_names
 from frontiernet.frontiers import FrontierTracker
 from frontiernet.planning.planner import FrontierPlanner
 
@@ -30,21 +31,27 @@ def run_method(spec, out, method: str, steps: int, *options: str) -> dict:
     return json.loads((out / "metrics.json").read_text())
 
 
-def test_every_built_in_method_is_listed_and_built():
+def test_every_built_in_method_is_listed_and_built(two_room_scene, two_room_voxels):
     names = method_names()
     for name in ("frontiernet", "oracle", "df-uniform", "discontinuity-gain", "discontinuity-uniform", *BASELINES):
         assert name in names
-    classic, gain, random_frontier, vacuum = (make_method(name) for name in BASELINES)
+    context = MethodContext(load_config("explore", overrides=["run.seed=4"]), load_config("sim"),
+                            scene=two_room_scene, voxels=two_room_voxels)
+    assert context.map.shape == two_room_voxels.shape and context.rng.random() == np.random.default_rng(4).random()
+    classic, gain, random_frontier, vacuum = (make_method(name, context) for name in BASELINES)
     assert isinstance(classic.source, MapSource) and classic.goal == "nearest" and classic.fresh_frontiers
+    assert classic.source.map is context.map  # the run's map, which the explorer fills
     assert gain.source.gain == "unknown_volume" and gain.goal == "utility"
     assert random_frontier.goal == "random" and vacuum.source is None and vacuum.goal == "vacuum"
-    uniform = make_method("discontinuity-uniform")  # needs no model file
+    uniform = make_method("discontinuity-uniform", context)  # needs no model file
     assert isinstance(uniform.source, ImageSource) and not uniform.fresh_frontiers and uniform.goal == "utility"
+    assert uniform.source.rng is context.rng and uniform.source.anchoring == context.conf.anchoring
+    assert not any(method.uses_model for method in (classic, gain, random_frontier, vacuum, uniform))
 
 
 def test_unknown_method_or_goal_rule_is_an_input_error_listing_the_valid_ones():
     with pytest.raises(InputError, match="valid: .*classic.*gain-distance.*vacuum"):
-        make_method("nbvp")
+        make_method("nbvp", MethodContext(load_config("explore"), load_config("sim")))
     with pytest.raises(InputError, match="goal rule"):
         Method("mine", None, "closest")
     with pytest.raises(InputError, match="no frontier source"):
@@ -101,9 +108,10 @@ def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_p
         assert metrics["goals"] == 0 and metrics["steps"] == 60  # no goals, it runs until the budget ends
 
 
-def make_my_planner(model, scene, voxels, sim_conf, conf):
+def make_my_planner(context):
     """docs/exploration.md's plugin example: map frontiers scored by visible unknown volume, nearest first."""
-    return Method("my-planner", MapSource("unknown_volume"), goal="nearest", fresh_frontiers=True)
+    return Method("my-planner", MapSource("unknown_volume", context.map, context.conf), goal="nearest",
+                  fresh_frontiers=True)
 
 
 @pytest.mark.slow

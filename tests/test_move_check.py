@@ -11,7 +11,7 @@ from conftest import box_scene, room_boxes
 from frontiernet.config import load_config
 from frontiernet.depth import make_depth_source
 from frontiernet.exploration.explorer import Explorer
-from frontiernet.exploration.methods import make_method
+from frontiernet.exploration.methods import MethodContext, make_method
 from frontiernet.geometry import pose_from_heading
 from frontiernet.mapping import FREE, UNKNOWN, OccupancyMap
 from frontiernet.simulator.camera import PinholeCamera, Renderer
@@ -34,9 +34,9 @@ def explorer_facing_away_from_the_west(pillar: bool) -> Explorer:
     scene = room_scene(pillar)
     conf, sim = load_config("explore"), load_config("sim")
     voxels = voxelize_scene(scene, sim.voxels)
-    explorer = Explorer(scene, voxels, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic"),
-                        make_depth_source("ground_truth", load_config("depth")), conf, sim,
-                        pose_from_heading(*ROBOT, yaw=np.pi / 2))
+    context = MethodContext(conf, sim, scene=scene, voxels=voxels)
+    explorer = Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic", context),
+                        make_depth_source("ground_truth", load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi / 2))
     for yaw_deg in (90, 45, 0, -45, -90):
         turn(explorer, np.radians(yaw_deg))
     return explorer

@@ -2,7 +2,7 @@
 
 Each replaces one half of FrontierNet's output, the frontier pixels (learned distance field D)
 or the gain classes, by an uninformed stand-in; anchoring, bookkeeping and planning are the
-same as for ``frontiernet`` (:func:`~frontiernet.exploration.perception.make_perception`):
+same as for ``frontiernet`` (the methods of :data:`~frontiernet.exploration.methods.METHODS`):
 
 =======================  ===========================================  ======================
 method                   frontier pixels                              gain classes
@@ -193,5 +193,25 @@ class DiscontinuityFrontiers(Perception):
         return replace(seen, distance_field=field, labels=labels)
 
 
+def ablation_settings(conf):
+    """``ablations:`` of the run config `conf` (``configs/explore.yaml``'s keys)."""
+    section = conf.get("ablations") if hasattr(conf, "get") else None
+    if section is None:
+        raise InputError("the explore config has no 'ablations' section (configs/explore.yaml has the defaults)")
+    return section
+
+
+def uniform_gain(base: Perception, conf) -> UniformGain:
+    """`base`'s frontier pixels with the uniform gain class ``ablations.uniform_gain_class`` of the
+    run config `conf`: df-uniform's, discontinuity-uniform's and oracle-uniform's stand-in."""
+    return UniformGain(base, ablation_settings(conf).uniform_gain_class)
+
+
+def discontinuity_frontiers(base: Perception | None, conf) -> DiscontinuityFrontiers:
+    """F_d frontier pixels (``ablations.discontinuity`` of the run config `conf`) with `base`'s gain
+    classes (None: no model, class 0; see :class:`DiscontinuityFrontiers`)."""
+    return DiscontinuityFrontiers(base, DiscontinuitySettings.from_config(ablation_settings(conf).discontinuity))
+
+
 __all__ = ["DISCONTINUITY_THRESHOLD_PX", "DiscontinuityFrontiers", "DiscontinuitySettings", "GainFrom", "UniformGain",
-           "model_labels"]
+           "ablation_settings", "discontinuity_frontiers", "model_labels", "uniform_gain"]

@@ -26,9 +26,8 @@ from ..mapping import OccupancyMap
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
-from .methods import ImageSource, Method
+from .methods import Method
 from .motion import Motion, wrap_angle, yaw_of
-from .perception import plain_view
 from .surface import SurfaceCoverage
 
 _ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
@@ -73,30 +72,29 @@ class Explorer:
     """One exploration run in the simulator.
 
     Args:
-        scene: the scene; voxels: its :class:`~frontiernet.simulator.voxels.VoxelGrid`
-            (the ground-truth explorable volume for coverage; the robot never reads it).
+        context: the run's :class:`~frontiernet.exploration.methods.MethodContext`, which the
+            method was built with: the scene and its
+            :class:`~frontiernet.simulator.voxels.VoxelGrid` (the ground-truth explorable volume
+            for coverage; the robot never reads it), the run config (``configs/explore.yaml`` with
+            its sections; ``run.seed`` seeds the draws), the sim config (the agent), the random
+            generator (vacuum's turns; the method's own draws) and the robot's map, which the
+            explorer fills and the method reads.
         renderer: a :class:`~frontiernet.simulator.camera.Renderer` of the scene.
-        method: a :class:`~frontiernet.exploration.methods.Method` (or a
-            :class:`~frontiernet.exploration.perception.Perception`, run as the paper's
-            pipeline: its frontier pixels anchored, goals by Eq. 8).
+        method: a :class:`~frontiernet.exploration.methods.Method`.
         depth_source: a :class:`~frontiernet.depth.DepthSource` (reset by the caller).
-        conf: the whole ``configs/explore.yaml`` config (``run.seed`` seeds the explorer's draws:
-            anchoring's pixel subset, random goal scores, vacuum turns); sim_conf: ``configs/sim.yaml``.
         T_start: (4, 4) start pose (level camera at the configured height).
         on_step: optional callback ``(explorer, record, frame, perception_result)`` per iteration
             (video frames, progress).
     """
 
-    def __init__(self, scene, voxels, renderer, method, depth_source, conf, sim_conf, T_start: np.ndarray,
-                 on_step=None) -> None:
+    def __init__(self, context, renderer, method: Method, depth_source, T_start: np.ndarray, on_step=None) -> None:
+        scene, voxels, conf = context.scene, context.voxels, context.conf
         self.scene, self.voxels, self.renderer = scene, voxels, renderer
-        if not isinstance(method, Method):
-            method = Method(getattr(method, "name", "perception"), ImageSource(method))
         self.method, self.depth_source, self.conf = method, depth_source, conf
         self.map_free = str(conf.planner.mode) == "map_free"
         if str(conf.planner.mode) not in ("map", "map_free"):
             raise InputError(f"planner.mode must be 'map' or 'map_free', got {conf.planner.mode!r}")
-        self.agent = Agent(scene, T_start, sim_conf.agent, voxels)
+        self.agent = Agent(scene, T_start, context.sim_conf.agent, voxels)
         # moves are checked with the largest body that planned routes keep clear of occupied voxels
         margin = float(conf.map.voxel_size) / np.sqrt(2.0) + _ROUTE_SLACK_M  # half a voxel's diagonal + slack
         self.body_radius = float(conf.planner.clearance_m) - margin
@@ -105,7 +103,7 @@ class Explorer:
                              f"{self.agent.radius} m: it must be at least {self.agent.radius + margin:.3f} m (radius + "
                              f"half a voxel's diagonal + {_ROUTE_SLACK_M} m)")
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
-        self.map = OccupancyMap.like(voxels, conf.map)
+        self.map = context.map
         self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
         self.surface = SurfaceCoverage(scene, conf, int(conf.surface.seed), voxels=voxels)  # GLEAM's metrics
         self.surface_seen = np.zeros(self.surface.num_samples, bool)  # once seen, a surface point stays seen
@@ -115,7 +113,7 @@ class Explorer:
                                        body_radius_m=self.body_radius)
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
         self.poses: list[np.ndarray] = []
-        self.rng = np.random.default_rng(int(conf.run.seed))
+        self.rng = context.rng
         self.on_step = on_step
         self.route = None
         self.backoff = None  # (2,) xy to step back to: after a collision (map-free mode), or boxed in
@@ -145,10 +143,7 @@ class Explorer:
         ground_truth = frame.hit_depth if far else frame.depth
         depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, ground_truth)
         self._timed("map", self._integrate, depth, frame, T)
-        if self.method.source is None:
-            observations, seen = [], plain_view(frame, depth)
-        else:
-            observations, seen = self.method.source(self, frame, depth, self._timed)
+        observations, seen = self.method.propose(frame, depth, self._timed)
         self._timed("tracking", self._track, observations, T)
         self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
         self._timed("coverage", self._cover_surface)

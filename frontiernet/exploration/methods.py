@@ -25,68 +25,125 @@ vacuum                   none                                  --               
 
 The first five are the paper's system and its Fig. 9 ablations, the next two the oracle's
 "where" / "how much" hybrids of issue 27 (``datagen`` registers them, as it does ``oracle``);
-the rest are the baselines of issue 6. **Adding a method**: build a :class:`Method` from a :class:`FrontierSource` (an
-:class:`ImageSource` around your own :class:`~frontiernet.exploration.perception.Perception`,
-the :class:`MapSource`, or a subclass with your own ``__call__``) and a goal rule, and
-register a factory ``make(model, scene, voxels, sim_conf, conf) -> Method`` under the entry
-point group ``frontiernet.methods`` (docs/exploration.md has an example).
+the rest are the baselines of issue 6.
+
+**Adding a method** (docs/exploration.md): write a factory ``make(context) -> Method`` that
+builds a :class:`Method` from a :class:`FrontierSource` (an :class:`ImageSource` around your own
+:class:`~frontiernet.exploration.perception.Perception`, see :func:`image_method`; the
+:class:`MapSource`; or a subclass with your own ``__call__``) and a goal rule, and register it
+under the entry point group ``frontiernet.methods`` (:data:`METHODS`). The
+:class:`MethodContext` gives it the run's config, random generator and map (and the model file,
+scene and voxels); the built-in methods are built the same way.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import InputError
-from .perception import BUILTIN_PERCEPTIONS, PerceptionResult, make_perception, perception_plugins, plain_view
+from ..registry import Registry
+from .ablations import discontinuity_frontiers, uniform_gain
+from .perception import ModelPerception, Perception, PerceptionResult, plain_view
 
-METHOD_GROUP = "frontiernet.methods"
 GOAL_RULES = ("utility", "nearest", "random", "vacuum")
+
+
+@dataclass
+class MethodContext:
+    """What a method is built with: one per run, shared with the explorer that runs it.
+
+    Attributes:
+        conf: the run config (:func:`~frontiernet.exploration.run.load_run_config`:
+            ``configs/explore.yaml`` with sections ``sim``, ``depth``, ``ground_truth``).
+        sim_conf: the sim config the run uses (camera, agent: ``conf``'s ``sim`` section).
+        model: the model file of the learned methods (None: the shipped model).
+        scene, voxels: the scene and its :class:`~frontiernet.simulator.voxels.VoxelGrid` (the
+            oracle's ground truth; the map's extent). None: a method that needs them cannot be built.
+        rng: the run's draws (anchoring's pixel subset, vacuum's turns); None:
+            ``default_rng(conf.run.seed)``.
+        map: the robot's :class:`~frontiernet.mapping.OccupancyMap`, which the explorer fills
+            each frame and map methods read; None: an empty map over `voxels` (``conf.map``).
+    """
+
+    conf: Any
+    sim_conf: Any
+    model: str | Path | None = None
+    scene: Any = None
+    voxels: Any = None
+    rng: np.random.Generator | None = None
+    map: Any = None
+
+    def __post_init__(self) -> None:
+        if self.rng is None:
+            self.rng = np.random.default_rng(int(self.conf.run.seed))
+        if self.map is None and self.voxels is not None:
+            from ..mapping import OccupancyMap
+
+            self.map = OccupancyMap.like(self.voxels, self.conf.map)
 
 
 class FrontierSource:
     """Proposes one frame's frontier observations.
 
-    ``source(explorer, frame, depth, timed) -> (observations, view)``: `observations` are
+    ``source(frame, depth, timed) -> (observations, view)``: `observations` are
     :class:`~frontiernet.frontiers.anchoring.FrontierObservation`-like records in the world
     frame; `view` a :class:`~frontiernet.exploration.perception.PerceptionResult` for the
-    video (frontier pixels, or none). `timed(stage, function, *args)` times a stage of the
-    step (``perception``, ``anchoring``). The explorer's map already holds this frame.
+    video (frontier pixels, or none). `frame` is the rendered
+    :class:`~frontiernet.simulator.camera.Frame` (its pose ``T_world_cam``), `depth` (H, W)
+    float32 metres, NaN invalid, the robot's depth. `timed(stage, function, *args)` times a stage
+    of the step (``perception``, ``anchoring``). The run's map already holds this frame.
     """
 
-    def __call__(self, explorer, frame, depth: np.ndarray, timed) -> tuple[list, PerceptionResult]:
+    def __call__(self, frame, depth: np.ndarray, timed) -> tuple[list, PerceptionResult]:
         raise NotImplementedError
 
 
 class ImageSource(FrontierSource):
-    """Frontier pixels from a perception, lifted to 3D by anchoring (paper III-E)."""
+    """Frontier pixels from a perception, lifted to 3D by anchoring (paper III-E).
 
-    def __init__(self, perception) -> None:
-        self.perception = perception
+    Args:
+        perception: frame, depth -> :class:`~frontiernet.exploration.perception.PerceptionResult`.
+        anchoring: the ``anchoring`` section of the run config.
+        rng: the generator of anchoring's pixel subset (the run's).
+    """
 
-    def __call__(self, explorer, frame, depth, timed):
+    def __init__(self, perception: Perception, anchoring, rng: np.random.Generator) -> None:
+        self.perception, self.anchoring, self.rng = perception, anchoring, rng
+
+    def __call__(self, frame, depth, timed):
         from ..frontiers import anchor_prediction
 
         seen = timed("perception", self.perception, frame, depth)
         observations = timed("anchoring", anchor_prediction, seen.distance_field, seen.gain_class, seen.depth, seen.K,
-                             frame.T_world_cam, explorer.conf.anchoring, seen.labels, explorer.rng)
+                             frame.T_world_cam, self.anchoring, seen.labels, self.rng)
         return observations, seen
 
 
 class MapSource(FrontierSource):
-    """Frontiers of the occupancy map at the robot's height (Yamauchi 1997): free cells next
+    """Frontiers of the occupancy map at the camera's height (Yamauchi 1997): free cells next
     to unknown ones, clustered; gain ``uniform`` or ``unknown_volume`` (the unknown volume a
-    camera at the frontier would see). Timed as ``anchoring`` (frontier extraction)."""
+    camera at the frontier would see). Timed as ``anchoring`` (frontier extraction).
 
-    def __init__(self, gain: str) -> None:
-        self.gain = gain
+    Args:
+        gain: ``uniform`` or ``unknown_volume``.
+        occupancy: the run's map (:attr:`MethodContext.map`).
+        conf: the run config (``map_frontiers``, ``planner.height_band_m``, ``tracking.gain_view``).
+    """
 
-    def __call__(self, explorer, frame, depth, timed):
+    def __init__(self, gain: str, occupancy, conf) -> None:
+        if occupancy is None:
+            raise ValueError("map frontiers need the run's map (a MethodContext with voxels)")
+        self.gain, self.map, self.conf = gain, occupancy, conf
+
+    def __call__(self, frame, depth, timed):
         from ..frontiers.map_frontiers import map_frontiers
 
-        observations = timed("anchoring", map_frontiers, explorer.map, explorer.motion.z, explorer.conf,
-                             frame.T_world_cam, self.gain)
+        z = float(frame.T_world_cam[2, 3])  # the camera height the robot keeps
+        observations = timed("anchoring", map_frontiers, self.map, z, self.conf, frame.T_world_cam, self.gain)
         return observations, plain_view(frame, depth)
 
 
@@ -102,12 +159,14 @@ class Method:
         fresh_frontiers: the frontier set is this frame's proposals only (map frontiers are
             recomputed from the whole map every frame); otherwise observations are merged
             into the tracked frontiers across frames (image frontiers).
+        uses_model: it runs the FrontierNet model file (a run records which file).
     """
 
     name: str
     source: FrontierSource | None
     goal: str = "utility"
     fresh_frontiers: bool = False
+    uses_model: bool = False
 
     def __post_init__(self) -> None:
         if self.goal not in GOAL_RULES:
@@ -115,10 +174,69 @@ class Method:
         if self.source is None and self.goal != "vacuum":
             raise InputError(f"method {self.name!r} has no frontier source: only the vacuum goal rule works without one")
 
+    def propose(self, frame, depth: np.ndarray, timed) -> tuple[list, PerceptionResult]:
+        """This frame's frontier observations and the view for the video (see :class:`FrontierSource`;
+        none and the plain camera view without a source)."""
+        if self.source is None:
+            return [], plain_view(frame, depth)
+        return self.source(frame, depth, timed)
 
-IMAGE_METHODS = tuple(BUILTIN_PERCEPTIONS)  # the paper's system and its Fig. 9 ablations
+
+def image_method(name: str, perception: Perception, context: MethodContext, uses_model: bool = False) -> Method:
+    """The method `name` of `perception`'s frontier pixels, anchored to 3D and merged across
+    frames, goals by gain / distance (paper Eq. 8). `uses_model`: the perception runs the model."""
+    perception.name = name
+    return Method(name, ImageSource(perception, context.conf.anchoring, context.rng), uses_model=uses_model)
+
+
+def model_perception(context: MethodContext) -> ModelPerception:
+    """FrontierNet on each frame, from the context's model file (None: the shipped model)."""
+    from ..model import open_runtime
+
+    return ModelPerception(open_runtime(context.model))
+
+
 MAP_METHODS = {"classic": ("uniform", "nearest"), "gain-distance": ("unknown_volume", "utility"),
                "random-frontier": ("uniform", "random")}
+"""The map methods: name -> (map frontiers' gain, goal rule)."""
+
+
+def _frontiernet(context: MethodContext) -> Method:
+    return image_method("frontiernet", model_perception(context), context, uses_model=True)
+
+
+def _df_uniform(context: MethodContext) -> Method:
+    return image_method("df-uniform", uniform_gain(model_perception(context), context.conf), context, uses_model=True)
+
+
+def _discontinuity_gain(context: MethodContext) -> Method:
+    perception = discontinuity_frontiers(model_perception(context), context.conf)
+    return image_method("discontinuity-gain", perception, context, uses_model=True)
+
+
+def _discontinuity_uniform(context: MethodContext) -> Method:
+    perception = uniform_gain(discontinuity_frontiers(None, context.conf), context.conf)
+    return image_method("discontinuity-uniform", perception, context)
+
+
+def _map_method(name: str):
+    """The factory of map method `name` (:data:`MAP_METHODS`)."""
+    gain, goal = MAP_METHODS[name]
+    return lambda context: Method(name, MapSource(gain, context.map, context.conf), goal, fresh_frontiers=True)
+
+
+def _vacuum(context: MethodContext) -> Method:
+    return Method("vacuum", None, "vacuum")
+
+
+METHODS = Registry("exploration method", "frontiernet.methods", {
+    "frontiernet": _frontiernet, "df-uniform": _df_uniform, "discontinuity-gain": _discontinuity_gain,
+    "discontinuity-uniform": _discontinuity_uniform, **{name: _map_method(name) for name in MAP_METHODS},
+    "vacuum": _vacuum})
+"""Every exploration method: name -> factory ``make(context: MethodContext) -> Method``. Built in:
+the paper's system and its Fig. 9 ablations (:mod:`.ablations`; only ``discontinuity-uniform``
+loads no model), the map methods, ``vacuum``; other packages register under the entry point
+group ``frontiernet.methods`` (``datagen``: ``oracle`` and its hybrids)."""
 
 
 #: Methods that draw no random numbers: with a depth source that is not seeded, a run depends on
@@ -137,33 +255,19 @@ def repeats_identically(method: str, depth: str) -> bool:
 
 
 def method_names() -> list[str]:
-    """Every method name: built-in, perception plugins (e.g. datagen's ``oracle``), method plugins."""
-    from importlib.metadata import entry_points
-
-    plugins = [entry.name for entry in entry_points(group=METHOD_GROUP)]
-    return sorted(set(IMAGE_METHODS) | set(perception_plugins()) | set(MAP_METHODS) | {"vacuum"} | set(plugins))
+    """Every method name, sorted: built in and registered (e.g. datagen's ``oracle``)."""
+    return sorted(METHODS.names())
 
 
-def make_method(name: str, model=None, scene=None, voxels=None, sim_conf=None, conf=None) -> Method:
-    """Build the method `name` (`model`: the model file of the learned methods, None = shipped).
+def make_method(name: str, context: MethodContext) -> Method:
+    """Build the method `name` of :data:`METHODS` for a run (`context`).
 
     Raises:
         InputError: an unknown name (the valid ones are listed) or a model that does not load.
     """
-    from importlib.metadata import entry_points
-
-    if name in MAP_METHODS:
-        gain, goal = MAP_METHODS[name]
-        return Method(name, MapSource(gain), goal, fresh_frontiers=True)
-    if name == "vacuum":
-        return Method(name, None, "vacuum")
-    plugins = {entry.name: entry for entry in entry_points(group=METHOD_GROUP)}
-    if name in plugins:
-        return plugins[name].load()(model, scene, voxels, sim_conf, conf)
-    if name in IMAGE_METHODS or name in perception_plugins():
-        return Method(name, ImageSource(make_perception(name, model, scene, voxels, sim_conf, conf=conf)))
-    raise InputError(f"unknown exploration method '{name}'; valid: {', '.join(method_names())}")
+    return METHODS.get(name)(context)
 
 
-__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "make_method", "method_names", "GOAL_RULES",
-           "DRAW_FREE_METHODS", "repeats_identically"]
+__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "MethodContext", "METHODS", "make_method",
+           "method_names", "image_method", "model_perception", "GOAL_RULES", "DRAW_FREE_METHODS",
+           "repeats_identically"]

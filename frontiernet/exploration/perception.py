@@ -6,13 +6,13 @@ at the perception's working size, which anchoring lifts to 3D frontiers.
 
 * :class:`ModelPerception` runs a FrontierNet model (any runtime: torch, ONNX, TorchScript)
   at its inference size (320 px, the public demo's resize + centre crop, intrinsics adjusted).
-* :mod:`.ablations`: the paper's Fig. 9 ablations ``df-uniform``, ``discontinuity-gain`` and
-  ``discontinuity-uniform`` (uniform gain, depth-discontinuity frontiers), built in.
-* Other perceptions register under the entry point group ``frontiernet.perception``
-  (``name = "module:Class"``, the class built as ``Class(scene, voxels, sim_conf, conf)`` with the
-  run config `conf`), e.g.
-  ``datagen``'s ``oracle``: ground-truth frontiers in place of the network, the upper bound
-  the issue asks to report. The library never imports those packages.
+* :mod:`.ablations`: the stand-ins of the paper's Fig. 9 ablations (uniform gain,
+  depth-discontinuity frontiers) and the hybrids' :class:`~.ablations.GainFrom`, wrapping a base.
+* ``datagen``'s :class:`~datagen.oracle.OraclePerception`: ground-truth frontiers in place of the
+  network, the upper bound the issue asks to report.
+
+A perception is part of an image method (:func:`~frontiernet.exploration.methods.image_method`);
+methods, not perceptions, are what is registered and named on the command line.
 """
 
 from __future__ import annotations
@@ -21,10 +21,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-
-from ..errors import InputError
-
-PERCEPTION_GROUP = "frontiernet.perception"
 
 
 @dataclass
@@ -117,82 +113,4 @@ def plain_view(frame, depth: np.ndarray, size: int | None = None, labels: dict |
                             np.zeros(depth.shape, np.uint8), labels)
 
 
-def perception_plugins() -> dict:
-    """Perception classes registered under ``frontiernet.perception``, by name."""
-    from importlib.metadata import entry_points
-
-    return {entry.name: entry for entry in entry_points(group=PERCEPTION_GROUP)}
-
-
-def _model(model) -> ModelPerception:
-    from ..model import open_runtime
-
-    return ModelPerception(open_runtime(model))
-
-
-def _ablations(conf):
-    """``ablations:`` of the explore config `conf` (None: the shipped ``configs/explore.yaml``)."""
-    from ..config import load_config
-
-    conf = load_config("explore") if conf is None else conf
-    section = conf.get("ablations") if hasattr(conf, "get") else None
-    if section is None:
-        raise InputError("the explore config has no 'ablations' section (configs/explore.yaml has the defaults)")
-    return section
-
-
-def uniform_gain(base: Perception, conf=None) -> Perception:
-    """`base`'s frontier pixels with the uniform gain class of ``ablations.uniform_gain_class``
-    (explore config `conf`; None: the shipped one): df-uniform's and the plugins' stand-in."""
-    from .ablations import UniformGain
-
-    return UniformGain(base, _ablations(conf).uniform_gain_class)
-
-
-def _df_uniform(model, conf) -> Perception:
-    return uniform_gain(_model(model), conf)
-
-
-def _discontinuity(base, conf) -> Perception:
-    from .ablations import DiscontinuityFrontiers, DiscontinuitySettings
-
-    return DiscontinuityFrontiers(base, DiscontinuitySettings.from_config(_ablations(conf).discontinuity))
-
-
-def _discontinuity_uniform(model, conf) -> Perception:
-    return uniform_gain(_discontinuity(None, conf), conf)
-
-
-#: Built-in methods: name -> ``builder(model, conf) -> Perception``. ``frontiernet`` is the paper's
-#: system; the others its Fig. 9 ablations (:mod:`.ablations`); only ``discontinuity-uniform``
-#: loads no model.
-BUILTIN_PERCEPTIONS = {
-    "frontiernet": lambda model, conf: _model(model),
-    "df-uniform": _df_uniform,
-    "discontinuity-gain": lambda model, conf: _discontinuity(_model(model), conf),
-    "discontinuity-uniform": _discontinuity_uniform,
-}
-
-
-def make_perception(method: str, model=None, scene=None, voxels=None, sim_conf=None, *, conf=None) -> Perception:
-    """Build the perception of an exploration method.
-
-    Args:
-        method: a name of :data:`BUILTIN_PERCEPTIONS` (``frontiernet``, ``df-uniform``,
-            ``discontinuity-gain``, ``discontinuity-uniform``) or a plugin name (``oracle``).
-        model: model file path or None (the shipped model) for the methods that run one.
-        scene, voxels, sim_conf: what plugins are built with (and `conf`).
-        conf: the explore config (``configs/explore.yaml``; its ``ablations:`` section; None:
-            the shipped one).
-    Raises:
-        InputError: unknown method (the valid ones are listed) or a model that does not load.
-    """
-    if method in BUILTIN_PERCEPTIONS:
-        perception = BUILTIN_PERCEPTIONS[method](model, conf)
-        perception.name = method
-        return perception
-    plugins = perception_plugins()
-    if method not in plugins:
-        valid = ", ".join([*BUILTIN_PERCEPTIONS, *sorted(plugins)])
-        raise InputError(f"unknown exploration method '{method}'; valid: {valid}")
-    return plugins[method].load()(scene, voxels, sim_conf, conf)
+__all__ = ["ModelPerception", "Perception", "PerceptionResult", "model_labels", "plain_view"]

@@ -1,7 +1,7 @@
 """One exploration run from a config: ``main(conf, scene, ...)`` behind ``frontiernet explore``.
 
 Loads the scene, samples (or checks) the start pose, builds the depth source and the
-perception, runs the :class:`~frontiernet.exploration.explorer.Explorer` and writes the
+method (:func:`~frontiernet.exploration.methods.make_method`), runs the :class:`~frontiernet.exploration.explorer.Explorer` and writes the
 outputs of :mod:`frontiernet.exploration.outputs` (and the video) to `out`.
 """
 
@@ -124,17 +124,6 @@ def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     return start_sampler(scene, voxels, conf)[1](rng)
 
 
-def _uses_model(method) -> bool:
-    """Whether the method runs the FrontierNet model (its perception, or the one it wraps)."""
-    from .methods import ImageSource
-    from .perception import ModelPerception
-
-    perception = method.source.perception if isinstance(method.source, ImageSource) else None
-    while perception is not None and not isinstance(perception, ModelPerception):
-        perception = getattr(perception, "base", None)
-    return perception is not None
-
-
 def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
          max_steps: int | None = None, start: str | None = None, seed: int | None = None, video: bool = True,
          rerun: bool = False, progress: bool = True) -> dict:
@@ -163,7 +152,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from ..simulator.world import build_world
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
-    from .methods import make_method
+    from .methods import MethodContext, make_method
     from .recording import RerunRecorder
     from .video import StepPictures
 
@@ -188,7 +177,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         T_start = pose_from_heading(x, y, z, yaw, np.radians(float(conf.motion.pitch_deg)))
     depth_source = make_depth_source(depth_name, run_section(conf, "depth"))
     depth_source.reset(seed)
-    exploration_method = make_method(method, model, loaded, voxels, sim, conf)
+    context = MethodContext(conf, sim, model, loaded, voxels)  # the run's draws (run.seed) and map
+    exploration_method = make_method(method, context)
     out = ensure_dir(out)
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
@@ -199,7 +189,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         if recorder is not None:
             recorder(*args)
 
-    explorer = Explorer(loaded, voxels, world.renderer, exploration_method, depth_source, conf, sim, T_start, on_step=on_step)
+    explorer = Explorer(context, world.renderer, exploration_method, depth_source, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock
     try:
         with pictures:
@@ -210,7 +200,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         if recorder is not None:
             recorder.close()
     info = {"scene": scene, "method": method, "depth": depth_name, "planner_mode": str(conf.planner.mode),
-            "model": str(model or "shipped") if _uses_model(exploration_method) else None, "seed": seed,
+            "model": str(model or "shipped") if exploration_method.uses_model else None, "seed": seed,
             "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),
             "wall_s": round(time.perf_counter() - clock, 2)}
     record = write_run(out, result, budget, info, explorer.tracker)

@@ -25,7 +25,7 @@ def main(plan_path: str, scenes: int) -> None:
     import json
 
     from frontiernet.config import load_config
-    from frontiernet.exploration.methods import make_method
+    from frontiernet.exploration.methods import MethodContext, make_method
     from frontiernet.exploration.run import run_section
     from frontiernet.frontiers.gain import decode_gain
     from frontiernet.geometry import pose_from_heading
@@ -38,7 +38,8 @@ def main(plan_path: str, scenes: int) -> None:
     for spec, poses in list(plan["start_poses"].items())[:scenes]:
         world = build_world(spec, sim)
         scene, voxels, renderer = world.scene, world.voxels, world.renderer
-        hybrid = make_method("frontiernet-oracle-gain", None, scene, voxels, sim, conf).source.perception
+        context = MethodContext(conf, sim, scene=scene, voxels=voxels)
+        hybrid = make_method("frontiernet-oracle-gain", context).source.perception
         model, oracle = hybrid.base, hybrid.gain_source
         sums = np.zeros(8)
         for x, y, z, yaw in poses:
