@@ -43,6 +43,7 @@ def test_every_built_in_method_is_listed_and_built(two_room_scene, two_room_voxe
     assert classic.source.map is context.map  # the run's map, which the explorer fills
     assert gain.source.gain == "unknown_volume" and gain.goal == "utility"
     assert random_frontier.goal == "random" and vacuum.source is None and vacuum.goal == "vacuum"
+    assert vacuum.moves.rng is context.rng and all(m.moves is None for m in (classic, gain, random_frontier))
     uniform = make_method("discontinuity-uniform", context)  # needs no model file
     assert isinstance(uniform.source, ImageSource) and not uniform.fresh_frontiers and uniform.goal == "utility"
     assert uniform.source.rng is context.rng and uniform.source.anchoring == context.conf.anchoring
@@ -56,6 +57,27 @@ def test_unknown_method_or_goal_rule_is_an_input_error_listing_the_valid_ones():
         Method("mine", None, "closest")
     with pytest.raises(InputError, match="no frontier source"):
         Method("mine", None, "utility")
+    with pytest.raises(InputError, match="vacuum goal rule and a method's own moves"):
+        Method("mine", None, "vacuum")
+
+
+def test_the_vacuum_goes_straight_on_until_blocked_then_turns_90_to_270_degrees():
+    from frontiernet.exploration.motion import Motion, wrap_angle, yaw_of
+    from frontiernet.exploration.vacuum import VacuumMoves
+    from frontiernet.geometry import pose_from_heading
+
+    motion = Motion(explore_section("motion"), 1.2)
+    moves, T = VacuumMoves(np.random.default_rng(0)), pose_from_heading(1.0, 2.0, 1.2, 0.3)
+    ahead = moves.next_pose(T, motion, lambda T, target: ("ok", None))
+    np.testing.assert_allclose(ahead[:2, 3], [1.0 + motion.max_translation * np.cos(0.3),
+                                              2.0 + motion.max_translation * np.sin(0.3)])
+    assert yaw_of(ahead) == pytest.approx(0.3)
+    turned = moves.next_pose(T, motion, lambda T, target: ("look", target[:2, 3]))  # only "ok" moves on
+    np.testing.assert_allclose(turned[:3, 3], T[:3, 3])  # a turn on the spot, towards the new heading
+    assert np.pi / 2 <= abs(wrap_angle(moves.yaw - 0.3)) and abs(wrap_angle(moves.yaw - 0.3)) <= np.pi
+    first = moves.yaw
+    moves.bumped(turned)  # a collision turns it again
+    assert abs(wrap_angle(moves.yaw - first)) >= np.pi / 2
 
 
 def frontier(frontier_id: int, xy, gain: float):

@@ -76,9 +76,8 @@ class Explorer:
             method was built with: the scene and its
             :class:`~frontiernet.simulator.voxels.VoxelGrid` (the ground-truth explorable volume
             for coverage; the robot never reads it), the run config (``configs/explore.yaml`` with
-            its sections; ``run.seed`` seeds the draws), the sim config (the agent), the random
-            generator (vacuum's turns; the method's own draws) and the robot's map, which the
-            explorer fills and the method reads.
+            its sections), the sim config (the agent) and the robot's map, which the explorer
+            fills and the method reads.
         renderer: a :class:`~frontiernet.simulator.camera.Renderer` of the scene.
         method: a :class:`~frontiernet.exploration.methods.Method`.
         depth_source: a :class:`~frontiernet.depth.DepthSource` (reset by the caller).
@@ -113,12 +112,10 @@ class Explorer:
                                        body_radius_m=self.body_radius)
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
         self.poses: list[np.ndarray] = []
-        self.rng = context.rng
         self.on_step = on_step
         self.route = None
         self.backoff = None  # (2,) xy to step back to: after a collision (map-free mode), or boxed in
         self.retreat_index = None  # while boxed in on the planning grid: the trajectory index stepped back to
-        self.vacuum_yaw = None  # the vacuum method's heading
         self.waypoint = 0
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
@@ -231,8 +228,11 @@ class Explorer:
         self.route = None
 
     def next_pose(self) -> np.ndarray | None:
-        """The pose of the next increment along the route (None: nothing to do)."""
+        """The pose of the next increment: the method's own move (:attr:`Method.moves
+        <frontiernet.exploration.methods.Method.moves>`), else along the route (None: nothing to do)."""
         T = self.agent.pose
+        if self.method.moves is not None:
+            return self.method.moves.next_pose(T, self.motion, self._check_move)
         if self.backoff is not None:
             target, self.backoff = self.backoff, None
             return self.motion.towards(T, target)
@@ -277,26 +277,6 @@ class Explorer:
         self.start_turn_left -= turn
         self.look_around_left -= turn  # it is a look around: no second one if it finds no frontier
         return self.motion.turn_by(self.agent.pose, turn)
-
-    def vacuum_pose(self) -> np.ndarray:
-        """GLEAM's "vacuum" baseline: straight on while the map allows it, else (or after a
-        collision) turn to a random new heading 90-270 deg away, like a robot vacuum."""
-        T = self.agent.pose
-        if self.vacuum_yaw is None:
-            self.vacuum_yaw = yaw_of(T)
-        pose, aligned = self.motion.turn_to(T, self.vacuum_yaw)
-        if not aligned:
-            return pose
-        ahead = T[:2, 3] + self.motion.max_translation * np.array([np.cos(self.vacuum_yaw), np.sin(self.vacuum_yaw)])
-        target = self.motion.pose(ahead, self.vacuum_yaw)
-        if self._check_move(T, target)[0] == "ok":
-            return target
-        self._vacuum_turn()
-        return self.motion.turn_to(T, self.vacuum_yaw)[0]
-
-    def _vacuum_turn(self) -> None:
-        current = yaw_of(self.agent.pose) if self.vacuum_yaw is None else self.vacuum_yaw
-        self.vacuum_yaw = wrap_angle(current + float(self.rng.uniform(np.pi / 2, 3 * np.pi / 2)))
 
     def _check_move(self, T: np.ndarray, target: np.ndarray) -> tuple[str, np.ndarray | None]:
         """Whether the map allows the increment to `target` ((4, 4) poses, world frame), with the
@@ -357,8 +337,8 @@ class Explorer:
         if result.collided or result.left_free_space:
             self.result.collisions += int(result.collided)
             self._goal_failed()
-            if self.method.goal == "vacuum":
-                self._vacuum_turn()
+            if self.method.moves is not None:
+                self.method.moves.bumped(self.agent.pose)
             if self.map_free and len(self.poses) > 1:  # no map to plan around it: step back first
                 self.backoff = self.poses[-2][:2, 3].copy()
             return True
@@ -386,7 +366,7 @@ class Explorer:
                     if len(self.tracker) or self.route is not None:
                         self.plan()
                 self._timings["planning"] = time.perf_counter() - start
-                target = self.vacuum_pose() if self.method.goal == "vacuum" else self.next_pose()
+                target = self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
                     self.result.stop_reason = "no frontiers left"

@@ -30,7 +30,8 @@ the rest are the baselines of issue 6.
 **Adding a method** (docs/exploration.md): write a factory ``make(context) -> Method`` that
 builds a :class:`Method` from a :class:`FrontierSource` (an :class:`ImageSource` around your own
 :class:`~frontiernet.exploration.perception.Perception`, see :func:`image_method`; the
-:class:`MapSource`; or a subclass with your own ``__call__``) and a goal rule, and register it
+:class:`MapSource`; or a subclass with your own ``__call__``) and a goal rule (or, without
+frontiers, its own moves: :attr:`Method.moves`, as ``vacuum``'s :mod:`.vacuum`), and register it
 under the entry point group ``frontiernet.methods`` (:data:`METHODS`). The
 :class:`MethodContext` gives it the run's config, random generator and map (and the model file,
 scene and voxels); the built-in methods are built the same way.
@@ -48,6 +49,7 @@ from ..errors import InputError
 from ..registry import Registry
 from .ablations import discontinuity_frontiers, uniform_gain
 from .perception import ModelPerception, Perception, PerceptionResult, plain_view
+from .vacuum import VacuumMoves
 
 GOAL_RULES = ("utility", "nearest", "random", "vacuum")
 
@@ -155,11 +157,17 @@ class Method:
         name: as on the command line.
         source: its frontier source (None: no frontiers, e.g. ``vacuum``).
         goal: ``utility`` (gain^e / distance, paper Eq. 8), ``nearest`` (1 / distance),
-            ``random`` (a random score drawn once per frontier) or ``vacuum`` (no planner).
+            ``random`` (a random score drawn once per frontier) or ``vacuum`` (no planner: the
+            method's own `moves`).
         fresh_frontiers: the frontier set is this frame's proposals only (map frontiers are
             recomputed from the whole map every frame); otherwise observations are merged
             into the tracked frontiers across frames (image frontiers).
         uses_model: it runs the FrontierNet model file (a run records which file).
+        moves: the method's own moves, which the explorer follows instead of planned routes
+            (goal rule ``vacuum``): ``next_pose(T_world_cam, motion, check_move) -> (4, 4) pose``
+            for each increment (`check_move` the explorer's move check) and ``bumped(T_world_cam)``
+            after a collision, e.g. :class:`~frontiernet.exploration.vacuum.VacuumMoves`. None:
+            the planner's route to the chosen frontier.
     """
 
     name: str
@@ -167,12 +175,15 @@ class Method:
     goal: str = "utility"
     fresh_frontiers: bool = False
     uses_model: bool = False
+    moves: Any = None
 
     def __post_init__(self) -> None:
         if self.goal not in GOAL_RULES:
             raise InputError(f"method {self.name!r}: goal rule must be one of {', '.join(GOAL_RULES)}, got {self.goal!r}")
         if self.source is None and self.goal != "vacuum":
             raise InputError(f"method {self.name!r} has no frontier source: only the vacuum goal rule works without one")
+        if (self.goal == "vacuum") != (self.moves is not None):
+            raise InputError(f"method {self.name!r}: the vacuum goal rule and a method's own moves go together")
 
     def propose(self, frame, depth: np.ndarray, timed) -> tuple[list, PerceptionResult]:
         """This frame's frontier observations and the view for the video (see :class:`FrontierSource`;
@@ -226,7 +237,7 @@ def _map_method(name: str):
 
 
 def _vacuum(context: MethodContext) -> Method:
-    return Method("vacuum", None, "vacuum")
+    return Method("vacuum", None, "vacuum", moves=VacuumMoves(context.rng))
 
 
 METHODS = Registry("exploration method", "frontiernet.methods", {
