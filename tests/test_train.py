@@ -231,16 +231,16 @@ def test_time_horizon_ends_the_cosine_at_max_time(tiny_dataset, tmp_path):
     # a wall-clock budget (a lent GPU's 10 minutes) ends with a decayed rate, not cut mid-cosine
     args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
             f"data.path={tiny_dataset}", f"out={tmp_path}", "trainer.max_epochs=100000",
-            "trainer.max_time=00:00:00:20"]
+            "trainer.max_time=00:00:00:20", "optim.warmup_steps=1"]  # warm-up done at once: few steps suffice
     for horizon in ("time", "steps"):
         assert main(args + [f"name={horizon}", f"optim.horizon={horizon}"]) == 0
         with open(tmp_path / horizon / "metrics.csv") as handle:
             rates = [float(row["lr-AdamW"]) for row in csv.DictReader(handle) if row.get("lr-AdamW")]
-        assert len(rates) > 10
+        assert len(rates) >= 3  # (a loaded 2-core machine makes ~5 steps in the 20 s, an idle one dozens)
         peak = max(rates)  # 3e-3 after warm-up, the tiny config's lr
         assert rates[-1] < 0.25 * peak if horizon == "time" else rates[-1] > 0.9 * peak, (horizon, rates[-5:])
     # the time horizon needs the time
-    assert main(args[:-1] + ["name=none", "optim.horizon=time"]) == 2
+    assert main([a for a in args if not a.startswith("trainer.max_time")] + ["name=none", "optim.horizon=time"]) == 2
 
 
 @pytest.mark.slow
