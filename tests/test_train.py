@@ -25,7 +25,7 @@ from frontiernet.model import encode_distance, load_model
 from train.data import split_scenes
 from train.losses import dice_loss, frontier_loss
 from train.metrics import DistanceError, FrontierCurves, GainDice, depth_jump_score
-from train.cache import pack_sample, unpack_distance
+from train.packed import pack_sample, unpack_distance
 from train.transforms import resample_mask, training_item, training_sample
 
 REPO = Path(__file__).resolve().parents[1]

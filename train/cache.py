@@ -44,22 +44,14 @@ from datagen.shards import CACHE_DIR
 from frontiernet.errors import InputError
 from frontiernet.io import write_json
 
+from .packed import TRUNCATED, array_specs, pack_sample
+
 log = logging.getLogger(__name__)
 
 CACHE_FORMAT = "frontiernet-training-cache"
 CACHE_VERSION = 1
 INFO_NAME = "cache.json"
 PROGRESS_NAME = "progress.npy"
-TRUNCATED = 255
-"""``distance_sq`` value of a pixel at the truncation distance (D = r)."""
-FRONTIER_BIT, DISCONTINUITY_BIT = 1, 2
-
-
-def array_specs(size: int) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
-    """Per-view shape and dtype of each cache array at training size `size`."""
-    return {"rgb": ((size, size, 3), np.dtype(np.uint8)), "depth_mm": ((size, size), np.dtype(np.uint16)),
-            "distance_sq": ((size, size), np.dtype(np.uint8)), "gain_class": ((size, size), np.dtype(np.uint8)),
-            "masks": ((size, size), np.dtype(np.uint8))}
 
 
 def label_encoding(labels_conf) -> dict:
@@ -67,25 +59,6 @@ def label_encoding(labels_conf) -> dict:
     return {"truncation_px": float(labels_conf["truncation_px"]), "num_classes": int(labels_conf["num_classes"]),
             "bin_edges": [float(edge) for edge in labels_conf["bin_edges"]],
             "bin_unit_m3": float(labels_conf["bin_unit_m3"])}
-
-
-def pack_sample(sample: dict, truncation_px: float) -> dict[str, np.ndarray]:
-    """Cache arrays (module docstring) of one training sample (``train.transforms.training_sample``)."""
-    distance = sample["distance"]
-    distance_sq = np.where(distance >= truncation_px, TRUNCATED, np.rint(np.square(distance)))
-    masks = sample["frontier"].astype(np.uint8) * FRONTIER_BIT | sample["discontinuity"].astype(np.uint8) * DISCONTINUITY_BIT
-    return {"rgb": sample["rgb"], "depth_mm": np.rint(sample["depth"] * 1000.0).clip(0, 65535).astype(np.uint16),
-            "distance_sq": distance_sq.astype(np.uint8), "gain_class": sample["gain_class"].astype(np.uint8),
-            "masks": masks}
-
-
-def unpack_distance(distance_sq, truncation_px: float):
-    """D in pixels (float32, numpy array or torch tensor) from ``distance_sq`` values."""
-    if isinstance(distance_sq, np.ndarray):
-        distance = np.sqrt(distance_sq.astype(np.float32))
-        return np.where(distance_sq == TRUNCATED, np.float32(truncation_px), distance)
-    distance = distance_sq.float().sqrt()
-    return distance.masked_fill(distance_sq == TRUNCATED, float(truncation_px))
 
 
 def dataset_fingerprint(root: Path) -> str:

@@ -23,7 +23,8 @@ from torch.utils.data import DataLoader, Dataset
 from datagen import DatasetError, FrontierDataset, open_dataset
 from frontiernet.errors import InputError
 
-from .cache import TrainingCache, ensure_cache, pack_sample
+from .cache import TrainingCache, ensure_cache
+from .packed import pack_sample
 from .transforms import network_batch, training_item, training_sample
 
 

@@ -151,7 +151,7 @@ def network_batch(batch: dict, model_conf, augment_conf=None) -> dict:
 
     from frontiernet.model import normalise_images
 
-    from .cache import DISCONTINUITY_BIT, FRONTIER_BIT, unpack_distance
+    from .packed import DISCONTINUITY_BIT, FRONTIER_BIT, unpack_distance
 
     inputs = model_conf["network"]["inputs"]
     rgb = batch["rgb"].float().div_(255.0)  # a new tensor: the in-place steps below touch no input
