@@ -22,7 +22,7 @@ import numpy as np
 
 from frontiernet.errors import InputError
 from frontiernet.io import colorize_depth, ensure_dir, write_image
-from frontiernet.scenes.preview import contact_sheet
+from frontiernet.simulator.preview import contact_sheet
 
 FRONTIER_COLOUR = (255, 0, 255)  # F tile
 PROJECTED_COLOUR = (0, 255, 255)  # F_p tile

@@ -144,7 +144,7 @@ def _sample(h: int = 40, w: int = 48, index: int = 0) -> dict:
 
 
 def _tile(sheet: np.ndarray, sample: dict, column: int) -> np.ndarray:
-    """Tile `column` of the sheet's row (layout of frontiernet.scenes.preview.contact_sheet under a 26 px title)."""
+    """Tile `column` of the sheet's row (layout of frontiernet.simulator.preview.contact_sheet under a 26 px title)."""
     h, w = sample["rgb"].shape[:2]
     y0, x0 = 26 + 25, column * (w + 10) + 5
     return sheet[y0:y0 + h, x0:x0 + w]

@@ -86,7 +86,7 @@ columns explorable only above or below it."""
 
 def run_topdown(args) -> int:
     from ..io import check_image_name, check_output_file, ensure_dir, write_image
-    from ..scenes.preview import topdown_image
+    from ..simulator.preview import topdown_image
     from ..simulator.world import build_world
 
     check_image_name(args.out)  # before the work: a bad --out fails at once
@@ -97,7 +97,7 @@ def run_topdown(args) -> int:
     image = topdown_image(scene, pixel_size=args.pixel_size, cut_height=args.cut_height)
     note = ""
     if not args.no_explorable:
-        from ..scenes.preview import overlay_columns
+        from ..simulator.preview import overlay_columns
 
         voxels = build_world(scene, sim, renderer=False).voxels
         seed = None if voxels.seed is None else voxels.index_to_world(voxels.seed)[:2]

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import Scene
+from ..scenes.scene import Scene
 
 
 def material_colors(scene: Scene) -> np.ndarray:
@@ -40,7 +40,7 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
             than :data:`MAX_TOPDOWN_PIXELS`.
     """
     from ..errors import InputError, positive_number
-    from ..simulator.raycast import INVALID_ID, cast_rays
+    from .raycast import INVALID_ID, cast_rays
 
     positive_number(pixel_size, "the pixel size (--pixel-size)", "metres")
     positive_number(cut_height, "the cut height (--cut-height)", "metres above the floor")
