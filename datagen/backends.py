@@ -48,7 +48,7 @@ def _scene_state(spec: str, conf):
 
         while len(_CACHE) >= 2:
             _CACHE.pop(next(iter(_CACHE)))
-        world = build_world(spec, conf)
+        world = build_world(spec, conf, conf.scenes)
         _CACHE[key] = (world.scene, world.voxels,
                        GroundTruthGenerator(world.scene, world.voxels, conf, renderer=world.renderer))
     return _CACHE[key]

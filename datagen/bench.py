@@ -63,7 +63,7 @@ def bench_ground_truth(spec: str | None = None, views: int = 20, backends: list[
     spec = default_bench_scene(spec)
     conf = load_datagen_config()
     start = time.perf_counter()
-    world = build_world(spec, conf)
+    world = build_world(spec, conf, conf.scenes)
     scene, voxels = world.scene, world.voxels
     generator = GroundTruthGenerator(scene, voxels, conf, renderer=world.renderer)
     setup_s = time.perf_counter() - start

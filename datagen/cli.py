@@ -33,7 +33,8 @@ def add_parser(subparsers) -> None:
                         help="local processes, or Ray tasks (set RAY_ADDRESS to use a cluster)")
     parser.add_argument("--seed", type=int, default=0, help="run seed: same seed, same bytes (default 0)")
     parser.add_argument("--resume", action="store_true", help="continue the dataset in --out")
-    parser.add_argument("--config", metavar="FILE", help="YAML overriding configs/sim.yaml and configs/datagen.yaml")
+    parser.add_argument("--config", metavar="FILE", help="YAML overriding configs/sim.yaml and configs/datagen.yaml, "
+                                                         "and scenes.yaml under section scenes:")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="config overrides, e.g. writer.shard_size=16")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -1,4 +1,5 @@
-"""The datagen configuration: ``configs/sim.yaml`` and ``configs/datagen.yaml`` merged."""
+"""The datagen configuration: ``configs/sim.yaml`` and ``configs/datagen.yaml`` merged, with
+``configs/scenes.yaml`` as section ``scenes``."""
 
 from __future__ import annotations
 
@@ -9,13 +10,16 @@ from typing import Iterable
 
 from omegaconf import DictConfig, OmegaConf
 
-from frontiernet.config import load_config
+from frontiernet.config import load_config, merge_user
 
 
-def load_datagen_config(user_file: str | Path | None = None, overrides: Iterable[str] = ()) -> DictConfig:
-    """Camera, voxels and poses (sim.yaml) plus ground_truth, sampling and writer (datagen.yaml),
-    then a user YAML file and ``key=value`` overrides on top."""
-    return load_config(("sim", "datagen"), user_file, overrides)
+def load_datagen_config(user_file: str | Path | None = None, overrides: Iterable[str] = (),
+                        names: tuple[str, ...] = ("sim", "datagen")) -> DictConfig:
+    """Camera, voxels and poses (sim.yaml) plus ground_truth, sampling and writer (datagen.yaml)
+    (shipped configs `names`, merged in order), the scene sources' options (scenes.yaml) as section
+    ``scenes``, then a user YAML file and ``key=value`` overrides on top."""
+    conf = OmegaConf.merge(load_config(tuple(names)), {"scenes": load_config("scenes")})
+    return merge_user(conf, user_file, overrides)
 
 
 RUNTIME_SECTIONS = ("raycast",)
@@ -27,12 +31,22 @@ KEYS_ADDED_AFTER_DATASETS = {"ground_truth.gain.volume": "unobserved", "ground_t
 """Keys added after datasets had been made, with the value that reproduces the labels of before: at
 that value a key is left out of :func:`config_hash`, so those datasets still resume."""
 
+SECTIONS_ADDED_AFTER_DATASETS = {"scenes": "scenes"}
+"""Sections added after datasets had been made, with the shipped config they were read from then
+(the scene sources read ``configs/scenes.yaml`` themselves): equal to it, a section is left out of
+:func:`config_hash`, so those datasets still resume; changed (``scenes.procedural.rooms_max=8``), it
+names other scenes."""
+
 
 def config_hash(conf: DictConfig) -> str:
-    """Short SHA-256 of the resolved config (stable across key order) without :data:`RUNTIME_SECTIONS`
-    and without the keys of :data:`KEYS_ADDED_AFTER_DATASETS` at their old value: names a dataset's settings."""
+    """Short SHA-256 of the resolved config (stable across key order) without :data:`RUNTIME_SECTIONS`,
+    the keys of :data:`KEYS_ADDED_AFTER_DATASETS` at their old value and the sections of
+    :data:`SECTIONS_ADDED_AFTER_DATASETS` as shipped: names a dataset's settings."""
     settings = {key: value for key, value in OmegaConf.to_container(conf, resolve=True).items()
                 if key not in RUNTIME_SECTIONS}
+    for section, name in SECTIONS_ADDED_AFTER_DATASETS.items():
+        if settings.get(section) == OmegaConf.to_container(load_config(name), resolve=True):
+            settings.pop(section)
     for dotted, old_value in KEYS_ADDED_AFTER_DATASETS.items():
         *sections, key = dotted.split(".")
         section = settings

@@ -38,10 +38,11 @@ REGIONS = ("all", "band", "frontier")
 
 
 def load_consistency_config(user_file=None, overrides=()):
-    """sim.yaml + datagen.yaml + label_consistency.yaml, then a user file and ``key=value`` overrides."""
-    from frontiernet.config import load_config
+    """sim.yaml + datagen.yaml + label_consistency.yaml, scenes.yaml as section ``scenes``, then a user
+    file and ``key=value`` overrides (:func:`~datagen.config.load_datagen_config`)."""
+    from .config import load_datagen_config
 
-    return load_config(("sim", "datagen", "label_consistency"), user_file, overrides)
+    return load_datagen_config(user_file, overrides, ("sim", "datagen", "label_consistency"))
 
 
 def nearby_pose(T_world_cam: np.ndarray, translation_m: float, yaw_rad: float, direction_rad: float) -> np.ndarray:

@@ -367,9 +367,9 @@ def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):
     assert used["depth"]["emulated"]["scale_per_frame"] is False and used["sim"]["camera"]["max_depth"] == 3.0
     code, _, stderr = bench(*args[:-1], "sim.camera.max_depth=2.0")
     assert code == 2 and "other settings" in stderr and stderr.count("\n") == 1
-    # a plan made before runs had sim and depth sections used the shipped files: it resumes without --set
+    # a plan made before runs had sim, depth and scenes sections used the shipped files: it resumes without --set
     plan = json.loads((out / "plan.json").read_text())
-    for section in ("sim", "depth"):
+    for section in ("sim", "depth", "scenes"):
         del plan["settings"]["conf"][section]
     (out / "plan.json").write_text(json.dumps(plan))
     assert bench(*args)[0] == 2

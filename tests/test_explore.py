@@ -309,6 +309,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["depth.source=emulated"], "unknown config key 'depth.source'"),  # the source is --depth / run.depth
     (["--depth", "emulated", "depth.emulated.fill_invalid=zero"], "depth.emulated.fill_invalid"),
     (["sim.camera.max_depth=-1"], "camera max_depth must be positive"),
+    (["scenes.floorplan.wall_heigth=2"], "unknown config key 'scenes.floorplan.wall_heigth'"),
 ])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
     (tmp_path / "corrupt.safetensors").write_bytes(b"\x08\x00\x00\x00\x00\x00\x00\x00{broken}" + bytes(64))
@@ -342,6 +343,21 @@ def test_sim_and_depth_keys_reach_the_run_and_its_config_file_repeats_it(plan_sp
     first, again = load(tmp_path / "a"), load(tmp_path / "b")
     assert again["depth"] == "emulated" and again["seed"] == 3
     assert again["coverage_per_step"] == first["coverage_per_step"] and again["start"] == first["start"]
+
+
+def test_a_scenes_key_reaches_the_runs_scene(plan_spec, tmp_path):
+    """`scenes.<source>.<key>=value` sets the scene source's option for one run (scenes.yaml is a
+    section of the run's config): lower walls, less explorable volume, recorded in config.yaml."""
+    import yaml
+
+    explorable = {}
+    for name, extra in (("shipped", []), ("low", ["scenes.floorplan.wall_height=2.0"])):
+        code, _, stderr = run_cli(explore_args(plan_spec, tmp_path / name, 2, "--no-video", *extra))
+        assert code == 0, stderr
+        explorable[name] = load(tmp_path / name)["explorable_m3"]
+    used = yaml.safe_load((tmp_path / "low" / "config.yaml").read_text())
+    assert used["scenes"]["floorplan"]["wall_height"] == 2.0
+    assert explorable["low"] < 0.8 * explorable["shipped"]
 
 
 def test_the_ray_cast_engine_of_the_run_config_is_the_one_used(plan_spec, tmp_path):

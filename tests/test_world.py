@@ -1,4 +1,4 @@
-"""build_world: the one scene -> voxels -> renderer assembly, from one sim config."""
+"""build_world: the one scene -> voxels -> renderer assembly, from one config (sim and scenes)."""
 
 from __future__ import annotations
 
@@ -53,4 +53,14 @@ def test_the_world_selects_the_configs_ray_cast_engine(two_room_scene, restore_b
 
 def test_a_bad_engine_is_named_before_the_scene_is_read(tmp_path, restore_backend):
     with pytest.raises(InputError, match="raycast.backend 'nope'"):
-        build_world(str(tmp_path / "missing.glb"), _sim(raycast={"backend": "nope"}))
+        build_world(str(tmp_path / "missing.glb"), _sim(raycast={"backend": "nope"}), load_config("scenes"))
+
+
+def test_the_scene_sources_options_are_the_given_scenes_configs(plan_spec, restore_backend):
+    """A spec is loaded with the command's scenes section (here a floor plan's wall height), not
+    the shipped scenes.yaml."""
+    shipped = load_config("scenes")
+    low = OmegaConf.merge(shipped, {"floorplan": {"wall_height": 2.0}})
+    top = [build_world(plan_spec, _sim(), scenes, voxels=False, renderer=False).scene.bounds[1, 2]
+           for scenes in (shipped, low)]
+    assert top[1] == pytest.approx(2.0) and top[0] == pytest.approx(2.6)

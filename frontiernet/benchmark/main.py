@@ -27,7 +27,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
 
     Args:
         conf: the run config (:func:`~frontiernet.exploration.run.load_run_config`: explore.yaml
-            with sections sim and depth, and the user's overrides); scenes: scene specs,
+            with the sections of :data:`~frontiernet.exploration.run.RUN_SECTIONS`, and the user's overrides); scenes: scene specs,
             expanded as datagen's (``procedural:1000-1009``, globs, a folder of KTH plans or
             HM3D scenes: :func:`~frontiernet.scenes.spec.expand_specs`);
         methods: method names (:mod:`frontiernet.exploration.methods`).
@@ -86,7 +86,9 @@ def resumable_plan(out: Path, settings: dict) -> dict:
     """The plan stored in benchmark folder `out` (``plan.json``) when a benchmark with `settings`
     (as :func:`main` builds them) may resume it; InputError naming the first setting that differs.
 
-    A plan made before the run config had sections ``sim`` and ``depth`` used the shipped files;
+    A plan made before the run config had a section of
+    :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
+    ``scenes``) used the shipped file;
     one made before a key of :data:`~frontiernet.benchmark.plan.KEYS_ADDED_AFTER_PLANS` existed
     ran as that key's listed value does. Anything else that differs is a change of settings."""
     previous = read_plan(out)

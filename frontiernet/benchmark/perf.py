@@ -89,13 +89,13 @@ def bench_render(spec: str | None, repeats: int, batch: int, raycast: str | None
 
     from ..simulator.poses import sample_poses
     from ..simulator.raycast import ray_caster
-    from ..simulator.world import build_world
+    from ..simulator.world import build_world, load_world_config
 
     spec = default_bench_scene(spec)
-    sim = load_config("sim")
+    sim = load_world_config()
     if raycast:
         sim = OmegaConf.merge(sim, {"raycast": {"backend": raycast}})
-    world = build_world(spec, sim)
+    world = build_world(spec, sim, sim.scenes)
     scene, voxels, renderer = world.scene, world.voxels, world.renderer
     load_s, voxel_s = world.seconds["load"], world.seconds["voxelize"]
     start = time.perf_counter()
@@ -137,11 +137,11 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
 
     from ..mapping import OccupancyMap
     from ..simulator.poses import sample_poses
-    from ..simulator.world import build_world
+    from ..simulator.world import build_world, load_world_config
 
     spec = default_bench_scene(spec)
-    sim, explore = load_config("sim"), load_config("explore")
-    world = build_world(spec, sim)
+    sim, explore = load_world_config(), load_config("explore")
+    world = build_world(spec, sim, sim.scenes)
     scene, voxels, renderer = world.scene, world.voxels, world.renderer
     poses = sample_poses(scene, voxels, max(frames, 1), 0, sim.poses)
     renderer.render(poses[0])  # warm-up

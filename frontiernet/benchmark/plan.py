@@ -170,7 +170,7 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     from ..exploration.run import camera_z, run_section, start_sampler
     from ..simulator.world import build_world
 
-    world = build_world(spec, run_section(conf, "sim"), renderer=False)
+    world = build_world(spec, run_section(conf, "sim"), run_section(conf, "scenes"), renderer=False)
     scene, voxels = world.scene, world.voxels
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws

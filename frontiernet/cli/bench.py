@@ -68,8 +68,8 @@ def _exploration_options(parser) -> None:
     group.add_argument("--depth", help="depth source of every run (default: run.depth), or a comma list of "
                                        "sources, e.g. gt,emulated: every run once per source, from the same "
                                        "starts and seeds, with the monocular penalty in table.md")
-    group.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml and depth.yaml under "
-                                        "sections sim: and depth:")
+    group.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml, depth.yaml and "
+                                        "scenes.yaml under sections sim:, depth: and scenes:")
     group.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                        help="config overrides, e.g. planner.clearance_m=0.3 depth.emulated.scale_per_frame=false")
 

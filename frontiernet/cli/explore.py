@@ -28,12 +28,13 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")
     parser.add_argument("--rerun", action="store_true", help="also write recording.rrd for the Rerun viewer "
                                                              "(needs rerun-sdk)")
-    parser.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml and depth.yaml under "
-                                         "sections sim: and depth:")
+    parser.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml, depth.yaml and "
+                                         "scenes.yaml under sections sim:, depth: and scenes:")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--force", action="store_true", help="write over earlier outputs in --out (refused without it)")
     parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. planner.clearance_m=0.3, "
-                                                              "sim.camera.max_depth=5, depth.emulated.fill_depth=20")
+                                                              "sim.camera.max_depth=5, depth.emulated.fill_depth=20, "
+                                                              "scenes.floorplan.wall_height=2.4")
     parser.set_defaults(func=run)
 
 

@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import load_config
 from ..geometry import parse_pose_text, pose_from_heading
 
 
@@ -21,7 +20,8 @@ def add_parser(subparsers) -> None:
                              "a 'rad' suffix (e.g. 1.57rad); yaw 0 looks along +x, pitch > 0 up")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--force", action="store_true", help="write over earlier outputs in --out (refused without it)")
-    parser.add_argument("--config", help="YAML overriding configs/sim.yaml (camera, voxels)")
+    parser.add_argument("--config", help="YAML overriding configs/sim.yaml (camera, voxels), and scenes.yaml under "
+                                         "section scenes:")
     parser.add_argument("--no-check", action="store_true",
                         help="skip the check that the pose lies in the scene's free space")
     parser.set_defaults(func=run)
@@ -29,12 +29,12 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     from ..io import check_output_folder, colorize_depth, ensure_dir, write_image, write_json, write_npy
-    from ..simulator.world import build_world
+    from ..simulator.world import build_world, load_world_config
 
     check_output_folder(args.out, args.force)
-    conf = load_config("sim", args.config)
+    conf = load_world_config(args.config)
     x, y, z, yaw, pitch = parse_pose_text(args.pose)
-    world = build_world(args.spec, conf, voxels=not args.no_check)
+    world = build_world(args.spec, conf, conf.scenes, voxels=not args.no_check)
     if world.voxels is not None:
         from ..simulator.poses import check_pose
 

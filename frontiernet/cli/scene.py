@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import load_config
 from ..scenes import spec as spec_module
 
 
@@ -21,7 +20,8 @@ def add_parser(subparsers) -> None:
                                     parser_class=type(parser))
     info = actions.add_parser("info", help="JSON: bounds, triangles, explorable volume, voxel counts")
     info.add_argument("spec", metavar="SPEC")
-    info.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings)")
+    info.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings), and scenes.yaml under "
+                                       "section scenes:")
     info.set_defaults(func=run_info)
     topdown = actions.add_parser("topdown", help="save a cut-away top view PNG")
     topdown.add_argument("spec", metavar="SPEC")
@@ -34,15 +34,17 @@ def add_parser(subparsers) -> None:
                          help="leave out the explorable region (drawn by default: columns of the space "
                               "exploration is scored on, green where it reaches the cut height, amber where "
                               "it lies only above or below it, outlined, its seed a red cross)")
-    topdown.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings of the explorable region)")
+    topdown.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings of the explorable region), "
+                                          "and scenes.yaml under section scenes:")
     topdown.set_defaults(func=run_topdown)
 
 
-def scene_info(spec: str, sim_conf) -> dict:
-    """Facts about a scene as a JSON-able dict (bounds, triangles, explorable volume...)."""
+def scene_info(spec: str, conf) -> dict:
+    """Facts about a scene as a JSON-able dict (bounds, triangles, explorable volume...);
+    `conf`: :func:`~frontiernet.simulator.world.load_world_config` (sim.yaml, scenes.yaml as ``scenes``)."""
     from ..simulator.world import build_world
 
-    world = build_world(spec, sim_conf, renderer=False)
+    world = build_world(spec, conf, conf.scenes, renderer=False)
     scene, voxels = world.scene, world.voxels
     bounds = scene.bounds
     return {
@@ -65,7 +67,7 @@ def scene_info(spec: str, sim_conf) -> dict:
         "voxels_explorable": int(voxels.explorable.sum()),
         "voxels_outside": int(voxels.occupied.size - voxels.occupied.sum() - voxels.explorable.sum()),
         "explorable_volume_m3": round(float(voxels.explorable_volume_m3), 3),
-        "explorable_rule": str(sim_conf.voxels.explorable),
+        "explorable_rule": str(conf.voxels.explorable),
         "explorable_seed": None if voxels.seed is None else np.round(voxels.index_to_world(voxels.seed), 3).tolist(),
         "load_seconds": round(world.seconds["load"], 3),
         "voxelize_seconds": round(world.seconds["voxelize"], 3),
@@ -74,7 +76,9 @@ def scene_info(spec: str, sim_conf) -> dict:
 
 
 def run_info(args) -> int:
-    conf = load_config("sim", args.config)
+    from ..simulator.world import load_world_config
+
+    conf = load_world_config(args.config)
     print(json.dumps(scene_info(args.spec, conf), indent=2, default=str))
     return 0
 
@@ -87,13 +91,13 @@ columns explorable only above or below it."""
 def run_topdown(args) -> int:
     from ..io import check_image_name, check_output_file, ensure_dir, write_image
     from ..simulator.preview import topdown_image
-    from ..simulator.world import build_world
+    from ..simulator.world import build_world, load_world_config
 
     check_image_name(args.out)  # before the work: a bad --out fails at once
     check_output_file(args.out, args.force)
     ensure_dir(Path(args.out).parent)
-    sim = load_config("sim", args.config)
-    scene = build_world(args.spec, sim, voxels=False, renderer=False).scene  # the config's ray-cast engine
+    sim = load_world_config(args.config)
+    scene = build_world(args.spec, sim, sim.scenes, voxels=False, renderer=False).scene  # the config's ray-cast engine
     image = topdown_image(scene, pixel_size=args.pixel_size, cut_height=args.cut_height)
     note = ""
     if not args.no_explorable:

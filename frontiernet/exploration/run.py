@@ -18,11 +18,12 @@ from ..geometry import parse_pose_text, pose_from_heading
 
 DEPTH_ALIASES = {"gt": "ground_truth"}
 
-RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": ("datagen", "ground_truth")}
+RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": ("datagen", "ground_truth"),
+                "scenes": ("scenes", None)}
 """Shipped config (file, section or None for all of it) a run's config holds as sections beside
 ``configs/explore.yaml``'s, so that ``--config`` and ``key=value`` reach them (``sim.camera.max_depth=5``,
 ``depth.emulated.fill_depth=20``, ``ground_truth.gain.volume=occluded``: the ground truth of the
-``oracle`` methods, datagen's labels)."""
+``oracle`` methods, datagen's labels; ``scenes.floorplan.wall_height=2.4``: the scene sources' options)."""
 
 
 def shipped_section(section: str):
@@ -37,9 +38,10 @@ def load_run_config(user_file=None, overrides=(), names=("explore",)):
     """The whole config of an exploration run, resolved once at the top.
 
     ``configs/<name>.yaml`` of `names` merged in order (``("explore", "demo")``: the demo's keys
-    win), with sections ``sim`` (``configs/sim.yaml``) and ``depth`` (``configs/depth.yaml``, less
-    its ``source`` key: the run's source is ``--depth`` or ``run.depth``), then the user's YAML
-    `user_file` and ``key=value`` `overrides` on top.
+    win), with the sections of :data:`RUN_SECTIONS`: ``sim`` (``configs/sim.yaml``), ``depth``
+    (``configs/depth.yaml``, less its ``source`` key: the run's source is ``--depth`` or
+    ``run.depth``), ``ground_truth`` (datagen's) and ``scenes`` (``configs/scenes.yaml``), then the
+    user's YAML `user_file` and ``key=value`` `overrides` on top.
 
     Raises:
         InputError: an unreadable file, an unknown key (one line naming it) or a value of the
@@ -134,9 +136,9 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     ``--config config.yaml`` repeats the run.
 
     Args:
-        conf: the run's config (:func:`load_run_config`: ``configs/explore.yaml`` with sections
-            ``sim`` and ``depth``, merged with the user's file and overrides; without those
-            sections the shipped sim.yaml and depth.yaml apply).
+        conf: the run's config (:func:`load_run_config`: ``configs/explore.yaml`` with the
+            sections of :data:`RUN_SECTIONS`, merged with the user's file and overrides; a
+            section left out is the shipped one).
         method: an exploration method (:mod:`frontiernet.exploration.methods`: ``frontiernet``,
             ``oracle``, the ablations, ``classic``, ``gain-distance``, ``random-frontier``,
             ``vacuum``, plugins).
@@ -165,7 +167,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
     sim = run_section(conf, "sim")
     clock = time.perf_counter()
-    world = build_world(scene, sim)  # the run's ray-cast engine (sim.raycast.backend), not the shipped file's
+    # the run's ray-cast engine (sim.raycast.backend) and scene options (scenes), not the shipped files'
+    world = build_world(scene, sim, run_section(conf, "scenes"))
     loaded, voxels = world.scene, world.voxels
     if voxels.num_explorable == 0:
         raise InputError(f"{scene}: the scene has no free explorable space")

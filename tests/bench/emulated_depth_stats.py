@@ -50,7 +50,7 @@ def main() -> None:
     args = parser.parse_args()
     spec = default_bench_scene(args.scene)
     sim = load_config("sim")
-    world = build_world(spec, sim)
+    world = build_world(spec, sim, load_config("scenes"))
     _, draw = start_sampler(world.scene, world.voxels, load_config("explore"))
     rng = np.random.default_rng(1)
     renderer = world.renderer

@@ -36,7 +36,7 @@ def main(plan_path: str, scenes: int) -> None:
     plan = json.loads(open(plan_path).read())
     pitch = np.radians(float(conf.motion.pitch_deg))
     for spec, poses in list(plan["start_poses"].items())[:scenes]:
-        world = build_world(spec, sim)
+        world = build_world(spec, sim, run_section(conf, "scenes"))
         scene, voxels, renderer = world.scene, world.voxels, world.renderer
         context = MethodContext(conf, sim, scene=scene, voxels=voxels)
         hybrid = make_method("frontiernet-oracle-gain", context).source.perception
