@@ -50,15 +50,13 @@ def summary_line(record: dict, out) -> str:
 
 
 def run(args) -> int:
-    from ..exploration.run import load_run_config, main
+    from ..exploration.run import explore
     from ..io import check_output_folder
 
     check_output_folder(args.out, args.force)
-    conf = load_run_config(args.config, args.overrides)
-    if args.map_free:
-        conf.planner.mode = "map_free"
-    record = main(conf, args.scene, args.out, method=args.method, model=args.model, depth=args.depth,
-                  max_steps=args.max_steps, start=args.start, seed=args.seed, video=not args.no_video,
-                  rerun=args.rerun)
+    overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # --map-free wins
+    record = explore(args.scene, args.out, args.config, overrides, method=args.method, model=args.model,
+                     depth=args.depth, max_steps=args.max_steps, start=args.start, seed=args.seed,
+                     video=not args.no_video, rerun=args.rerun)
     print(summary_line(record, args.out))
     return 0

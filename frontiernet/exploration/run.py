@@ -1,4 +1,5 @@
-"""One exploration run from a config: ``main(conf, scene, ...)`` behind ``frontiernet explore``.
+"""One exploration run from a config: ``main(conf, scene, ...)``, and ``explore(scene, out, user_file,
+overrides, ...)`` (the config resolved, then ``main``) behind ``frontiernet explore``.
 
 Loads the scene, samples (or checks) the start pose, builds the depth source and the
 method (:func:`~frontiernet.exploration.methods.make_method`), runs the :class:`~frontiernet.exploration.explorer.Explorer` and writes the
@@ -124,6 +125,17 @@ def start_sampler(scene, voxels, conf):
 def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
     """One start pose drawn by :func:`start_sampler` (raises :class:`InputError` as its draw)."""
     return start_sampler(scene, voxels, conf)[1](rng)
+
+
+def explore(scene: str, out: str | Path, user_file=None, overrides=(), **options) -> dict:
+    """``frontiernet explore`` in one call: the run's config resolved once at the top
+    (:func:`load_run_config` of the user's YAML `user_file` and ``key=value`` `overrides`), then
+    :func:`main` with it; `options` are :func:`main`'s (method, model, depth, ...). Returns the metrics.
+
+    Raises:
+        InputError: as :func:`load_run_config` and :func:`main`.
+    """
+    return main(load_run_config(user_file, overrides), scene, out, **options)
 
 
 def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
