@@ -116,6 +116,16 @@ def explore_section(name: str, **changes) -> dict:
     return conf
 
 
+def scenes_config(**changes):
+    """``configs/scenes.yaml`` (DictConfig), with `changes` merged on top: the scenes section a
+    command passes to ``load_scene``."""
+    from omegaconf import OmegaConf
+
+    from frontiernet.config import load_config
+
+    return OmegaConf.merge(load_config("scenes"), changes)
+
+
 def sim_section(name: str, **changes):
     """A section of ``configs/sim.yaml`` (DictConfig), with `changes` merged on top."""
     from omegaconf import OmegaConf

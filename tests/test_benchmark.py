@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import check_sigterm_ends_workers
+from conftest import check_sigterm_ends_workers, scenes_config
 from frontiernet.benchmark.plan import scene_key
 from frontiernet.benchmark.report import add_shared_vox, coverage_at, ratio_interval, table_markdown, write_report
 from frontiernet.cli.main import main
@@ -491,7 +491,7 @@ def test_a_shipped_start_on_a_wall_is_an_input_error(tmp_path):
     from frontiernet.scenes import load_scene
 
     with pytest.raises(InputError, match="start_poses.json: start pose"):
-        load_scene(kth_folder(tmp_path, [[11, 30]]))
+        load_scene(kth_folder(tmp_path, [[11, 30]]), scenes_config())
 
 
 def test_hot_path_benchmarks_keep_their_scene_option_beside_the_exploration_benchmark():

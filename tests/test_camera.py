@@ -6,6 +6,7 @@ import numpy as np
 import open3d as o3d
 import pytest
 
+from conftest import scenes_config
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading, poses_from_headings
@@ -37,7 +38,7 @@ def test_default_camera_is_the_papers():
 def test_house_living_room_depth_matches_a_direct_open3d_cast(shared_data):
     from frontiernet.scenes import load_scene
 
-    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"))
+    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"), scenes_config())
     camera = PinholeCamera.from_config(load_config("sim").camera)
     T = pose_from_heading(-4.5, -0.5, 1.2, 0.0)  # looking along +x into the living room
     frame = Renderer(scene, camera, (0, 0, 0)).render(T)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from conftest import scenes_config
 from datagen.preview import (
     FRONTIER_COLOUR,
     GAIN_PALETTE,
@@ -117,7 +118,7 @@ def test_trajectory_two_storeys(confs):
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.voxels import voxelize_scene
 
-    scene = load_scene("procedural:3?floors=2")
+    scene = load_scene("procedural:3?floors=2", scenes_config())
     voxels = voxelize_scene(scene, load_config("sim").voxels)
     T = sample_trajectory_poses(scene, voxels, 200, np.random.default_rng(1), *confs)
     p = T[:, :3, 3]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import box_scene, room_boxes
+from conftest import box_scene, room_boxes, scenes_config
 from omegaconf import OmegaConf
 
 from frontiernet.config import load_config
@@ -247,20 +247,20 @@ def site(tmp_path_factory):
 
 
 def test_automatic_seed_is_the_largest_floor_and_a_seed_picks_another(site):
-    house = voxels(load_scene(str(site)))
+    house = voxels(load_scene(str(site), scenes_config()))
     assert house.explorable_volume_m3 == pytest.approx(6 * 5 * 2.5, rel=0.12)
     assert house.is_explorable(np.array([[3.0, 2.5, 1.0]])).all()
-    shed = voxels(load_scene(f"{site}?seed=11.5,1.5"))
+    shed = voxels(load_scene(f"{site}?seed=11.5,1.5", scenes_config()))
     assert shed.explorable_volume_m3 == pytest.approx(3 * 3 * 2.2, rel=0.15)
     assert shed.is_explorable(np.array([[11.5, 1.5, 1.0]])).all() and not shed.is_explorable(
         np.array([[3.0, 2.5, 1.0]])).any()
 
 
 def test_bounds_box_cuts_the_surroundings(site):
-    box = voxels(load_scene(f"{site}?bounds=8,-1,-1,14,4,3&seed=11.5,1.5"))
+    box = voxels(load_scene(f"{site}?bounds=8,-1,-1,14,4,3&seed=11.5,1.5", scenes_config()))
     assert box.is_explorable(np.array([[11.5, 1.5, 1.0]])).all()
     assert not box.is_explorable(np.array([[3.0, 2.5, 1.0], [9.0, 1.5, 1.0]])).any()
-    clipped = voxels(load_scene(f"{site}?bounds=-1,-1,-1,7,6,1.5"))  # the house below 1.5 m
+    clipped = voxels(load_scene(f"{site}?bounds=-1,-1,-1,7,6,1.5", scenes_config()))  # the house below 1.5 m
     assert clipped.explorable_volume_m3 == pytest.approx(6 * 5 * 1.5, rel=0.12)
 
 
@@ -283,11 +283,11 @@ def test_bad_values_through_the_cli_exit_2(site, one_line_error):
     assert main(["scene", "info", f"{site}?seed=1,x"]) == 2
     assert "seed=1,x" in one_line_error()
     with pytest.raises(InputError, match="seed=30,30 has no navigable floor"):
-        voxels(load_scene(f"{site}?seed=30,30"))
+        voxels(load_scene(f"{site}?seed=30,30", scenes_config()))
     with pytest.raises(InputError, match="voxels.explorable must be one of reachable, enclosed"):
-        voxels(load_scene(str(site)), "both")
+        voxels(load_scene(str(site), scenes_config()), "both")
     with pytest.raises(InputError, match="need voxels.explorable: reachable"):
-        voxels(load_scene(f"{site}?seed=3,2.5"), "enclosed")
+        voxels(load_scene(f"{site}?seed=3,2.5", scenes_config()), "enclosed")
 
 
 def test_scene_info_names_the_rule_and_the_seed(site, capsys):

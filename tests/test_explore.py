@@ -14,7 +14,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import floorplan_spec
+from conftest import floorplan_spec, scenes_config
 from PIL import Image
 
 from frontiernet.cli.main import main
@@ -217,7 +217,7 @@ def test_the_robot_stays_clear_of_walls_and_moves_in_single_steps(oracle_run, pl
     _, _, out = oracle_run
     poses = np.array(load(out, "trajectory.json")["T_world_cam"])
     assert len(poses) > 10
-    scene = load_scene(plan_spec)
+    scene = load_scene(plan_spec, scenes_config())
     np.testing.assert_allclose(poses[:, 2, 3], scene.bounds[0, 2] + CAMERA_HEIGHT)  # the robot keeps its height
     clearance = distance_to_surface(scene, poses[:, :3, 3])
     assert clearance.min() >= AGENT_RADIUS - 1e-4
@@ -406,7 +406,7 @@ def test_sampled_start_is_seeded_and_clear_of_obstacles(plan_spec):
     from frontiernet.simulator.voxels import voxelize_scene
 
     conf = load_config("explore")
-    scene = load_scene(plan_spec)
+    scene = load_scene(plan_spec, scenes_config())
     voxels = voxelize_scene(scene, load_config("sim").voxels)
     starts = [sample_start(scene, voxels, conf, np.random.default_rng(seed)) for seed in (0, 0, 1)]
     np.testing.assert_array_equal(starts[0], starts[1])

@@ -9,6 +9,7 @@ import pytest
 from omegaconf import OmegaConf
 from scipy import ndimage
 
+from conftest import scenes_config
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.scenes import load_scene
@@ -20,7 +21,7 @@ SEEDS = (0, 1, 2, 5, 7)
 
 @functools.lru_cache(maxsize=None)
 def scene(spec: str):
-    return load_scene(spec)
+    return load_scene(spec, scenes_config())
 
 
 @functools.lru_cache(maxsize=None)
@@ -48,7 +49,7 @@ def vertical_hits(sc, points: np.ndarray, direction: float) -> np.ndarray:
 
 
 def test_same_seed_gives_identical_scene():
-    a, b = load_scene("procedural:4"), load_scene("procedural:4")
+    a, b = load_scene("procedural:4", scenes_config()), load_scene("procedural:4", scenes_config())
     assert np.array_equal(a.vertices, b.vertices)
     assert np.array_equal(a.triangles, b.triangles)
     assert np.array_equal(a.triangle_material, b.triangle_material)
@@ -205,11 +206,11 @@ def test_two_floors_are_connected_by_stairs():
                                            ("door_width_max", 0)])
 def test_bad_options_raise_input_error_naming_the_option(option, value):
     with pytest.raises(InputError) as error:
-        load_scene(f"procedural:0?{option}={value}")
+        load_scene(f"procedural:0?{option}={value}", scenes_config())
     message = str(error.value)
     assert option in message and "\n" not in message
 
 
 def test_unknown_option_is_rejected():
     with pytest.raises(InputError, match="unknown procedural option 'rooms'; did you mean rooms_min, rooms_max"):
-        load_scene("procedural:0?rooms=3")
+        load_scene("procedural:0?rooms=3", scenes_config())

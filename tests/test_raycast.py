@@ -19,7 +19,7 @@ from frontiernet.simulator.raycast import (INVALID_ID, active_backend, cast_rays
                                            resolve_backend, select_backend)
 from frontiernet.simulator.voxels import voxelize_scene
 
-from conftest import box_scene
+from conftest import box_scene, scenes_config
 
 needs_open3d = pytest.mark.skipif(importlib.util.find_spec("open3d") is None,
                                   reason="open3d is not installed (the reference engine)")
@@ -50,7 +50,7 @@ def rays_from_free_space(scene, n: int, seed: int) -> np.ndarray:
 
 @needs_open3d
 def test_embree_answers_every_ray_as_open3d_does():
-    scene = load_scene("procedural:2003")
+    scene = load_scene("procedural:2003", scenes_config())
     rays = rays_from_free_space(scene, 4000, 0).reshape(4, 1000, 6)  # any leading shape
     reference, answer = cast_rays(scene, rays, "open3d"), cast_rays(scene, rays, "embree")
     assert {key: value.shape for key, value in answer.items()} == {
@@ -80,7 +80,7 @@ def test_embree_answers_every_ray_as_open3d_does():
 
 @needs_open3d
 def test_embree_depth_and_hit_mask_match_open3d_on_the_house(shared_data, engine):
-    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"))
+    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"), scenes_config())
     sim = load_config("sim")
     poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), 4, 0, sim.poses)
     renderer = Renderer(scene, PinholeCamera.from_config(sim.camera), tuple(sim.camera.background))
@@ -153,7 +153,7 @@ def test_degenerate_triangles_are_measured_as_their_edges():
 
 @needs_open3d
 def test_house_distances_match_open3d(shared_data):
-    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"))
+    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"), scenes_config())
     points = rays_from_free_space(scene, 2000, 2)[:, :3]
     assert np.abs(distance_to_surface(scene, points, "embree") - distance_to_surface(scene, points, "open3d")).max() < 1e-5
 

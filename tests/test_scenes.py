@@ -7,6 +7,7 @@ import pytest
 import trimesh
 from PIL import Image
 
+from conftest import scenes_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading
 from frontiernet.scenes import load_scene, parse_spec
@@ -24,8 +25,8 @@ def _box_scene_yup() -> trimesh.Scene:
 def test_glb_y_up_is_converted_to_z_up(tmp_path):
     path = tmp_path / "room.glb"
     _box_scene_yup().export(path)
-    as_stored = load_scene(str(path))
-    converted = load_scene(f"mesh:{path}?up=y")
+    as_stored = load_scene(str(path), scenes_config())
+    converted = load_scene(f"mesh:{path}?up=y", scenes_config())
     assert np.allclose(as_stored.bounds[1] - as_stored.bounds[0], [4, 3, 2], atol=1e-5)
     assert np.allclose(converted.bounds[1] - converted.bounds[0], [4, 2, 3], atol=1e-5)
     assert converted.metadata.up_axis_conversion == "y-up to z-up"
@@ -45,7 +46,7 @@ def test_obj_texture_is_sampled_with_barycentric_uvs(tmp_path):
         "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n"
         "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
         "usemtl mat\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n")
-    scene = load_scene(str(tmp_path / "quad.obj"))
+    scene = load_scene(str(tmp_path / "quad.obj"), scenes_config())
     assert scene.triangle_uvs is not None and scene.materials[0].texture is not None
     camera = PinholeCamera(64, 64, 40.0, 40.0, 31.5, 31.5, 5.0)
     frame = Renderer(scene, camera, (0, 0, 0)).render(pose_from_heading(0, 0, 1.0, np.pi / 2, LOOK_DOWN))
@@ -61,7 +62,7 @@ def test_ply_vertex_colours_are_interpolated(tmp_path):
     mesh = trimesh.Trimesh([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [[0, 1, 2], [0, 2, 3]], process=False)
     mesh.visual.vertex_colors = np.tile([200, 100, 50, 255], (4, 1))
     mesh.export(tmp_path / "colored.ply")
-    scene = load_scene(str(tmp_path / "colored.ply"))
+    scene = load_scene(str(tmp_path / "colored.ply"), scenes_config())
     assert scene.vertex_colors is not None and scene.materials[0].use_vertex_colors
     camera = PinholeCamera(32, 32, 20.0, 20.0, 15.5, 15.5, 5.0)
     frame = Renderer(scene, camera, (0, 0, 0)).render(pose_from_heading(0, 0, 1.0, 0.0, LOOK_DOWN))
@@ -73,7 +74,7 @@ def test_hm3d_layout_is_found_and_converted(tmp_path):
     folder.mkdir(parents=True)
     _box_scene_yup().export(folder / "TEEsavR23oF.glb")
     _box_scene_yup().export(folder / "TEEsavR23oF.semantic.glb")  # must not be picked
-    scene = load_scene(f"hm3d:{folder}")
+    scene = load_scene(f"hm3d:{folder}", scenes_config())
     assert scene.metadata.source == "hm3d"
     assert scene.metadata.name == "TEEsavR23oF"
     assert np.allclose(scene.bounds[1] - scene.bounds[0], [4, 2, 3], atol=1e-5)  # Y-up -> Z-up
@@ -84,8 +85,8 @@ def test_hm3d_basis_glb_is_refused_or_loaded_geometry_only(tmp_path, caplog):
     folder.mkdir(parents=True)
     _box_scene_yup().export(folder / "abcdefghijk.basis.glb")
     with pytest.raises(InputError, match=r"plain '\.glb' release"):
-        load_scene(f"hm3d:{folder}")
-    scene = load_scene(f"hm3d:{folder}?geometry_only=true")
+        load_scene(f"hm3d:{folder}", scenes_config())
+    scene = load_scene(f"hm3d:{folder}?geometry_only=true", scenes_config())
     assert scene.metadata.extra["geometry_only"] is True
     assert all(material.texture is None for material in scene.materials)
     assert "geometry only" in caplog.text
@@ -98,10 +99,10 @@ def test_floorplan_image_is_extruded_with_walls_floor_and_ceiling(tmp_path):
     plan[30:33, 10:70] = 0
     plan[30:33, 35:50] = 254  # a 0.75 m door between the two rooms
     Image.fromarray(plan).save(tmp_path / "plan.png")
-    scene = load_scene(f"floorplan:{tmp_path / 'plan.png'}?resolution=0.05&wall_height=2.5")
+    scene = load_scene(f"floorplan:{tmp_path / 'plan.png'}?resolution=0.05&wall_height=2.5", scenes_config())
     assert scene.metadata.source == "floorplan"
     assert np.isclose(scene.bounds[1, 2], 2.5, atol=1e-6)
-    no_ceiling = load_scene(f"floorplan:{tmp_path / 'plan.png'}?resolution=0.05&ceiling=false")
+    no_ceiling = load_scene(f"floorplan:{tmp_path / 'plan.png'}?resolution=0.05&ceiling=false", scenes_config())
     # plan pixel (20, 40) is inside the upper room: x = 2.025, y = (60 - 20 - 0.5) * 0.05 = 1.975
     up, down, door = [[2.025, 1.975, 1.0, 0, 0, 1]], [[2.025, 1.975, 1.0, 0, 0, -1]], [[2.125, 2.2, 1.0, 0, -1, 0]]
     assert np.isclose(cast_rays(scene, up)["t_hit"][0], 1.5, atol=1e-4)       # ceiling at 2.5 m
@@ -129,7 +130,7 @@ def _slice_occupancy(scene, z: float, shape, resolution: float) -> np.ndarray:
 
 def test_kth_floorplan_slice_matches_plan_occupancy(shared_data):
     folder = shared_data / "floorplans" / "kth" / "50052750"
-    scene = load_scene(f"floorplan:{folder}")
+    scene = load_scene(f"floorplan:{folder}", scenes_config())
     occupied = np.load(folder / "occ_map.npy") == 0
     sliced = _slice_occupancy(scene, 1.0, occupied.shape, 0.05)
     iou = (sliced & occupied).sum() / (sliced | occupied).sum()
@@ -160,7 +161,7 @@ def test_bad_scene_input_gives_a_clear_error(tmp_path, monkeypatch, spec, messag
     (tmp_path / "nan.obj").write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
     (tmp_path / "empty.obj").write_text("# nothing\nv 0 0 0\n")
     with pytest.raises(InputError, match=message) as error:
-        load_scene(spec)
+        load_scene(spec, scenes_config())
     assert "\n" not in str(error.value)
 
 
@@ -183,7 +184,7 @@ def test_kth_layout_door_gaps_get_lintels_but_wall_strips_do_not(tmp_path):
     valid[13:47, 13:15] = 0                  # an unlabelled free strip along room 1's west wall
     np.save(tmp_path / "occ_map.npy", occ)
     np.save(tmp_path / "valid_space.npy", valid)
-    scene = load_scene(f"floorplan:{tmp_path}?door_height=2.0&wall_height=2.6")
+    scene = load_scene(f"floorplan:{tmp_path}?door_height=2.0&wall_height=2.6", scenes_config())
     H, s = occ.shape[0], 0.05
 
     def up_hit(row, col):

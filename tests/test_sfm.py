@@ -10,6 +10,7 @@ import pycolmap
 import pytest
 from PIL import Image
 
+from conftest import scenes_config
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading, rotation_angle
@@ -55,7 +56,7 @@ def rendered(tmp_path_factory):
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.camera import PinholeCamera, Renderer
 
-    renderer = Renderer(load_scene(SCENE), PinholeCamera(**CAMERA, max_depth=20.0), (0, 0, 0))
+    renderer = Renderer(load_scene(SCENE, scenes_config()), PinholeCamera(**CAMERA, max_depth=20.0), (0, 0, 0))
     folder = tmp_path_factory.mktemp("walk") / "images"
     folder.mkdir()
     poses, depths = _walk(), {}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import box_scene, explore_section, room_boxes, sim_section
+from conftest import box_scene, explore_section, room_boxes, scenes_config, sim_section
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.exploration.surface import SurfaceCoverage, coverage_auc, even_surface_samples
@@ -197,7 +197,7 @@ def test_shared_house(shared_data):
     path = shared_data / "scenes" / "aws_small_house.glb"
     if not path.is_file():
         pytest.skip(f"{path} not found")
-    scene = load_scene(str(path))
+    scene = load_scene(str(path), scenes_config())
     surface = SurfaceCoverage(scene, load_config("explore"), seed=0,
                               voxels=voxelize_scene(scene, sim_section("voxels")))
     assert surface.num_sampled == 20000 and 0.5 * 20000 < surface.num_samples < 0.95 * 20000

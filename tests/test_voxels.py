@@ -18,7 +18,7 @@ from frontiernet.scenes.interior import enclosed_free
 from frontiernet.scenes.scene import Material, SceneMetadata
 from frontiernet.simulator.voxels import VoxelGrid, surface_voxels, voxelize_scene
 
-from conftest import TWO_ROOM_FREE_VOLUME, box_scene, room_boxes
+from conftest import TWO_ROOM_FREE_VOLUME, box_scene, room_boxes, scenes_config
 
 
 def _conf(**changes):
@@ -128,7 +128,7 @@ def test_too_many_voxels_is_an_input_error(two_room_scene):
 
 
 def test_house_without_ceiling_has_a_plausible_interior(shared_data):
-    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"))
+    scene = load_scene(str(shared_data / "scenes" / "aws_small_house.glb"), scenes_config())
     grid = voxelize_scene(scene, _conf())
     # 19 x 11.4 m x 3 m = 650 m^3 footprint box, minus walls, furniture and the outside notches
     assert 380 < grid.explorable_volume_m3 < 620
@@ -140,7 +140,7 @@ def test_house_without_ceiling_has_a_plausible_interior(shared_data):
 
 def test_kth_plan_interior_is_explorable(shared_data):
     folder = shared_data / "floorplans" / "kth" / "50052750"
-    scene = load_scene(f"floorplan:{folder}")
+    scene = load_scene(f"floorplan:{folder}", scenes_config())
     grid = voxelize_scene(scene, _conf())
     plan_shape = tuple(scene.metadata.extra["plan_shape"])
     starts = json.loads((folder / "start_poses.json").read_text())["start_poses"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from omegaconf import DictConfig, OmegaConf
 
-from ..config import check_keys, load_config
+from ..config import check_keys
 from .scene import Material, Scene, SceneMetadata
 from .sources import SCENE_SOURCES
 from .spec import DEFAULT_SPEC, EXPLORABLE_OPTIONS, SceneSpec, explorable_options, parse_spec
@@ -23,12 +23,13 @@ def _section(conf: DictConfig, source: str, spec: SceneSpec) -> DictConfig:
     return OmegaConf.merge(base, own)
 
 
-def load_scene(spec: str | SceneSpec, conf: DictConfig | None = None) -> Scene:
+def load_scene(spec: str | SceneSpec, conf: DictConfig) -> Scene:
     """Load a scene from a spec string (see :mod:`frontiernet.scenes.spec`).
 
     Args:
         spec: e.g. ``"procedural:3"``, ``"house.glb"``, ``"floorplan:plan.png?resolution=0.05"``.
-        conf: the scenes config (``configs/scenes.yaml``); loaded when None.
+        conf: the scenes config as the command resolved it (``configs/scenes.yaml``: one section
+            per source, merged with the spec's options).
     Returns:
         A validated :class:`Scene` in world coordinates (Z-up, metres).
     Raises:
@@ -38,7 +39,6 @@ def load_scene(spec: str | SceneSpec, conf: DictConfig | None = None) -> Scene:
     kept on the scene's metadata for the voxeliser's explorable space.
     """
     spec = parse_spec(spec) if isinstance(spec, str) else spec
-    conf = conf if conf is not None else load_config("scenes")
     seed, box = explorable_options(spec)
     scene = SCENE_SOURCES.get(spec.source)(spec, _section(conf, spec.source, spec))
     scene.metadata.explorable_seed, scene.metadata.explorable_bounds = seed, box

@@ -56,7 +56,7 @@ def baseline(depth: np.ndarray, mask: np.ndarray) -> None:
 
 def predicted_views(scene_spec: str, views: int, seed: int) -> list[dict]:
     """Rendered views with the shipped model's outputs: depth, D, gain classes, K, pose."""
-    scene = load_scene(scene_spec)
+    scene = load_scene(scene_spec, load_config("scenes"))
     sim = load_config("sim")
     select_backend(sim.raycast.backend)
     poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), views, seed, sim.poses)

@@ -33,7 +33,7 @@ DEFAULT_SCENES = [str(SHARED / "scenes" / "aws_small_house.glb"), str(SHARED / "
 
 def compare(spec: str, conf) -> dict:
     """Both rules' explorable volume on one scene, and where they differ."""
-    scene = load_scene(spec)
+    scene = load_scene(spec, load_config("scenes"))
     clock = time.perf_counter()
     grid = voxelize_scene(scene, OmegaConf.merge(conf, {"explorable": "enclosed"}))
     enclosed_s = time.perf_counter() - clock
