@@ -117,7 +117,6 @@ class Explorer:
         self.backoff = None  # (2,) xy to step back to: after a collision (map-free mode), or boxed in
         self.retreat_index = None  # while boxed in on the planning grid: the trajectory index stepped back to
         self.waypoint = 0
-        self.look_xy = None  # (2,) world point the move check asked to face: turned to until faced
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
         self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
@@ -197,7 +196,7 @@ class Explorer:
         if route is not None and route.frontier_id != last:  # a new goal (not the same one replanned)
             self.result.goals.append({"step": self.agent.steps, "frontier": route.frontier_id,
                                       "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
-        self.route, self.waypoint, self.steps_since_plan, self.look_xy = route, 0, 0, None
+        self.route, self.waypoint, self.steps_since_plan = route, 0, 0
 
     def _retreat_point(self, xy: np.ndarray) -> np.ndarray | None:
         """The next earlier trajectory position (xy) to step back to while the robot is boxed in
@@ -249,16 +248,11 @@ class Explorer:
             if self.waypoint >= self.route.mapped_until and not self.map_free and self._blocked(waypoints[self.waypoint]):
                 self._route_failed()  # the frontier-tree edge runs into a mapped obstacle
                 return None
-            if self.look_xy is not None and not self._looked_at(T, self.look_xy):
-                return self._face(T, self.look_xy)  # keep turning until faced, then check again
-            self.look_xy = None
             target = self.motion.towards(T, waypoints[self.waypoint])
             verdict, look_xy = self._check_move(T, target)
             if verdict == "look":  # unknown ahead or beside: face it first, so the camera maps it
-                # held over the next increments: turning back towards the waypoint in between
-                # (a point more than one increment's turn off) would undo each turn, forever
-                self.look_xy = look_xy
-                return self._face(T, look_xy)
+                offset = look_xy - T[:2, 3]
+                return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
             if verdict == "fail":
                 self._route_failed()
                 return None
@@ -317,11 +311,6 @@ class Explorer:
         if unknown_xy is None:
             return "ok", None
         return ("fail" if self._looked_at(T, unknown_xy) else "look"), unknown_xy
-
-    def _face(self, T: np.ndarray, xy: np.ndarray) -> np.ndarray:
-        """The next pose turning on the spot towards world point `xy` (2,)."""
-        offset = np.asarray(xy, np.float64) - T[:2, 3]
-        return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
 
     def _looked_at(self, T: np.ndarray, xy: np.ndarray) -> bool:
         """Whether the camera at `T` faces world point `xy` ((2,) metres; within a quarter of the
