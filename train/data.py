@@ -173,9 +173,11 @@ def worker_count(value) -> int:
 class FrontierDataModule(L.LightningDataModule):
     """Train/validation loaders over one dataset folder, split by scene (``train.yaml: data``)."""
 
-    def __init__(self, conf, progress: bool = True):
+    def __init__(self, conf, progress: bool = True, dataset=None):
+        """`dataset`: the ``data.path`` dataset when the caller has opened it already (None: opened
+        by :meth:`setup`)."""
         super().__init__()
-        self.conf, self.progress = conf, progress
+        self.conf, self.progress, self.dataset = conf, progress, dataset
         self.train_set = self.val_set = None
         self.train_scenes = self.val_scenes = []
 
@@ -184,7 +186,7 @@ class FrontierDataModule(L.LightningDataModule):
             return
         data, seed = self.conf["data"], int(self.conf["seed"])
         model_conf, augment_conf = self.conf["model"], self.conf["augment"]
-        dataset = open_training_data(data["path"])
+        dataset = self.dataset if self.dataset is not None else open_training_data(data["path"])
         self.train_scenes, self.val_scenes = split_scenes(dataset.scenes, data["val_scenes"],
                                                           float(data["val_fraction"]), seed)
         train = _limit(dataset.indices_for_scenes(self.train_scenes), data["max_train_samples"], seed)

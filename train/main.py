@@ -166,9 +166,9 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     if resume is not None:
         _check_checkpoint(resume)
     init, init_labels = _initial_weights(conf) if resume is None else (None, {})
-    if conf.data.path:  # (unset: the data module says so)
-        resolve_gain_definition(conf, open_training_data(conf.data.path).gain_definition, init_labels)
-    datamodule = FrontierDataModule(conf, progress)
+    dataset = open_training_data(conf.data.path)
+    resolve_gain_definition(conf, dataset.gain_definition, init_labels)
+    datamodule = FrontierDataModule(conf, progress, dataset)
     datamodule.setup()
     check_loop_settings(conf, len(datamodule.train_set))
 
