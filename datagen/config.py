@@ -10,7 +10,7 @@ from typing import Iterable
 
 from omegaconf import DictConfig, OmegaConf
 
-from frontiernet.config import load_config, merge_user
+from frontiernet.config import dotted_parent, load_config, merge_user
 
 
 def load_datagen_config(user_file: str | Path | None = None, overrides: Iterable[str] = (),
@@ -48,11 +48,8 @@ def config_hash(conf: DictConfig) -> str:
         if settings.get(section) == OmegaConf.to_container(load_config(name), resolve=True):
             settings.pop(section)
     for dotted, old_value in KEYS_ADDED_AFTER_DATASETS.items():
-        *sections, key = dotted.split(".")
-        section = settings
-        for name in sections:
-            section = section.get(name) if isinstance(section, dict) else None
-        if isinstance(section, dict) and section.get(key, old_value) == old_value:
+        section, key = dotted_parent(settings, dotted)
+        if section is not None and section.get(key, old_value) == old_value:
             section.pop(key, None)
     text = json.dumps(settings, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:16]

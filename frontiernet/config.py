@@ -96,6 +96,15 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
     return conf
 
 
+def dotted_parent(tree: dict, dotted: str) -> tuple[dict | None, str]:
+    """The plain nested dict that holds dotted key `dotted` of `tree` (``"a.b.c"``: ``tree["a"]["b"]``)
+    and the last key (``"c"``); None for the dict when a section on the way is missing or no dict."""
+    *sections, key = dotted.split(".")
+    for name in sections:
+        tree = tree.get(name) if isinstance(tree, dict) else None
+    return (tree if isinstance(tree, dict) else None), key
+
+
 def option_section(conf, options: Sequence[str], where: str) -> dict:
     """`conf`, a section of options (DictConfig or mapping, as the command resolved it), as a plain
     ``dict`` holding every key of `options` and no other.

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..config import dotted_parent
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
@@ -122,13 +123,8 @@ def with_keys_added_after(conf: dict) -> dict:
     :data:`KEYS_ADDED_AFTER_PLANS` it lacks set to the value of the code before the key (see there);
     a key it has keeps its value."""
     for dotted, old_behaviour in KEYS_ADDED_AFTER_PLANS.items():
-        *sections, key = dotted.split(".")
-        section = conf
-        for name in sections:
-            section = section.get(name)
-            if not isinstance(section, dict):
-                break
-        else:
+        section, key = dotted_parent(conf, dotted)
+        if section is not None:
             section.setdefault(key, old_behaviour)
     return conf
 
