@@ -10,12 +10,34 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import ClassVar, Iterable, Mapping, Sequence
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from .errors import InputError
+
+
+class ConfigSection:
+    """Base of the checked, typed settings of one config section (frozen dataclasses such as
+    ``MapSettings``): :meth:`from_config` takes the settings themselves, the section (an OmegaConf
+    ``DictConfig`` or a dict), or a whole config holding it under :attr:`SECTION`, and has the
+    subclass's :meth:`from_section` check and type the section (raising
+    :class:`~frontiernet.errors.InputError` naming the first bad key)."""
+
+    SECTION: ClassVar[str] = ""
+
+    @classmethod
+    def from_config(cls, conf):
+        if isinstance(conf, cls):
+            return conf
+        if not hasattr(conf, "get"):
+            raise InputError(f"the {cls.SECTION} config must be a mapping, got {type(conf).__name__}")
+        return cls.from_section(conf.get(cls.SECTION, conf))
+
+    @classmethod
+    def from_section(cls, section):
+        raise NotImplementedError
 
 
 def default_config_path(name: str) -> Path:

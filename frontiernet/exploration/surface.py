@@ -33,6 +33,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from ..config import ConfigSection
 from ..errors import InputError, positive_number, whole_number
 from ..mapping import OccupancyMap
 
@@ -40,7 +41,7 @@ _OVERSAMPLE, _RADIUS_DIVISOR = 3, 5.0  # 3 n uniform samples thinned at sqrt(are
 
 
 @dataclass(frozen=True)
-class SurfaceSettings:
+class SurfaceSettings(ConfigSection):
     """The ``surface`` section of ``configs/explore.yaml`` (see there for each value)."""
 
     num_points: int
@@ -48,12 +49,11 @@ class SurfaceSettings:
     max_distance_to_explorable_m: float
     completeness_threshold_m: float
 
+    SECTION = "surface"
+
     @classmethod
-    def from_config(cls, conf) -> SurfaceSettings:
-        """From the section, or a whole explore config holding it."""
-        if isinstance(conf, SurfaceSettings):
-            return conf
-        conf = conf.get("surface", conf)
+    def from_section(cls, conf) -> SurfaceSettings:
+        """From the ``surface`` section (DictConfig or dict)."""
         try:
             return cls(whole_number(conf["num_points"], "surface.num_points", 1),
                        whole_number(conf["tolerance_voxels"], "surface.tolerance_voxels", 0, 3),

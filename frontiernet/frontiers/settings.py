@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..config import ConfigSection
 from ..errors import InputError
 from .gain import GAIN_DECODINGS
 
@@ -54,7 +55,7 @@ def _flag(conf, key: str, prefix: str = "anchoring.") -> bool:
 
 
 @dataclass(frozen=True)
-class AnchoringSettings:
+class AnchoringSettings(ConfigSection):
     """Typed anchoring settings (see ``configs/explore.yaml`` ``anchoring:`` for each one).
 
     Attributes:
@@ -89,11 +90,11 @@ class AnchoringSettings:
     allow_single_cluster: bool
     cluster_gain: str
 
+    SECTION = "anchoring"
+
     @classmethod
-    def from_config(cls, conf) -> AnchoringSettings:
+    def from_section(cls, conf) -> AnchoringSettings:
         """Check and type the ``anchoring`` section (a DictConfig or dict)."""
-        if isinstance(conf, AnchoringSettings):
-            return conf
         threshold = _get(conf, "frontier_threshold_px", "anchoring.")
         kernel = _number(conf, "gradient_kernel_px", minimum=1, integer=True)
         if kernel % 2 == 0 or kernel > 31:

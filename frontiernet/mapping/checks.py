@@ -9,11 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..config import ConfigSection
 from ..errors import InputError, positive_number
 
 
 @dataclass(frozen=True)
-class MapSettings:
+class MapSettings(ConfigSection):
     """The ``map`` section of ``configs/explore.yaml``, checked (see the file for meanings)."""
 
     voxel_size: float
@@ -26,12 +27,11 @@ class MapSettings:
     max_range_m: float
     invalid_depth: str
 
+    SECTION = "map"
+
     @classmethod
-    def from_config(cls, conf) -> MapSettings:
-        """From the ``map`` section (DictConfig or dict) or a whole explore config."""
-        if isinstance(conf, MapSettings):
-            return conf
-        conf = conf.get("map", conf)
+    def from_section(cls, conf) -> MapSettings:
+        """From the ``map`` section (DictConfig or dict)."""
         try:
             values = {key: conf[key] for key in cls.__dataclass_fields__}
         except KeyError as error:
