@@ -130,6 +130,31 @@ def test_baselines_explore_the_two_room_plan_without_collisions(plan_spec, tmp_p
         assert metrics["goals"] == 0 and metrics["steps"] == 60  # no goals, it runs until the budget ends
 
 
+@pytest.mark.parametrize("method, every", [("discontinuity-uniform", 4), ("classic", 4), ("discontinuity-uniform", 1)])
+def test_an_image_method_observes_every_n_frames_a_map_method_every_frame(plan_spec, tmp_path, monkeypatch,
+                                                                          method, every):
+    calls = []
+    propose = Method.propose
+
+    def counted(self, frame, depth, timed):
+        calls.append(len(calls))
+        return propose(self, frame, depth, timed)
+
+    monkeypatch.setattr(Method, "propose", counted)
+    metrics = run_method(plan_spec, tmp_path / "run", method, 20, f"tracking.observe_every_steps={every}")
+    frames = len(metrics["coverage_per_step"])  # one per sensed frame, the first included
+    expected = frames if method == "classic" else -(-frames // every)
+    assert len(calls) == expected and metrics["collisions"] == 0
+
+
+def test_observe_every_steps_below_one_is_refused(plan_spec, tmp_path):
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+        code = main(["explore", "--scene", plan_spec, "--method", "classic", "--max-steps", "3", "--no-video",
+                     "--out", str(tmp_path / "run"), "tracking.observe_every_steps=0"])
+    assert code == 2 and "tracking.observe_every_steps must be an integer >= 1, got 0" in stream.getvalue()
+
+
 def make_my_planner(context):
     """docs/exploration.md's plugin example: map frontiers scored by visible unknown volume, nearest first."""
     return Method("my-planner", MapSource("unknown_volume", context.map, context.conf), goal="nearest",

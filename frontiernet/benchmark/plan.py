@@ -44,6 +44,7 @@ KEYS_ADDED_AFTER_PLANS = {
     "sim.voxels.floor_headroom_m": 1.0,
     "sim.voxels.floor_clearance_m": 0.2,
     "sim.voxels.seed_search_m": 0.5,
+    "tracking.observe_every_steps": 1,  # every frame, as before the key
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config

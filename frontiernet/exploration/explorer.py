@@ -1,7 +1,8 @@
 """The closed exploration loop (paper III-E, III-F; docs/design.md items 4 to 7).
 
 Each iteration: **sense** (render the camera frame, get the depth prior from the depth
-source, run the perception, anchor its frontier pixels to 3D frontiers, integrate the depth
+source, run the perception (an image method's every ``tracking.observe_every_steps`` frames),
+anchor its frontier pixels to 3D frontiers, integrate the depth
 into the occupancy map, fold the frontiers into the tracker, reduce their gains by the
 known volume, drop visited ones) -> **plan** (when the route is done, failed, or every
 ``replan_every_steps``: the best frontier by utility, its route over the map and the
@@ -20,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, whole_number
 from ..frontiers import FrontierTracker
 from ..mapping import OccupancyMap
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
@@ -28,6 +29,7 @@ from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
 from .methods import Method
 from .motion import Motion, wrap_angle, yaw_of
+from .perception import plain_view
 from .surface import SurfaceCoverage
 
 _ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
@@ -122,6 +124,8 @@ class Explorer:
         self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
         self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
         self._timings: dict = {}
+        self.observe_every = whole_number(conf.tracking.observe_every_steps, "tracking.observe_every_steps", 1)
+        self.frames_sensed = 0
 
     # -- sensing --------------------------------------------------------------------------------
 
@@ -140,7 +144,11 @@ class Explorer:
         ground_truth = frame.hit_depth if far else frame.depth
         depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, ground_truth)
         self._timed("map", self._integrate, depth, frame, T)
-        observations, seen = self.method.propose(frame, depth, self._timed)
+        if self.method.fresh_frontiers or self.frames_sensed % self.observe_every == 0:
+            observations, seen = self.method.propose(frame, depth, self._timed)
+        else:  # between an image method's observations: the map and the bookkeeping go on
+            observations, seen = [], plain_view(frame, depth)
+        self.frames_sensed += 1
         self._timed("tracking", self._track, observations, T)
         self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
         self._timed("coverage", self._cover_surface)
