@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import InputError, whole_number
 from ..frontiers import FrontierTracker
-from ..mapping import OccupancyMap
+from ..mapping import UNKNOWN, OccupancyMap
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
@@ -119,6 +119,8 @@ class Explorer:
         self.backoff = None  # (2,) xy to step back to: after a collision (map-free mode), or boxed in
         self.retreat_index = None  # while boxed in on the planning grid: the trajectory index stepped back to
         self.waypoint = 0
+        self.look_xy = None  # (2,) world point the move check asked to face: turned to until faced or mapped
+        self.faced_unknown: list[np.ndarray] = []  # (2,) xy of camera-layer voxels faced and still unknown
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
         self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
@@ -204,7 +206,7 @@ class Explorer:
         if route is not None and route.frontier_id != last:  # a new goal (not the same one replanned)
             self.result.goals.append({"step": self.agent.steps, "frontier": route.frontier_id,
                                       "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
-        self.route, self.waypoint, self.steps_since_plan = route, 0, 0
+        self.route, self.waypoint, self.steps_since_plan, self.look_xy = route, 0, 0, None
 
     def _retreat_point(self, xy: np.ndarray) -> np.ndarray | None:
         """The next earlier trajectory position (xy) to step back to while the robot is boxed in
@@ -256,11 +258,16 @@ class Explorer:
             if self.waypoint >= self.route.mapped_until and not self.map_free and self._blocked(waypoints[self.waypoint]):
                 self._route_failed()  # the frontier-tree edge runs into a mapped obstacle
                 return None
+            if self.look_xy is not None and not self._looked_at(T, self.look_xy) and self._unknown(self.look_xy):
+                return self._face(T, self.look_xy)  # keep turning until faced or mapped, then check again
+            self.look_xy = None
             target = self.motion.towards(T, waypoints[self.waypoint])
             verdict, look_xy = self._check_move(T, target)
             if verdict == "look":  # unknown ahead or beside: face it first, so the camera maps it
-                offset = look_xy - T[:2, 3]
-                return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
+                # held over the next increments: turning back towards the waypoint in between
+                # (a point more than one increment's turn off) would undo each turn, forever
+                self.look_xy = look_xy
+                return self._face(T, look_xy)
             if verdict == "fail":
                 self._route_failed()
                 return None
@@ -295,7 +302,13 @@ class Explorer:
           occupied voxel and, at the camera's height, no unknown one;
         - ``look``: the target, or an unknown voxel at the camera's height within the body, has
           not been faced yet (the camera maps it when it turns there);
-        - ``fail``: occupied, or still unknown once faced.
+        - ``fail``: occupied, or the target itself still unknown once faced.
+
+        An unknown voxel beside the target that is still unknown once faced is passed and
+        remembered (:attr:`faced_unknown`): the camera cannot map it from here, and facing it
+        again would not either. The explorer holds a look over the next increments
+        (:attr:`look_xy`) until the point is faced or mapped: turning back towards the waypoint
+        in between undid each turn, forever (a livelock, docs/benchmark.md).
 
         `body_radius` is ``planner.clearance_m`` (kept between route cell centres and occupied
         voxel centres) less a voxel's half diagonal and a slack for route points between cell
@@ -315,10 +328,26 @@ class Explorer:
             return "fail", None
         if self.map.state_at(target[None, :3, 3])[0] != FREE:
             return ("fail" if self._looked_at(T, xy) else "look"), xy
-        unknown_xy = self.map.nearest_unknown_in_disk(xy, self.body_radius, self.motion.z)
-        if unknown_xy is None:
-            return "ok", None
-        return ("fail" if self._looked_at(T, unknown_xy) else "look"), unknown_xy
+        while True:
+            unknown_xy = self.map.nearest_unknown_in_disk(xy, self.body_radius, self.motion.z,
+                                                          exclude=self.faced_unknown)
+            if unknown_xy is None:
+                return "ok", None
+            if not self._looked_at(T, unknown_xy):
+                return "look", unknown_xy
+            # faced and still unknown: the camera cannot map it (between its rays, or hidden), so
+            # facing it again would not either; it no longer holds the body back (the occupied test
+            # still does, should it be mapped occupied later)
+            self.faced_unknown.append(unknown_xy)
+
+    def _unknown(self, xy: np.ndarray) -> bool:
+        """Whether the map's voxel at world point `xy` ((2,) metres) at the camera's height is unknown."""
+        return self.map.state_at(np.array([[xy[0], xy[1], self.motion.z]]))[0] == UNKNOWN
+
+    def _face(self, T: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """The next pose turning on the spot towards world point `xy` (2,)."""
+        offset = np.asarray(xy, np.float64) - T[:2, 3]
+        return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
 
     def _looked_at(self, T: np.ndarray, xy: np.ndarray) -> bool:
         """Whether the camera at `T` faces world point `xy` ((2,) metres; within a quarter of the

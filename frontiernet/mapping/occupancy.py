@@ -147,10 +147,12 @@ class OccupancyMap:
         return bool(disks_touch_cells(occupied, self.origin[:2] + lo * self.voxel_size, self.voxel_size,
                                       xy[None], radius)[0])
 
-    def nearest_unknown_in_disk(self, xy: np.ndarray, radius_m: float, z: float) -> np.ndarray | None:
+    def nearest_unknown_in_disk(self, xy: np.ndarray, radius_m: float, z: float,
+                                exclude: np.ndarray | None = None) -> np.ndarray | None:
         """The centre ((2,) float64 world xy, metres) of the unknown voxel nearest to `xy` among those
         of the layer holding height `z` whose squares overlap the disk of `radius_m` around `xy`
         ((2,) metres); None when all of them are observed (cells off the grid do not count).
+        `exclude`: (K, 2) world xy points (metres) whose cells of the layer do not count.
 
         The explorer's move check asks it at the camera's height: a wall end the camera never saw
         is unknown, not occupied, and a body passing beside it would touch it."""
@@ -158,6 +160,11 @@ class OccupancyMap:
         if window is None:
             return None
         unknown = ~self._observed[window][:, :, 0]
+        if exclude is not None and len(exclude):
+            skip = np.floor((np.asarray(exclude, np.float64).reshape(-1, 2) - self.origin[:2])
+                            / self.voxel_size).astype(np.int64) - lo
+            inside = np.all((skip >= 0) & (skip < unknown.shape), axis=1)
+            unknown[skip[inside, 0], skip[inside, 1]] = False
         if not unknown.any():
             return None
         cells = lo + np.argwhere(unknown)
