@@ -10,16 +10,18 @@ from typing import Iterable
 
 from omegaconf import DictConfig, OmegaConf
 
-from frontiernet.config import dotted_parent, load_config, merge_user
+from frontiernet.config import dotted_parent, load_config
 
 
 def load_datagen_config(user_file: str | Path | None = None, overrides: Iterable[str] = (),
                         names: tuple[str, ...] = ("sim", "datagen")) -> DictConfig:
     """Camera, voxels and poses (sim.yaml) plus ground_truth, sampling and writer (datagen.yaml)
     (shipped configs `names`, merged in order), the scene sources' options (scenes.yaml) as section
-    ``scenes``, then a user YAML file and ``key=value`` overrides on top."""
-    conf = OmegaConf.merge(load_config(tuple(names)), {"scenes": load_config("scenes")})
-    return merge_user(conf, user_file, overrides)
+    ``scenes``, then a user YAML file and ``key=value`` overrides on top
+    (:func:`~frontiernet.simulator.world.load_world_config` of `names`)."""
+    from frontiernet.simulator.world import load_world_config
+
+    return load_world_config(user_file, overrides, names)
 
 
 RUNTIME_SECTIONS = ("raycast",)

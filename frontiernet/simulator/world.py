@@ -44,15 +44,16 @@ class World:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def load_world_config(user_file=None, overrides=()):
-    """``configs/sim.yaml`` with ``configs/scenes.yaml`` as its section ``scenes``, then the user's
+def load_world_config(user_file=None, overrides=(), names=("sim",)):
+    """``configs/sim.yaml`` (or the shipped configs `names`, merged in order, such as datagen's
+    ``("sim", "datagen")``) with ``configs/scenes.yaml`` as section ``scenes``, then the user's
     YAML `user_file` and ``key=value`` `overrides` on top: what :func:`build_world` reads
     (``build_world(spec, conf, conf.scenes)``), resolved once at a command's top.
 
     Raises:
         InputError: an unreadable file, an unknown key or a value of the wrong kind.
     """
-    conf = OmegaConf.merge(load_config("sim"), {"scenes": load_config("scenes")})
+    conf = OmegaConf.merge(load_config(tuple(names)), {"scenes": load_config("scenes")})
     return merge_user(conf, user_file, overrides)
 
 
