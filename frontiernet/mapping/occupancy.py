@@ -161,8 +161,8 @@ class OccupancyMap:
             return None
         unknown = ~self._observed[window][:, :, 0]
         if exclude is not None and len(exclude):
-            skip = np.floor((np.asarray(exclude, np.float64).reshape(-1, 2) - self.origin[:2])
-                            / self.voxel_size).astype(np.int64) - lo
+            exclude = np.asarray(exclude, np.float64).reshape(-1, 2)
+            skip = self.world_to_index(np.column_stack([exclude, np.full(len(exclude), z)]))[:, :2] - lo
             inside = np.all((skip >= 0) & (skip < unknown.shape), axis=1)
             unknown[skip[inside, 0], skip[inside, 1]] = False
         if not unknown.any():
