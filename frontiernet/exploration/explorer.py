@@ -127,7 +127,6 @@ class Explorer:
         self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
         self._timings: dict = {}
         self.observe_every = whole_number(conf.tracking.observe_every_steps, "tracking.observe_every_steps", 1)
-        self.frames_sensed = 0
 
     # -- sensing --------------------------------------------------------------------------------
 
@@ -146,11 +145,10 @@ class Explorer:
         ground_truth = frame.hit_depth if far else frame.depth
         depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, ground_truth)
         self._timed("map", self._integrate, depth, frame, T)
-        if self.method.fresh_frontiers or self.frames_sensed % self.observe_every == 0:
+        if self.method.fresh_frontiers or len(self.poses) % self.observe_every == 0:  # poses: frames tracked
             observations, seen = self.method.propose(frame, depth, self._timed)
         else:  # between an image method's observations: the map and the bookkeeping go on
             observations, seen = [], plain_view(frame, depth)
-        self.frames_sensed += 1
         self._timed("tracking", self._track, observations, T)
         self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
         self._timed("coverage", self._cover_surface)
