@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from pathlib import Path
@@ -47,11 +48,22 @@ def config_hash(conf: DictConfig) -> str:
     settings = {key: value for key, value in OmegaConf.to_container(conf, resolve=True).items()
                 if key not in RUNTIME_SECTIONS}
     for section, name in SECTIONS_ADDED_AFTER_DATASETS.items():
-        if settings.get(section) == OmegaConf.to_container(load_config(name), resolve=True):
+        if section in settings and _canonical(settings[section]) == _shipped_canonical(name):
             settings.pop(section)
     for dotted, old_value in KEYS_ADDED_AFTER_DATASETS.items():
         section, key = dotted_parent(settings, dotted)
         if section is not None and section.get(key, old_value) == old_value:
             section.pop(key, None)
-    text = json.dumps(settings, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    return hashlib.sha256(_canonical(settings).encode()).hexdigest()[:16]
+
+
+def _canonical(value) -> str:
+    """JSON text of a plain config value, independent of key order."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+
+
+@functools.lru_cache(maxsize=None)
+def _shipped_canonical(name: str) -> str:
+    """:func:`_canonical` of shipped config `name`, read once per process (datagen hashes its config
+    once per task)."""
+    return _canonical(OmegaConf.to_container(load_config(name), resolve=True))
