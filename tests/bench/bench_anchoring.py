@@ -27,11 +27,8 @@ from frontiernet.benchmark.perf import default_bench_scene
 from frontiernet.config import load_config
 from frontiernet.frontiers import anchor_prediction
 from frontiernet.model.predictor import Predictor
-from frontiernet.scenes import load_scene
-from frontiernet.simulator.camera import PinholeCamera, Renderer
 from frontiernet.simulator.poses import sample_poses
-from frontiernet.simulator.raycast import select_backend
-from frontiernet.simulator.voxels import voxelize_scene
+from frontiernet.simulator.world import build_world
 
 SIZE, FOCAL, MAX_DEPTH = 320, 200.0, 3.5
 
@@ -56,11 +53,11 @@ def baseline(depth: np.ndarray, mask: np.ndarray) -> None:
 
 def predicted_views(scene_spec: str, views: int, seed: int) -> list[dict]:
     """Rendered views with the shipped model's outputs: depth, D, gain classes, K, pose."""
-    scene = load_scene(scene_spec, load_config("scenes"))
     sim = load_config("sim")
-    select_backend(sim.raycast.backend)
-    poses = sample_poses(scene, voxelize_scene(scene, sim.voxels), views, seed, sim.poses)
-    renderer = Renderer(scene, PinholeCamera(SIZE, SIZE, FOCAL, FOCAL, (SIZE - 1) / 2, (SIZE - 1) / 2, MAX_DEPTH), (0, 0, 0))
+    sim.camera.update(width=SIZE, height=SIZE, focal_px=FOCAL, max_depth=MAX_DEPTH, background=[0, 0, 0])
+    world = build_world(scene_spec, sim, load_config("scenes"))
+    poses = sample_poses(world.scene, world.voxels, views, seed, sim.poses)
+    renderer = world.renderer
     predictor = Predictor(threads=2)
     out = []
     for T in poses:
