@@ -13,7 +13,8 @@
 # dataset and its training cache are reused).
 # BUDGET_S=SECONDS bounds the whole call: datagen stops at DATAGEN_SHARE % of it (training then uses
 # the shards finished so far; stages.tsv says "datagen_cut"), training gets what is left but RESERVE_S
-# (trainer.max_time), so a call always ends with a model and its metrics.
+# (trainer.max_time), so a call always ends with a model and its metrics. DATAGEN_SHARE=0 trains on the
+# dataset WORK has, as it is (a second model right after the first, on the same warm machine).
 # Environment: SCENES (procedural:0-199: training scenes only, never the published or development
 # ones), VIEWS (75 per scene: 15,000 views), NAME (rgbd), EPOCHS (20; 1000 under BUDGET_S, where the clock
 # ends training: a call on the H200 stopped at 20 epochs of 4,522 views with two minutes unused), BATCH (64),
@@ -78,7 +79,9 @@ fi
 
 DATA="$WORK/data"
 DATAGEN=(datagen --scenes "$SCENES" --views-per-scene "$VIEWS" --seed 0 --out "$DATA" --workers "$CORES" --no-progress)
-if [ ! -f "$DATA/summary.json" ]; then  # datagen writes summary.json last
+if [ "$DATAGEN_SHARE" -eq 0 ] && [ -f "$DATA/dataset.json" ]; then
+    echo "DATAGEN_SHARE=0: training on the $(ls "$DATA/shards" | wc -l) shards there are" >&2
+elif [ ! -f "$DATA/summary.json" ]; then  # datagen writes summary.json last
     [ -f "$DATA/dataset.json" ] && DATAGEN+=(--resume)
     if [ -n "$BUDGET_S" ]; then  # timeout signals datagen's whole process group: its workers stop too
         status=0

@@ -209,7 +209,7 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
     depth = tmp_path / "depth.npy"
     np.save(depth, np.full((60, 80), 2.0, np.float32))
     assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "a")]) == 2
-    assert "frontiernet_rgb_resnet18.safetensors: no shipped model takes an RGB image alone" in one_line_error()
+    assert "frontiernet_rgb_mobilenet_v3_large.safetensors: no shipped model takes an RGB image alone" in one_line_error()
     assert main(["predict", "--image", str(rgb), "--depth", str(depth), "--out", str(tmp_path / "b")]) == 0
     save_model(weights / checkpoint.SHIPPED_MODELS["rgb"],
                FrontierNet(NetworkConfig(inputs="rgb", **small)).eval(), MODEL_CONF)
