@@ -86,7 +86,8 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         depth_in = result["depth"]  # at the working size, 0 invalid
         result["frontiers"] = frame_frontiers(result["distance_field"], result["gain_class"],
                                               np.where(depth_in > 0, depth_in, np.nan).astype(np.float32), K, K_image,
-                                              labels, load_config("explore").anchoring)
+                                              labels, load_config("explore").anchoring,
+                                              gain_logits=result["gain_logits"])
         write_json(out / "frontiers.json", {"frame": LEVEL_FRAME, "image": str(image), "depth": str(depth),
                                             "intrinsics": list(intrinsics), "frontiers": result["frontiers"]})
     return result

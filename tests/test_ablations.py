@@ -52,8 +52,9 @@ class StubPerception(Perception):
         mask = np.zeros(depth.shape, bool)
         mask[:, 5] = True
         classes = np.where(mask, 3, 0).astype(np.uint8)
+        logits = np.eye(len(LABELS["bin_edges"]), dtype=np.float32)[classes].transpose(2, 0, 1) * 10  # (K, H, W)
         return PerceptionResult(frame.rgb, np.asarray(depth, np.float32), frame.K,
-                                distance_field(mask, LABELS["truncation_px"]), classes, dict(LABELS))
+                                distance_field(mask, LABELS["truncation_px"]), classes, dict(LABELS), logits)
 
 
 def test_uniform_gain_is_constant_and_the_configured_class_on_the_base_frontiers():
@@ -63,6 +64,7 @@ def test_uniform_gain_is_constant_and_the_configured_class_on_the_base_frontiers
     assert seen.gain_class.dtype == np.uint8 and seen.gain_class.shape == depth.shape
     assert (seen.gain_class == 7).all()
     assert (seen.gain_class[base.distance_field < LABELS["frontier_threshold_px"]] == 7).all()
+    assert base.gain_logits is not None and seen.gain_logits is None  # the base's logits are not class 7's
     np.testing.assert_array_equal(seen.distance_field, base.distance_field)  # frontiers untouched
 
 

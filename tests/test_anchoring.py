@@ -168,6 +168,31 @@ def test_prediction_gain_is_the_decoded_class(mode, value):
     assert len(frontiers) == 1 and frontiers[0].gain_m3 == pytest.approx(value)
 
 
+def test_expected_decoding_weighs_the_class_midpoints_by_the_network_probabilities():
+    depth, mask, _ = edge_view([(0, 100)])
+    distance = np.where(mask, 0.0, 10.0).astype(np.float32)
+    gain_class = np.full(mask.shape, 5, np.uint8)
+    logits = np.full((11, *mask.shape), -30.0, np.float32)
+    logits[5] = logits[7] = 0.0  # half 6.0 m^3 (class 5's midpoint), half 12.5 m^3 (class 7's)
+    conf = _conf(gain_decoding="expected")
+    frontiers = anchor_prediction(distance, gain_class, depth, K, POSE, conf, LABELS, gain_logits=logits)
+    assert len(frontiers) == 1 and frontiers[0].gain_m3 == pytest.approx(9.25, rel=1e-5)
+    # no logits (labels, a class known for certain): the midpoint
+    assert anchor_prediction(distance, gain_class, depth, K, POSE, conf, LABELS)[0].gain_m3 == pytest.approx(6.0)
+
+
+def test_expected_decoding_keeps_class_0_pixels_at_0_and_reads_only_the_asked_pixels():
+    classes = np.array([[0, 5, 5]])
+    logits = np.zeros((11, 1, 3), np.float32)  # every class alike: the mean of the midpoints
+    mean = float(np.mean(decode_gain(np.arange(11), EDGES, 0.01, "midpoint")))
+    np.testing.assert_allclose(decode_gain(classes, EDGES, 0.01, "expected", logits), [[0, mean, mean]], rtol=1e-6)
+    where = np.array([[True, True, False]])
+    np.testing.assert_allclose(decode_gain(classes, EDGES, 0.01, "expected", logits, where), [[0, mean, 6.0]],
+                               rtol=1e-6)
+    with pytest.raises(InputError, match="gain logits"):
+        decode_gain(classes, EDGES, 0.01, "expected", logits[:, :, :2])
+
+
 def test_prediction_threshold_comes_from_the_config_or_the_labels():
     depth, mask, _ = edge_view([(0, 100)])
     distance = np.where(mask, 0.8, 10.0).astype(np.float32)

@@ -83,6 +83,8 @@ def test_frontiernet_oracle_gain_has_the_models_frontiers_and_the_ground_truth_g
         door_frame, door_frame.depth)
     model = ModelPerception(open_runtime(tiny_model))(door_frame, door_frame.depth)
     truth = OraclePerception(two_room_scene, two_room_voxels, small_sim)(door_frame, door_frame.depth)
+    assert model.gain_logits.shape == (11, 64, 64) and truth.gain_logits is None
+    assert seen.gain_logits is None  # the model's logits are not the classes' any more (expected decoding)
     np.testing.assert_array_equal(seen.distance_field, model.distance_field)  # where: the model's (64 px)
     np.testing.assert_array_equal(seen.depth, model.depth)
     np.testing.assert_array_equal(seen.K, model.K)

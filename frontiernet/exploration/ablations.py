@@ -76,7 +76,7 @@ class UniformGain(Perception):
                              f"(0 to {classes - 1})")
         # (h, w) of the base's dtype (uint8), the same class everywhere
         uniform = np.full(seen.gain_class.shape, self.gain_class, seen.gain_class.dtype)
-        return replace(seen, gain_class=uniform)
+        return replace(seen, gain_class=uniform, gain_logits=None)
 
 
 class GainFrom(Perception):
@@ -102,8 +102,9 @@ class GainFrom(Perception):
 
     def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
         seen, gain = self.base(frame, depth), self.gain_source(frame, depth)
-        classes = gain.gain_class  # (h', w') uint8
+        classes, logits = gain.gain_class, gain.gain_logits  # (h', w') uint8, (K, h', w') or None
         if classes.shape != seen.gain_class.shape:
+            logits = None  # not resampled: ``gain_decoding: expected`` decodes these classes to midpoints
             from ..model.inputs import resize_and_crop
 
             height, width = seen.gain_class.shape
@@ -112,7 +113,8 @@ class GainFrom(Perception):
             _, resized, _ = resize_and_crop(None, classes.astype(np.float32), None, height)
             classes = resized.astype(seen.gain_class.dtype)
         labels = {**seen.labels, **{key: gain.labels[key] for key in self.GAIN_LABELS if key in gain.labels}}
-        return replace(seen, gain_class=np.ascontiguousarray(classes, seen.gain_class.dtype), labels=labels)
+        return replace(seen, gain_class=np.ascontiguousarray(classes, seen.gain_class.dtype), labels=labels,
+                       gain_logits=logits)
 
 
 @dataclass(frozen=True)

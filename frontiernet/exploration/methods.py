@@ -121,7 +121,7 @@ class ImageSource(FrontierSource):
 
         seen = timed("perception", self.perception, frame, depth)
         observations = timed("anchoring", anchor_prediction, seen.distance_field, seen.gain_class, seen.depth, seen.K,
-                             frame.T_world_cam, self.anchoring, seen.labels, self.rng)
+                             frame.T_world_cam, self.anchoring, seen.labels, self.rng, seen.gain_logits)
         return observations, seen
 
 

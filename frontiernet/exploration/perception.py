@@ -35,6 +35,9 @@ class PerceptionResult:
         gain_class: (h, w) uint8 gain class per pixel (0 = no gain).
         labels: the label encoding (``truncation_px``, ``frontier_threshold_px``, ``bin_edges``,
             ``bin_unit_m3``, ``num_classes``), as in a model file.
+        gain_logits: (K, h, w) float32 gain-class logits of a network (``anchoring.gain_decoding:
+            expected`` reads them), or None where the classes are known for certain (labels) or
+            replaced (the ablations).
     """
 
     rgb: np.ndarray
@@ -43,6 +46,7 @@ class PerceptionResult:
     distance_field: np.ndarray
     gain_class: np.ndarray
     labels: dict
+    gain_logits: np.ndarray | None = None
 
 
 class Perception:
@@ -74,7 +78,7 @@ class ModelPerception(Perception):
     def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
         result, K = self.runtime.predict_frame(frame.rgb, depth, frame.K, size=self.size)
         return PerceptionResult(result["rgb"], result["depth"], K, result["distance_field"], result["gain_class"],
-                                dict(self.runtime.labels))
+                                dict(self.runtime.labels), result["gain_logits"])
 
 
 @functools.lru_cache(maxsize=1)

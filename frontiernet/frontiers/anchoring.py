@@ -230,17 +230,19 @@ def anchor_frontiers(frontier_mask: np.ndarray, gain_m3: np.ndarray, depth: np.n
 
 
 def anchor_prediction(distance_field: np.ndarray, gain_class: np.ndarray, depth: np.ndarray, K: np.ndarray,
-                      T_world_cam: np.ndarray, conf, labels: dict, rng: np.random.Generator | None = None
-                      ) -> list[FrontierObservation]:
+                      T_world_cam: np.ndarray, conf, labels: dict, rng: np.random.Generator | None = None,
+                      gain_logits: np.ndarray | None = None) -> list[FrontierObservation]:
     """3D frontiers from the network's outputs, or from ground-truth labels (paper III-E).
 
     F = [D < l] with l = ``conf.frontier_threshold_px`` (or ``labels["frontier_threshold_px"]``
     when that is null); G = the gain classes decoded with the labels' bin edges and
-    ``conf.gain_decoding``; then :func:`anchor_frontiers`.
+    ``conf.gain_decoding`` (:func:`~.gain.decode_gain`; ``expected`` reads `gain_logits` on F);
+    then :func:`anchor_frontiers`.
 
     Args:
         distance_field: (H, W) float32 pixels, distance to the nearest frontier pixel.
         gain_class: (H, W) integer gain classes in [0, K - 1].
+        gain_logits: (K, H, W) float32 gain-class logits of the network (None for labels).
         depth, K, T_world_cam, conf, rng: as for :func:`anchor_frontiers`.
         labels: the model's label encoding (``bin_edges``, ``bin_unit_m3``,
             ``frontier_threshold_px``; ``configs/model.yaml`` ``labels:``).
@@ -258,5 +260,6 @@ def anchor_prediction(distance_field: np.ndarray, gain_class: np.ndarray, depth:
         edges, unit = labels["bin_edges"], float(labels["bin_unit_m3"])
     except (KeyError, TypeError, ValueError):
         raise InputError(f"labels must give bin_edges and bin_unit_m3, got {labels!r}") from None
-    gain = decode_gain(classes, list(edges), unit, settings.gain_decoding)
-    return anchor_frontiers(distance < float(threshold), gain, depth, K, T_world_cam, settings, rng)
+    frontier_mask = distance < float(threshold)
+    gain = decode_gain(classes, list(edges), unit, settings.gain_decoding, gain_logits, frontier_mask)
+    return anchor_frontiers(frontier_mask, gain, depth, K, T_world_cam, settings, rng)

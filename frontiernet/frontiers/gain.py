@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InputError
 
-GAIN_DECODINGS = ("lower_bound", "midpoint")
+GAIN_DECODINGS = ("lower_bound", "midpoint", "expected")
 
 GAIN_VOLUMES = ("unobserved", "occluded")
 GAIN_SPREADS = ("blend", "region")
@@ -93,26 +93,37 @@ def class_midpoints(bin_edges, bin_unit_m3: float = 0.01) -> np.ndarray:
 
 
 def class_values(bin_edges, bin_unit_m3: float = 0.01, mode: str = "lower_bound") -> np.ndarray:
-    """(K,) float64 gain (m^3) each class decodes to: ``lower_bound`` or ``midpoint``."""
+    """(K,) float64 gain (m^3) each class decodes to: ``lower_bound`` or ``midpoint`` (also
+    ``expected``'s value of a class known for certain, e.g. a label)."""
     if mode == "lower_bound":
         return class_lower_bounds(bin_edges, bin_unit_m3)
-    if mode == "midpoint":
+    if mode in ("midpoint", "expected"):
         return class_midpoints(bin_edges, bin_unit_m3)
     raise InputError(f"gain decoding must be one of {', '.join(GAIN_DECODINGS)}, got {mode!r}")
 
 
 def decode_gain(gain_class: np.ndarray, bin_edges, bin_unit_m3: float = 0.01,
-                mode: str = "lower_bound") -> np.ndarray:
+                mode: str = "lower_bound", gain_logits: np.ndarray | None = None,
+                where: np.ndarray | None = None) -> np.ndarray:
     """Per-pixel gain classes -> gain in cubic metres (paper III-E: G = decoded gain).
 
     The paper decodes a class to its bin's lower bound (``lower_bound``, the default of
-    ``configs/explore.yaml``); ``midpoint`` uses the middle of the bin. Class 0 is 0 m^3
-    either way.
+    ``configs/explore.yaml``); ``midpoint`` uses the middle of the bin. ``expected`` reads the
+    class probabilities p = softmax(gain_logits) instead of the most likely class alone:
+    G = sum_k p_k m_k over the bins' midpoints m_k (m_0 = 0), the expectation of an ordinal
+    classifier's output (as DEX, Rothe et al., ICCVW 2015, reads age from 101 age classes);
+    without logits (labels, a class known for certain) it is the midpoint. A pixel whose
+    most likely class is 0 (no gain) is 0 m^3 in every mode, so ``drop_zero_gain`` drops the
+    same pixels whatever the decoding.
 
     Args:
-        gain_class: (H, W) (or any shape) integer classes in [0, K - 1], K = len(bin_edges).
+        gain_class: (H, W) (or any shape) integer classes in [0, K - 1], K = len(bin_edges):
+            the most likely class of each pixel.
         bin_edges, bin_unit_m3: the model's ``labels`` (class upper bounds, their unit in m^3).
-        mode: "lower_bound" | "midpoint".
+        mode: "lower_bound" | "midpoint" | "expected".
+        gain_logits: (K, H, W) float class logits of the same pixels (``expected`` only).
+        where: (H, W) bool, the pixels whose expectation is needed (``expected`` with logits;
+            elsewhere the midpoint of the class); None: every pixel.
     Returns:
         float32 array of `gain_class`'s shape, cubic metres.
     """
@@ -123,7 +134,17 @@ def decode_gain(gain_class: np.ndarray, bin_edges, bin_unit_m3: float = 0.01,
     if classes.size and (classes.min() < 0 or classes.max() >= len(values)):
         raise InputError(f"gain classes must lie in [0, {len(values) - 1}], got values in "
                          f"[{classes.min()}, {classes.max()}]")
-    return values[classes]
+    gain = values[classes]
+    if mode == "expected" and gain_logits is not None:
+        logits = np.asarray(gain_logits, np.float32)
+        if logits.shape != (len(values), *classes.shape):
+            raise InputError(f"gain logits must be (K={len(values)}, {', '.join(map(str, classes.shape))}), "
+                             f"got {logits.shape}")
+        picked = classes > 0 if where is None else (classes > 0) & np.asarray(where, bool)
+        chosen = logits[:, picked]  # (K, N)
+        chosen = np.exp(chosen - chosen.max(0, keepdims=True))
+        gain[picked] = values @ (chosen / chosen.sum(0, keepdims=True))
+    return gain
 
 
 # -- agreement between two gain-class maps (model vs label, or label vs label) ----------------------

@@ -60,7 +60,7 @@ class AnchoringSettings(ConfigSection):
 
     Attributes:
         frontier_threshold_px: l (pixels) of F = [D < l]; None: the model's labels value.
-        gain_decoding: "lower_bound" | "midpoint".
+        gain_decoding: "lower_bound" | "midpoint" | "expected".
         drop_zero_gain: frontier pixels of gain 0 are dropped.
         gradient_kernel_px: odd Sobel kernel size (1 to 31, OpenCV's limit).
         sample_offset_px: foreground/background sampling distance along the gradient, pixels.

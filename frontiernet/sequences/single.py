@@ -21,7 +21,8 @@ def level_camera_pose() -> np.ndarray:
 
 
 def frame_frontiers(distance_field: np.ndarray, gain_class: np.ndarray, depth: np.ndarray, K: np.ndarray,
-                    K_image: np.ndarray, labels: dict, anchoring, T_world_cam: np.ndarray | None = None) -> list[dict]:
+                    K_image: np.ndarray, labels: dict, anchoring, T_world_cam: np.ndarray | None = None,
+                    gain_logits: np.ndarray | None = None) -> list[dict]:
     """The 3D frontiers of one frame (paper III-E) as JSON-ready records.
 
     Args:
@@ -30,6 +31,7 @@ def frame_frontiers(distance_field: np.ndarray, gain_class: np.ndarray, depth: n
         K_image: (3, 3) intrinsics of the original image (pixels are also reported there).
         labels: the model's label encoding; anchoring: ``configs/explore.yaml`` ``anchoring``.
         T_world_cam: the frame's pose (None: the level camera frame, :data:`LEVEL_FRAME`).
+        gain_logits: (K, h, w) the network's gain-class logits (``anchoring.gain_decoding: expected``).
     Returns:
         Per frontier, largest first: ``position`` / ``direction`` (world or level frame),
         ``position_camera`` / ``direction_camera`` (OpenCV camera frame), ``gain_m3``,
@@ -40,7 +42,8 @@ def frame_frontiers(distance_field: np.ndarray, gain_class: np.ndarray, depth: n
     T = level_camera_pose() if T_world_cam is None else np.asarray(T_world_cam, np.float64)
     T_cam_world = np.linalg.inv(T)
     records = []
-    for frontier in anchor_prediction(distance_field, gain_class, depth, K, T, anchoring, labels):
+    for frontier in anchor_prediction(distance_field, gain_class, depth, K, T, anchoring, labels,
+                                      gain_logits=gain_logits):
         ray = np.linalg.solve(K, np.array([*frontier.pixel, 1.0]))
         pixel = (K_image @ ray)[:2]
         records.append({
