@@ -450,6 +450,29 @@ def test_map_free_route_follows_the_trajectory_back_to_the_parent_then_the_edge(
     assert np.allclose(edge[:, 0], 1.0) and np.all(np.diff(edge[:, 1]) < 0)
 
 
+def test_map_free_route_goes_on_along_the_edge_from_a_robot_standing_on_it():
+    """The robot walked from its parent pose (0, 0) along the edge to (0, 0.5), towards the frontier
+    at (0, 1): the route goes on to the frontier instead of back to the parent first (which kept a
+    robot between the two ends of one edge for hundreds of steps)."""
+    xy = np.c_[np.zeros(6), np.arange(0, 0.51, 0.1)]
+    graph = PoseGraph(0.3)
+    for p in xy:
+        graph.add(p)
+    robot = len(xy) - 1
+    target = frontier(0, (0.0, 1.0), 8.0, parent=0, yaw=np.pi / 2)
+    route = FrontierPlanner(planner_conf(edge_spacing_m=0.1, pose_link_m=0.3)).best_route(
+        [target], xy[robot], lambda i: xy[i], graph=graph, robot_index=robot)
+    assert route.distance_m == pytest.approx(0.5, abs=1e-6)
+    assert np.all(np.diff(route.waypoints[:, 1]) > 0) and route.waypoints[0, 1] >= 0.5 - 1e-9
+    np.testing.assert_allclose(route.waypoints[-1], [0.0, 1.0])
+    # off the edge by more than a pose link: back to the parent first, as before
+    aside = np.array([0.4, 0.5])
+    graph.add(aside)
+    route = FrontierPlanner(planner_conf(edge_spacing_m=0.1, pose_link_m=0.3)).best_route(
+        [target], aside, lambda i: np.vstack([xy, aside])[i], graph=graph, robot_index=len(xy))
+    assert route.waypoints[route.mapped_until - 1] == pytest.approx([0.0, 0.0])
+
+
 def test_map_free_prefers_the_frontier_that_is_closer_along_the_trajectory():
     """Two frontiers equally far from the robot in a straight line; one's parent is far back along the path."""
     xy = np.concatenate([np.c_[np.arange(0, 3.0, 0.1), np.zeros(30)], np.c_[np.full(21, 3.0), np.arange(0, 2.01, 0.1)]])

@@ -219,7 +219,7 @@ class FrontierPlanner:
         if grid is not None:
             scored, trace = self._map_candidates(candidates, robot_xy, parent_xy, grid)
         else:
-            scored, trace = self._tree_candidates(candidates, parent_xy, graph, robot_index)
+            scored, trace = self._tree_candidates(candidates, robot_xy, parent_xy, graph, robot_index)
         scored.sort(key=lambda c: (c.blocked, -c.utility))  # clear edges first, then by utility
         current = [c for c in scored if c.frontier.id == keep]
         if current and current[0].blocked == scored[0].blocked \
@@ -283,22 +283,39 @@ class FrontierPlanner:
 
         return scored, trace
 
-    def _tree_candidates(self, frontiers, parent_xy, graph: PoseGraph, robot_index: int):
-        """:class:`_Candidate` records along the pose graph (never blocked), and the tracer (map-free mode)."""
+    def _tree_candidates(self, frontiers, robot_xy, parent_xy, graph: PoseGraph, robot_index: int):
+        """:class:`_Candidate` records along the pose graph (never blocked), and the tracer (map-free mode).
+
+        The route runs back along the trajectory to the frontier's parent pose, then along the edge
+        (the parent's line of sight to the frontier), unless the robot already stands on the edge:
+        within ``pose_link_m`` (the distance at which the pose graph links trajectory poses) of one
+        of its points, it goes on along the edge from there when that is shorter. Going back to the
+        parent first from the middle of the edge, re-planned every ``replan_every_steps`` while each
+        reversal costs a half turn, kept a robot between the two ends of one edge for hundreds of
+        steps (procedural:1000, docs/exploration.md)."""
         distances, predecessors = graph.distances_from(robot_index)
-        spacing = float(self.conf["edge_spacing_m"])
+        spacing, link = float(self.conf["edge_spacing_m"]), float(self.conf["pose_link_m"])
+        robot_xy = np.asarray(robot_xy, np.float64)
         scored = []
         for frontier in frontiers:
             parent = frontier.parent_pose
             if parent >= len(distances) or not np.isfinite(distances[parent]):
                 self.fail(frontier.id)
                 continue
-            distance = float(distances[parent]) + float(np.linalg.norm(parent_xy(parent) - frontier.position[:2]))
-            scored.append(_Candidate(frontier, distance, self.score(frontier, distance), None))
+            edge = edge_points(parent_xy(parent), frontier.position[:2], spacing)  # parent -> frontier
+            distance, joined = float(distances[parent]) + float(np.linalg.norm(edge[-1] - edge[0])), None
+            gaps = np.linalg.norm(edge - robot_xy, axis=1)
+            nearest = int(np.argmin(gaps))
+            along = float(gaps[nearest]) + float(np.linalg.norm(edge[-1] - edge[nearest]))
+            if gaps[nearest] <= link and along < distance:
+                distance, joined = along, nearest
+            scored.append(_Candidate(frontier, distance, self.score(frontier, distance), (edge, joined)))
 
-        def trace(frontier, _):
+        def trace(frontier, detail):
+            edge, joined = detail
+            if joined is not None:  # on the edge already: on along it
+                return edge[joined:], 0
             back = graph.path(predecessors, frontier.parent_pose)
-            edge = edge_points(parent_xy(frontier.parent_pose), frontier.position[:2], spacing)
             return np.concatenate([back[1:], edge[1:]]), len(back) - 1
 
         return scored, trace
