@@ -11,6 +11,7 @@ that is needed to go back and forth.
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import softmax
 
 from ..errors import InputError
 
@@ -141,9 +142,7 @@ def decode_gain(gain_class: np.ndarray, bin_edges, bin_unit_m3: float = 0.01,
             raise InputError(f"gain logits must be (K={len(values)}, {', '.join(map(str, classes.shape))}), "
                              f"got {logits.shape}")
         picked = classes > 0 if where is None else (classes > 0) & np.asarray(where, bool)
-        chosen = logits[:, picked]  # (K, N)
-        chosen = np.exp(chosen - chosen.max(0, keepdims=True))
-        gain[picked] = values @ (chosen / chosen.sum(0, keepdims=True))
+        gain[picked] = values @ softmax(logits[:, picked], axis=0)  # (K,) @ (K, N)
     return gain
 
 

@@ -14,9 +14,10 @@ import argparse
 
 import numpy as np
 import torch
+from scipy.special import softmax
 from torch.utils.data import DataLoader
 
-from frontiernet.frontiers.gain import class_midpoints
+from frontiernet.frontiers.gain import class_midpoints, decode_gain
 from frontiernet.model import load_model
 from train.data import TrainingSamples, open_training_data
 from train.transforms import network_batch
@@ -34,22 +35,23 @@ def main() -> None:
     dataset = open_training_data(args.data)
     samples = TrainingSamples(dataset.subset(list(range(0, len(dataset), args.every))), conf,
                               int(conf["inference"]["size"]))
-    midpoints = class_midpoints(conf["labels"]["bin_edges"], float(conf["labels"]["bin_unit_m3"]))
+    edges, unit = conf["labels"]["bin_edges"], float(conf["labels"]["bin_unit_m3"])
+    midpoints = class_midpoints(edges, unit)
     errors, kept, total = {"argmax": [], "expected": [], "expected_gain_classes": []}, 0, 0
     with torch.inference_mode():
         for batch in DataLoader(samples, batch_size=4):
             batch = network_batch(batch, conf)
-            _, logits = model(batch["image"])
-            probabilities = np.moveaxis(logits.float().softmax(1).numpy(), 1, -1)  # (B, H, W, K)
+            logits = np.moveaxis(model(batch["image"])[1].float().numpy(), 1, 0)  # (K, B, H, W)
+            classes = logits.argmax(0)  # the most likely class, as the runtimes give it
             target = batch["gain_class"].numpy()
             read = batch["frontier"].numpy().astype(bool) & (target > 0)
-            p = probabilities[read]  # (N, K)
-            keep = p.argmax(1) > 0
-            total, kept = total + len(p), kept + int(keep.sum())
-            p, label = p[keep], midpoints[target[read][keep]]
-            gain_classes = p[:, 1:] / p[:, 1:].sum(1, keepdims=True)
-            decoded = {"argmax": midpoints[p.argmax(1)], "expected": p @ midpoints,
-                       "expected_gain_classes": np.exp(gain_classes @ np.log(midpoints[1:]))}
+            keep = read & (classes > 0)
+            total, kept = total + int(read.sum()), kept + int(keep.sum())
+            label = midpoints[target[keep]]
+            p = softmax(logits[:, keep], axis=0)[1:]  # (K - 1, N) gain classes
+            decoded = {"argmax": decode_gain(classes, edges, unit, "midpoint")[keep],  # the library's decodings
+                       "expected": decode_gain(classes, edges, unit, "expected", logits, keep)[keep],
+                       "expected_gain_classes": np.exp(np.log(midpoints[1:]) @ (p / p.sum(0)))}
             for name, gain in decoded.items():
                 errors[name].append(np.abs(np.log(gain / label)))
     print(f"{kept} of {total} labelled frontier pixels kept (the model's most likely class > 0)")
