@@ -50,6 +50,10 @@ def _decode_sample(read, meta: dict, key: str) -> dict:
     millimetres = image(f"{key}/depth.png", cv2.IMREAD_UNCHANGED, np.uint16, shape)
     sample["depth"] = np.where(millimetres > 0, millimetres.astype(np.float32) / 1000.0,
                                np.nan).astype(np.float32)
+    sample["far_depth"] = None
+    if meta.get("far_depth"):
+        far_mm = image(f"{key}/far_depth.png", cv2.IMREAD_UNCHANGED, np.uint16, shape)
+        sample["far_depth"] = np.where(far_mm > 0, far_mm.astype(np.float32) / 1000.0, np.nan).astype(np.float32)
     packed_shape = (shape[0], (shape[1] + 7) // 8)
     for name in MASK_NAMES:
         packed = npy(f"{key}/{name}.npy", np.uint8, packed_shape)
@@ -63,6 +67,8 @@ class FrontierDataset:
     """Random access to the samples of a set of shards; usable as a torch map-style dataset.
 
     ``ds[i]`` is a dict: rgb (H, W, 3) uint8; depth (H, W) float32 metres, NaN invalid;
+    far_depth (H, W) float32 metres of surfaces beyond the sensor's range, NaN elsewhere (None for
+    shards written before datagen stored it);
     frontier_mask, frontier_projected, discontinuity (H, W) bool; distance_field (H, W)
     float32 pixels (computed from frontier_mask, truncated at `truncation_px`); gain (H, W)
     float32 m^3; gain_class (H, W) int64; K (3, 3) and T_world_cam (4, 4) float64; scene,

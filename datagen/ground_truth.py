@@ -68,6 +68,11 @@ class GroundTruth:
         frontier_voxel_gain: (M,) float32 cubic metres, gain of each frontier voxel.
         gain_sampled: (M,) bool, voxels whose gain was measured (the rest are blended).
         observed_voxels: number of voxels in V_in.
+        far_depth: (H, W) float32 metres, the z-depth of surfaces hit beyond the depth sensor's
+            range (``Frame.hit_depth`` there; NaN where the sensor's ``depth`` is valid or nothing
+            is hit), or None when the frame has no ``hit_depth``. What a monocular network sees
+            that the sensor does not: training emulates monocular depth from it as the explorer
+            does (docs/exploration.md, "Monocular depth").
         timings: seconds per stage.
     """
 
@@ -85,13 +90,26 @@ class GroundTruth:
     frontier_voxel_gain: np.ndarray
     gain_sampled: np.ndarray
     observed_voxels: int
+    far_depth: np.ndarray | None = None
     timings: dict = field(default_factory=dict)
 
     def arrays(self) -> dict:
         """The per-pixel arrays the dataset stores (see :mod:`datagen.shards`)."""
-        return {"rgb": self.rgb, "depth": self.depth, "frontier_mask": self.frontier_mask,
-                "frontier_projected": self.frontier_projected, "discontinuity": self.discontinuity,
-                "gain": self.gain, "gain_class": self.gain_class}
+        arrays = {"rgb": self.rgb, "depth": self.depth, "frontier_mask": self.frontier_mask,
+                  "frontier_projected": self.frontier_projected, "discontinuity": self.discontinuity,
+                  "gain": self.gain, "gain_class": self.gain_class}
+        if self.far_depth is not None:
+            arrays["far_depth"] = self.far_depth
+        return arrays
+
+
+def far_depth(frame: Frame) -> np.ndarray | None:
+    """(H, W) float32 metres: ``frame.hit_depth`` where the sensor's depth is invalid and a surface
+    is hit (beyond the range), NaN elsewhere; None when the frame was rendered without it."""
+    if frame.hit_depth is None:
+        return None
+    hit = np.asarray(frame.hit_depth, np.float32)
+    return np.where(np.isnan(frame.depth) & np.isfinite(hit), hit, np.float32(np.nan)).astype(np.float32)
 
 
 def _bounding_slices(mask: np.ndarray, margin: int) -> tuple[slice, ...]:
@@ -249,7 +267,8 @@ class GroundTruthGenerator:
                            discontinuity=discontinuity, frontier_mask=frontier_mask, distance_field=field_px,
                            gain=gain, gain_class=gain_class, T_world_cam=T, K=np.asarray(frame.K, np.float64),
                            frontier_voxels=frontier_world, frontier_voxel_gain=voxel_gain.astype(np.float32),
-                           gain_sampled=sampled, observed_voxels=int(observed.sum()), timings=timings)
+                           gain_sampled=sampled, observed_voxels=int(observed.sum()),
+                           far_depth=far_depth(frame), timings=timings)
 
     # -- pieces ----------------------------------------------------------------------------------
 

@@ -11,6 +11,9 @@ Members of a shard, in this order, for sample j (``key = f"{j:06d}"``)::
 
     {key}/rgb.png | rgb.jpg            (H, W, 3) RGB image, stored (already compressed)
     {key}/depth.png                    (H, W) uint16 millimetres, 0 = invalid, stored
+    {key}/far_depth.png                (H, W) uint16 millimetres of surfaces hit beyond the sensor's
+                                       range, 0 elsewhere (capped at 65.534 m), stored; only in
+                                       shards whose meta.json has "far_depth": true
     {key}/frontier_mask.npy            np.packbits(mask, axis=1): (H, ceil(W / 8)) uint8
     {key}/frontier_projected.npy       same
     {key}/discontinuity.npy            same
@@ -172,6 +175,12 @@ def _sample_members(key: str, sample: dict, shape: tuple[int, int], ext: str, qu
     yield f"{key}/rgb.{ext}", _encode_image(ext, rgb[..., ::-1], quality), zipfile.ZIP_STORED
     yield f"{key}/depth.png", _encode_image("png", encode_depth_mm(arrays["depth"]), quality), \
         zipfile.ZIP_STORED
+    if "far_depth" in sample:
+        far = np.asarray(sample["far_depth"], np.float32)
+        if far.shape != shape:
+            raise ValueError(f"sample {key}: far_depth must have shape {shape}, got {far.shape}")
+        far = np.where(np.isfinite(far), np.minimum(far, np.float32(MAX_DEPTH_M - 0.001)), np.nan)
+        yield f"{key}/far_depth.png", _encode_image("png", encode_depth_mm(far), quality), zipfile.ZIP_STORED
     for name in MASK_NAMES:
         yield f"{key}/{name}.npy", _npy_bytes(np.packbits(arrays[name].astype(bool), axis=1)), \
             zipfile.ZIP_DEFLATED
@@ -179,9 +188,9 @@ def _sample_members(key: str, sample: dict, shape: tuple[int, int], ext: str, qu
     yield f"{key}/gain_class.npy", _npy_bytes(classes.astype(np.uint8)), zipfile.ZIP_DEFLATED
 
 
-def member_names(key: str, rgb_format: str = "png") -> list[str]:
-    """The member names of sample `key` in a shard, in order."""
-    return [f"{key}/rgb.{rgb_format}", f"{key}/depth.png"] + \
+def member_names(key: str, rgb_format: str = "png", far_depth: bool = False) -> list[str]:
+    """The member names of sample `key` in a shard, in order (`far_depth`: the shard stores it)."""
+    return [f"{key}/rgb.{rgb_format}", f"{key}/depth.png"] + ([f"{key}/far_depth.png"] if far_depth else []) + \
         [f"{key}/{name}.npy" for name in MASK_NAMES + ("gain", "gain_class")]
 
 
@@ -209,6 +218,7 @@ def write_shard(path: str | Path, samples: list[dict], meta: dict, writer_conf=N
 
     Args:
         samples: dicts with rgb (H, W, 3) uint8, depth (H, W) float metres (NaN invalid),
+            optionally far_depth (H, W) float metres (NaN where none; all samples or none),
             frontier_mask / frontier_projected / discontinuity (H, W) bool, gain (H, W) float32
             m^3, gain_class (H, W) int in [0, 255], record (JSON-able dict with at least
             scene, T_world_cam 4x4, K 3x3). All samples share H and W.
@@ -226,8 +236,13 @@ def write_shard(path: str | Path, samples: list[dict], meta: dict, writer_conf=N
     if len(shape) != 2:
         raise ValueError(f"depth must be (H, W), got shape {shape}")
     records = [_record(f"{j:06d}", sample) for j, sample in enumerate(samples)]
+    with_far = {"far_depth" in sample for sample in samples}
+    if len(with_far) > 1:
+        raise ValueError(f"{path}: some samples have far_depth and some not (all or none)")
     full_meta = dict(meta, samples=records, num_samples=len(records), height=shape[0],
                      width=shape[1], rgb_format=ext, shard_format_version=SHARD_FORMAT_VERSION)
+    if with_far == {True}:
+        full_meta["far_depth"] = True
     tmp = _tmp_name(ensure_dir(path.parent) / path.name)
     try:
         with open(tmp, "wb") as handle:
@@ -283,7 +298,7 @@ def shard_complete(path: str | Path) -> bool:
     except (DatasetError, OSError, zipfile.BadZipFile):
         return False
     return all(name in names for record in meta["samples"]
-               for name in member_names(record["key"], meta["rgb_format"]))
+               for name in member_names(record["key"], meta["rgb_format"], bool(meta.get("far_depth"))))
 
 
 # --------------------------------------------------------------------------- shard meta

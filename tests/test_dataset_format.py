@@ -84,6 +84,27 @@ def test_round_trip_keeps_every_array_and_the_camera(tmp_path):
     assert got["record"]["view"] == "uniform" and got["record"]["frontier_pixels"] > 0
 
 
+def test_far_depth_round_trips_and_old_shards_read_without_it(tmp_path):
+    """What a monocular network sees past the sensor's range (datagen's far_depth) is stored to the
+    millimetre; shards written without it read as None, and a shard is all or nothing."""
+    plain = make_sample(0)
+    with_far = [dict(make_sample(j), far_depth=np.where(np.arange(W) < 10, np.float32(4.0 + j), np.nan)
+                     * np.ones((H, 1), np.float32)) for j in range(2)]
+    write_dataset_info(tmp_path, {"generator_version": "1", "seed": 0, "scenes": ["test:a"], "config": {}})
+    write_shard(tmp_path / "shards" / "00000-a.zip", with_far, {"scene": "test:a"}, PNG)
+    write_shard(tmp_path / "shards" / "00001-a.zip", [plain], {"scene": "test:a"}, PNG)
+    ds = open_dataset(tmp_path)
+    far = ds[1]["far_depth"]
+    assert far.dtype == np.float32 and np.isnan(far[:, 10:]).all()
+    assert np.abs(far[:, :10] - 5.0).max() <= 0.0005
+    assert ds[2]["far_depth"] is None
+    assert shard_complete(tmp_path / "shards" / "00000-a.zip")
+    with zipfile.ZipFile(tmp_path / "shards" / "00000-a.zip") as archive:
+        assert "000000/far_depth.png" in archive.namelist()
+    with pytest.raises(ValueError, match="all or none"):
+        write_shard(tmp_path / "mixed.zip", [with_far[0], plain], {"scene": "test:a"}, PNG)
+
+
 def test_records_scenes_negative_index_and_scene_split(tmp_path):
     make_dataset(tmp_path)
     ds = open_dataset(tmp_path)

@@ -89,6 +89,32 @@ def test_flip_and_crop_keep_labels_consistent(tiny_dataset):
     assert np.array_equal(plain["gain_class"].numpy(), ts["gain_class"]) and (plain["jitter"] == 1).all()
 
 
+def test_emulated_depth_in_training_sees_the_far_depth_as_the_explorer_does(tiny_dataset):
+    """A monocular source in training gets the surfaces beyond the sensor's range (datagen's
+    far_depth), as the explorer gives it Frame.hit_depth: far pixels come out near their true
+    depth, not at the fill depth of a range-clipped ground truth."""
+    from frontiernet.config import load_config
+    from frontiernet.depth import make_depth_source
+
+    dataset = open_dataset(tiny_dataset)
+    sample = next(dataset[i] for i in range(len(dataset))
+                  if dataset[i]["far_depth"] is not None and np.isfinite(dataset[i]["far_depth"]).mean() > 0.05)
+    ts = training_sample(sample, None, LABELS)
+    far = ts["far_depth"] > 0
+    assert far.any() and not (far & (ts["depth"] > 0)).any()
+    conf = load_config("depth")
+    conf.emulated.update(scale_sigma=0.0, noise_sigma=0.0, noise_sigma_per_m=0.0, edge_band_px=0, blur_sigma_px=0.0)
+    source = make_depth_source("emulated", conf)
+    assert source.sees_past_range
+    view = pack_sample(ts, LABELS["truncation_px"])
+    source.reset(0)
+    estimate = training_item(view, depth_source=source)["depth"].numpy()
+    assert np.allclose(estimate[far], ts["far_depth"][far], atol=2e-3)
+    source.reset(0)
+    clipped = training_item({**view, "far_depth_mm": np.zeros_like(view["far_depth_mm"])}, depth_source=source)
+    assert np.allclose(clipped["depth"].numpy()[far], float(conf.emulated.fill_depth))
+
+
 def test_resample_mask_sets_the_pixel_each_centre_falls_in():
     mask = np.zeros((6, 6), bool)
     mask[0, 0] = mask[5, 5] = mask[2, 3] = True

@@ -4,16 +4,19 @@ A ``frontiernet datagen`` dataset stores 480 px views as PNGs and bit-packed mas
 shards; turning one into a 320 px training sample (decode, resample F, exact distance
 transform, gain band) costs ~28 ms of a core. The cache does that once per view and keeps the
 result as fixed-size arrays in ``.npy`` files, memory-mapped by every loader worker: a training
-crop is then five window copies, no decoding, and the OS page cache shares the bytes between
+crop is then a few window copies, no decoding, and the OS page cache shares the bytes between
 workers. Plain ``.npy`` needs nothing but numpy on a GPU node and is random-access by index;
 streaming formats (WebDataset, LitData) pay off for data on object stores or larger than a node's
-disk and memory, which a 15k-view cache (~11 GB at 320 px) is not.
+disk and memory, which a 15k-view cache (~14 GiB at 320 px) is not.
 
 Layout of a cache folder (``S`` = training size, ``N`` = views of the dataset, in its order)::
 
     cache.json        format, version, size, labels, the dataset's fingerprint, N, scene per view
     rgb.npy           (N, S, S, 3) uint8
     depth_mm.npy      (N, S, S) uint16 millimetres, 0 = invalid
+    far_depth_mm.npy  (N, S, S) uint16 millimetres of surfaces hit beyond the sensor's range, 0
+                      elsewhere (all 0 for a dataset without far depth); emulated monocular depth
+                      reads it (train/transforms.py:training_item)
     distance_sq.npy   (N, S, S) uint8: D^2 in px^2 below the truncation r, 255 where D = r
                       (D is a distance between pixel centres, so D^2 < r^2 is an integer: exact)
     gain_class.npy    (N, S, S) uint8
@@ -49,7 +52,7 @@ from .packed import TRUNCATED, array_specs, pack_sample
 log = logging.getLogger(__name__)
 
 CACHE_FORMAT = "frontiernet-training-cache"
-CACHE_VERSION = 1
+CACHE_VERSION = 2  # 2: far_depth_mm
 INFO_NAME = "cache.json"
 PROGRESS_NAME = "progress.npy"
 
@@ -79,8 +82,10 @@ def dataset_fingerprint(root: Path) -> str:
 
 
 def default_cache_dir(dataset_root: Path, size: int, labels_conf) -> Path:
-    """``<dataset>/cache/<S>px-<hash of the label encoding>``: one cache per size and encoding."""
-    key = hashlib.sha256(json.dumps(label_encoding(labels_conf), sort_keys=True).encode()).hexdigest()[:8]
+    """``<dataset>/cache/<S>px-<hash of the label encoding and cache version>``: one cache per size,
+    encoding and format (a cache of an older format is left alone, and a new one built beside it)."""
+    key_data = {**label_encoding(labels_conf), **({"version": CACHE_VERSION} if CACHE_VERSION > 1 else {})}
+    key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:8]
     return Path(dataset_root) / CACHE_DIR / f"{int(size)}px-{key}"
 
 

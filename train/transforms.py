@@ -3,6 +3,8 @@
 A *training sample* is a dict of numpy arrays of one size (H, W):
 
 - ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres, 0 = invalid (NaN mapped to 0);
+- ``far_depth`` (H, W) float32 metres of surfaces beyond the sensor's range, 0 elsewhere (all 0
+  for a dataset written before datagen stored it);
 - ``frontier`` (H, W) bool, F; ``distance`` (H, W) float32 pixels, D truncated at r;
 - ``gain_class`` (H, W) int64 in [0, K - 1];
 - ``discontinuity`` (H, W) bool, F_d (for the baseline of the evaluation).
@@ -50,6 +52,8 @@ def training_sample(sample: dict, size: int | None, labels_conf) -> dict:
     """
     r = float(labels_conf["truncation_px"])
     rgb, depth = sample["rgb"], invalid_to_zero(sample["depth"])
+    far = sample.get("far_depth")
+    far = np.zeros_like(depth) if far is None else invalid_to_zero(far)
     frontier, gain = sample["frontier_mask"], sample["gain"]
     discontinuity = sample["discontinuity"]
     height, width = depth.shape
@@ -63,13 +67,15 @@ def training_sample(sample: dict, size: int | None, labels_conf) -> dict:
         discontinuity = resample_mask(discontinuity, target)
         rgb = cv2.resize(rgb, target[::-1], interpolation=cv2.INTER_AREA)
         depth = cv2.resize(depth, target[::-1], interpolation=cv2.INTER_NEAREST)
+        far = cv2.resize(far, target[::-1], interpolation=cv2.INTER_NEAREST)
         distance, nearest = distance_field(frontier, r, return_nearest=True)
         band_gain = np.where(distance < r, frontier_gain[nearest[0], nearest[1]], 0.0)
         gain_class = gain_classes(band_gain, list(labels_conf["bin_edges"]), float(labels_conf["bin_unit_m3"]))
     else:
         distance = distance_field(frontier, r)
         gain_class = sample["gain_class"].astype(np.int64)
-    return {"rgb": np.ascontiguousarray(rgb), "depth": depth.astype(np.float32), "frontier": frontier,
+    return {"rgb": np.ascontiguousarray(rgb), "depth": depth.astype(np.float32), "far_depth": far.astype(np.float32),
+            "frontier": frontier,
             "distance": distance.astype(np.float32), "gain_class": gain_class, "discontinuity": discontinuity}
 
 
@@ -101,7 +107,8 @@ def training_item(view: dict, augment_conf=None, rng: np.random.Generator | None
     the per-pixel part of the augmentation runs batched on the training device
     (:func:`network_batch`). `view` may hold memory-mapped arrays: only the window is read.
     `depth_source` (``frontiernet.depth``, e.g. emulated monocular depth) replaces the depth prior of
-    the window (labels stay the scene's).
+    the window (labels stay the scene's); a source that ``sees_past_range`` (as a monocular network
+    does) is given the view's far depth too, as the explorer gives it ``Frame.hit_depth``.
 
     Returns a dict of tensors (h, w = the window): ``rgb`` (3, h, w) uint8, ``depth`` (h, w) float32
     metres (0 invalid), ``distance_sq``, ``gain_class``, ``masks`` (h, w) uint8 (cache encoding),
@@ -126,7 +133,10 @@ def training_item(view: dict, augment_conf=None, rng: np.random.Generator | None
     rgb = window(view["rgb"])
     depth = window(view["depth_mm"]).astype(np.float32) * np.float32(1e-3)
     if depth_source is not None:
-        estimate = depth_source.estimate(rgb, None, np.where(depth > 0, depth, np.nan))
+        truth = depth
+        if getattr(depth_source, "sees_past_range", False):
+            truth = np.maximum(depth, window(view["far_depth_mm"]).astype(np.float32) * np.float32(1e-3))
+        estimate = depth_source.estimate(rgb, None, np.where(truth > 0, truth, np.nan))
         depth = invalid_to_zero(estimate)
     item = {"rgb": np.ascontiguousarray(rgb.transpose(2, 0, 1)), "depth": depth,
             "distance_sq": window(view["distance_sq"]), "gain_class": window(view["gain_class"]),
