@@ -215,6 +215,16 @@ def test_input_checks_name_the_problem():
     assert check_images(None, depth, "depth") == (32, 40)
 
 
+def test_depth_beyond_the_range_reads_as_invalid():
+    """The paper's convention: depth beyond the sensor's 3.5 m is invalid (0), as the simulated
+    sensor's beyond-range pixels the network learns from, not a wall at the range limit."""
+    from frontiernet.model import normalise_images
+
+    depth = torch.tensor([[[0.0, 1.75, 3.5, 3.6, 20.0]]])
+    channel = normalise_images(None, depth, "depth", MODEL_CONF["input"])[0, 0, 0]
+    assert torch.allclose(channel, torch.tensor([0.0, 0.5, 1.0, 0.0, 0.0]))
+
+
 def test_resize_and_crop_keeps_projections():
     """A 3D point's marker in the image is where the adjusted intrinsics project the point."""
     K = np.array([[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]])

@@ -3,9 +3,10 @@
 Input normalisation (``configs/model.yaml`` section ``input``):
 
 - RGB: uint8 (H, W, 3) -> float in [0, 1] -> ``(x - mean) / std`` with ImageNet statistics;
-- depth: float metres (H, W) -> ``clip(depth, 0, max_depth) / max_depth`` in [0, 1], where
-  0 means invalid (the sensor convention of TUM, Redwood and most RGB-D drivers). NaN is
-  refused: callers map their invalid pixels to 0 first (:func:`invalid_to_zero`).
+- depth: float metres (H, W) -> ``depth / max_depth`` in (0, 1] where ``0 < depth <= max_depth``,
+  else 0, which means invalid (the sensor convention of TUM, Redwood and most RGB-D drivers; the
+  paper: depth beyond the 3.5 m range is invalid). NaN is refused: callers map their invalid
+  pixels to 0 first (:func:`invalid_to_zero`).
 
 Channel order is RGB then depth. Output decoding (``labels`` section): the distance head's
 ``y`` gives ``D = r * exp(-y)`` pixels, frontier pixels are ``D < l`` (docs/design.md section 4).
@@ -118,7 +119,11 @@ def normalise_images(rgb: torch.Tensor | None, depth: torch.Tensor | None, input
         depth: (B, H, W) float metres, 0 = invalid (ignored for RGB-only models).
         inputs: ``rgbd`` | ``rgb`` | ``depth``.
         input_conf: the ``input`` section of ``configs/model.yaml``: RGB ``(x - rgb_mean) / rgb_std``
-            (ImageNet statistics), depth ``clip(d, 0, max_depth_m) / max_depth_m``.
+            (ImageNet statistics), depth ``d / max_depth_m`` for ``0 < d <= max_depth_m`` and 0 (invalid)
+            elsewhere. As the paper has it, depth beyond the sensor's range (3.5 m) is invalid: the
+            simulated sensor the network learns from returns nothing there, so a depth that reaches
+            past it (a monocular estimate, a real sensor, a prior scaled by the augmentation) reads
+            as no return, not as a wall at the range limit.
     """
     channels = []
     if inputs in ("rgbd", "rgb"):
@@ -127,7 +132,8 @@ def normalise_images(rgb: torch.Tensor | None, depth: torch.Tensor | None, input
         channels.append((rgb.float() - mean) / std)
     if inputs in ("rgbd", "depth"):
         max_depth = float(input_conf["max_depth_m"])
-        channels.append((depth.float().clamp(0.0, max_depth) / max_depth)[:, None])
+        depth = depth.float()
+        channels.append(torch.where((depth > 0) & (depth <= max_depth), depth / max_depth, 0.0)[:, None])
     return torch.cat(channels, dim=1).contiguous()
 
 

@@ -1,7 +1,8 @@
 """Audit of the frontier bookkeeping (issue 27, step 4; docs/benchmark.md): is a frontier removed
 for low gain really one whose space is seen?
 
-Runs one exploration (``exploration.run.main``, gt depth, 300 steps, no video) and, at each removal,
+Runs one exploration (``exploration.run.main``, 300 steps, no video; ground-truth depth, or the
+``DEPTH`` environment variable's source, with the ``MODEL`` file) and, at each removal,
 measures the true unseen explorable volume the tracker's gain view (``tracking.gain_view``) still
 sees from the frontier, best of ``tracking.unknown_cap_yaw_offsets_deg`` around its direction: rays
 pass every voxel the *scene* does not occupy and count the explorable voxels the robot's map has not
@@ -10,7 +11,9 @@ the map's unknown volume) and a summary to OUT.json; prints the summary.
 
     .venv/bin/python tests/bench/audit_removals.py OUT.json procedural:2000 "13.4,1.7,1.2,163.26" \
         oracle [tracking.gain_reduction=none ...]
+    DEPTH=emulated MODEL=model.onnx .venv/bin/python tests/bench/audit_removals.py ... frontiernet
 """
+import os
 import json
 import sys
 import time
@@ -72,11 +75,12 @@ def remove(self, frontier_id, reason):
 explorer_module.Explorer._track = _track
 tracking.FrontierTracker.remove = remove
 clock = time.time()
-record = main(conf, scene, out_path + ".run", method=method, depth="gt", max_steps=300, start=start, video=False,
-              progress=False)
+record = main(conf, scene, out_path + ".run", method=method, model=os.environ.get("MODEL"),
+              depth=os.environ.get("DEPTH", "gt"), max_steps=300, start=start, video=False, progress=False)
 low = [r for r in RECORDS if r["reason"] == "low_gain"]
 true = np.array([r["true_unseen_m3"] for r in low]) if low else np.zeros(0)
-summary = {"scene": scene, "method": method, "overrides": overrides, "vox100": record["coverage"],
+summary = {"scene": scene, "method": method, "depth": os.environ.get("DEPTH", "gt"), "overrides": overrides,
+           "vox100": record["coverage"], "steps": record["steps"], "stop_reason": record["stop_reason"],
            "removals": len(RECORDS), "low_gain": len(low),
            "low_gain_true_ge_1m3": int((true >= 1.0).sum()), "low_gain_true_ge_5m3": int((true >= 5.0).sum()),
            "low_gain_true_median_m3": float(np.median(true)) if len(true) else None,
