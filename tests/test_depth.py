@@ -391,3 +391,13 @@ def test_metric3d_missing_repo_says_how_to_get_it(tmp_path):
     with pytest.raises(InputError) as info:
         make_depth_source("metric3d_v2", options("metric3d_v2", repo_dir=str(tmp_path / "nothing"), device="cpu"))
     assert "github.com/YvanYin/Metric3D" in str(info.value) and "hubconf.py" in str(info.value)
+
+
+def test_gt_names_the_ground_truth_source_in_every_command():
+    """``--depth gt`` means the ground-truth source wherever a depth source is named (explore,
+    bench and evaluate share the one alias table)."""
+    from frontiernet.config import load_config
+    from frontiernet.depth import GroundTruthDepth, depth_source_name, make_depth_source
+
+    assert depth_source_name("gt") == "ground_truth" and depth_source_name("emulated") == "emulated"
+    assert isinstance(make_depth_source("gt", load_config("depth")), GroundTruthDepth)

@@ -34,7 +34,7 @@ def add_parser(subparsers) -> None:
     evaluate.add_argument("--max-samples", type=int, metavar="N", help="at most N views (evenly spread)")
     evaluate.add_argument("--size", type=int, metavar="PX", help="resolution (default: the model's, 320)")
     evaluate.add_argument("--depth", default="ground_truth", metavar="SOURCE",
-                          help="depth prior for the model and the F_d baseline: ground_truth (default), "
+                          help="depth prior for the model and the F_d baseline: ground_truth or gt (default), "
                                "emulated (monocular-like) or another source of configs/depth.yaml")
     evaluate.add_argument("--workers", type=int, default=0, metavar="W",
                           help="processes decoding the dataset (default 0: in this process)")

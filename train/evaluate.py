@@ -67,8 +67,9 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         picked = np.linspace(0, len(subset) - 1, int(max_samples)).round().astype(int)
         subset = subset.subset(sorted(set(picked.tolist())))
     size = int(size or conf["inference"]["size"])
-    from frontiernet.depth import make_depth_source
+    from frontiernet.depth import depth_source_name, make_depth_source
 
+    depth = depth_source_name(depth)
     source = None if depth == "ground_truth" else make_depth_source(depth, load_config("depth"))
     samples = TrainingSamples(subset, conf, size, depth_source=source)
     labels = conf["labels"]

@@ -34,6 +34,13 @@ DEPTH_SOURCES = Registry("depth source", None, {
 """The depth sources by name: a :class:`DepthSource` class built as ``Class(section)``, its section
 of the run's depth config. Built in only (no entry point group)."""
 SOURCES: dict[str, type[DepthSource]] = DEPTH_SOURCES.builtin
+DEPTH_ALIASES = {"gt": "ground_truth"}
+"""Short names every command takes for a depth source (``--depth gt``)."""
+
+
+def depth_source_name(name: str) -> str:
+    """`name` with its alias resolved (``gt`` -> ``ground_truth``); other names unchanged."""
+    return DEPTH_ALIASES.get(name, name)
 
 
 def make_depth_source(
@@ -52,7 +59,7 @@ def make_depth_source(
         InputError: unknown source name, missing, unknown or bad option, absent weights.
     """
     if isinstance(name_or_conf, str):
-        name = name_or_conf
+        name = depth_source_name(name_or_conf)
     else:
         if not isinstance(name_or_conf, (Mapping, DictConfig)) or "source" not in name_or_conf:
             raise InputError("depth config: expected a source name or a mapping with a 'source' key")
@@ -64,6 +71,8 @@ def make_depth_source(
 
 
 __all__ = [
+    "DEPTH_ALIASES",
+    "depth_source_name",
     "DepthSource",
     "GroundTruthDepth",
     "EmulatedMonocularDepth",

@@ -17,8 +17,6 @@ from omegaconf import OmegaConf
 from ..errors import InputError, whole_number
 from ..geometry import parse_pose_text, pose_from_heading
 
-DEPTH_ALIASES = {"gt": "ground_truth"}
-
 RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": ("datagen", "ground_truth"),
                 "scenes": ("scenes", None)}
 """Shipped config (file, section or None for all of it) a run's config holds as sections beside
@@ -65,8 +63,9 @@ def run_section(conf, section: str):
 
 def depth_source_name(depth: str | None, conf) -> str:
     """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``)."""
-    name = depth or str(conf.run.depth)
-    return DEPTH_ALIASES.get(name, name)
+    from ..depth import depth_source_name as canonical
+
+    return canonical(depth or str(conf.run.depth))
 
 
 def camera_z(scene, conf) -> float:
