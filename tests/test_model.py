@@ -220,9 +220,9 @@ def test_depth_beyond_the_range_reads_as_invalid():
     sensor's beyond-range pixels the network learns from, not a wall at the range limit."""
     from frontiernet.model import normalise_images
 
-    depth = torch.tensor([[[0.0, 1.75, 3.5, 3.6, 20.0]]])
+    depth = torch.tensor([[[0.0, 1.75, 3.5, 3.5000002, 3.6, 20.0]]])  # 3.5000002: 3500 mm read back
     channel = normalise_images(None, depth, "depth", MODEL_CONF["input"])[0, 0, 0]
-    assert torch.allclose(channel, torch.tensor([0.0, 0.5, 1.0, 0.0, 0.0]))
+    assert torch.allclose(channel, torch.tensor([0.0, 0.5, 1.0, 1.0, 0.0, 0.0]))
 
 
 def test_resize_and_crop_keeps_projections():

@@ -264,7 +264,9 @@ def test_time_horizon_ends_the_cosine_at_max_time(tiny_dataset, tmp_path):
             rates = [float(row["lr-AdamW"]) for row in csv.DictReader(handle) if row.get("lr-AdamW")]
         assert len(rates) >= 3  # (a loaded 2-core machine makes ~5 steps in the 20 s, an idle one dozens)
         peak = max(rates)  # 3e-3 after warm-up, the tiny config's lr
-        assert rates[-1] < 0.25 * peak if horizon == "time" else rates[-1] > 0.9 * peak, (horizon, rates[-5:])
+        # the last rate logged is that of the last step begun before the budget ran out: on a machine
+        # loaded enough that a step takes a few of the 20 s, that is well before the end of the cosine
+        assert rates[-1] < 0.5 * peak if horizon == "time" else rates[-1] > 0.9 * peak, (horizon, rates[-5:])
     # the time horizon needs the time
     assert main([a for a in args if not a.startswith("trainer.max_time")] + ["name=none", "optim.horizon=time"]) == 2
 

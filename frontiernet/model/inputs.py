@@ -21,6 +21,11 @@ import torch
 from ..errors import InputError
 
 
+RANGE_TOLERANCE_M = 1e-3
+"""Depth up to this far past ``input.max_depth_m`` still counts as in range: datasets store depth in
+whole millimetres, so a surface at 3.4996 m reads back as 3.500 m (3.5000002 in float32)."""
+
+
 def invalid_to_zero(depth: np.ndarray) -> np.ndarray:
     """(H, W) float32 depth with NaN / inf / negative values replaced by 0 (invalid)."""
     depth = np.asarray(depth, np.float32)
@@ -133,7 +138,8 @@ def normalise_images(rgb: torch.Tensor | None, depth: torch.Tensor | None, input
     if inputs in ("rgbd", "depth"):
         max_depth = float(input_conf["max_depth_m"])
         depth = depth.float()
-        channels.append(torch.where((depth > 0) & (depth <= max_depth), depth / max_depth, 0.0)[:, None])
+        in_range = (depth > 0) & (depth <= max_depth + RANGE_TOLERANCE_M)  # a depth stored in millimetres
+        channels.append(torch.where(in_range, depth.clamp(max=max_depth) / max_depth, 0.0)[:, None])  # may round up
     return torch.cat(channels, dim=1).contiguous()
 
 
