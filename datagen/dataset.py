@@ -47,13 +47,12 @@ def _decode_sample(read, meta: dict, key: str) -> dict:
 
     rgb_name = f"{key}/rgb.{meta['rgb_format']}"
     sample = {"rgb": image(rgb_name, cv2.IMREAD_COLOR, np.uint8, shape + (3,))[..., ::-1].copy()}
-    millimetres = image(f"{key}/depth.png", cv2.IMREAD_UNCHANGED, np.uint16, shape)
-    sample["depth"] = np.where(millimetres > 0, millimetres.astype(np.float32) / 1000.0,
-                               np.nan).astype(np.float32)
-    sample["far_depth"] = None
-    if meta.get("far_depth"):
-        far_mm = image(f"{key}/far_depth.png", cv2.IMREAD_UNCHANGED, np.uint16, shape)
-        sample["far_depth"] = np.where(far_mm > 0, far_mm.astype(np.float32) / 1000.0, np.nan).astype(np.float32)
+    def metres(name: str) -> np.ndarray:  # a uint16 millimetre PNG, 0 = none -> float32 metres, NaN
+        millimetres = image(name, cv2.IMREAD_UNCHANGED, np.uint16, shape)
+        return np.where(millimetres > 0, millimetres.astype(np.float32) / 1000.0, np.nan).astype(np.float32)
+
+    sample["depth"] = metres(f"{key}/depth.png")
+    sample["far_depth"] = metres(f"{key}/far_depth.png") if meta.get("far_depth") else None
     packed_shape = (shape[0], (shape[1] + 7) // 8)
     for name in MASK_NAMES:
         packed = npy(f"{key}/{name}.npy", np.uint8, packed_shape)

@@ -84,7 +84,7 @@ def dataset_fingerprint(root: Path) -> str:
 def default_cache_dir(dataset_root: Path, size: int, labels_conf) -> Path:
     """``<dataset>/cache/<S>px-<hash of the label encoding and cache version>``: one cache per size,
     encoding and format (a cache of an older format is left alone, and a new one built beside it)."""
-    key_data = {**label_encoding(labels_conf), **({"version": CACHE_VERSION} if CACHE_VERSION > 1 else {})}
+    key_data = {**label_encoding(labels_conf), "version": CACHE_VERSION}
     key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:8]
     return Path(dataset_root) / CACHE_DIR / f"{int(size)}px-{key}"
 

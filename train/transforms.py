@@ -134,7 +134,7 @@ def training_item(view: dict, augment_conf=None, rng: np.random.Generator | None
     depth = window(view["depth_mm"]).astype(np.float32) * np.float32(1e-3)
     if depth_source is not None:
         truth = depth
-        if getattr(depth_source, "sees_past_range", False):
+        if depth_source.sees_past_range:
             truth = np.maximum(depth, window(view["far_depth_mm"]).astype(np.float32) * np.float32(1e-3))
         estimate = depth_source.estimate(rgb, None, np.where(truth > 0, truth, np.nan))
         depth = invalid_to_zero(estimate)

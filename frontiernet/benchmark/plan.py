@@ -102,14 +102,14 @@ def depth_sources(depth: str | None, conf) -> list[str]:
             (``gt,ground_truth`` too).
     """
     from ..depth import SOURCES
-    from ..exploration.run import depth_source_name
+    from ..exploration.run import run_depth_source
 
     text = str(depth or conf.run.depth)
     names = []
     for item in text.split(","):
         if not item.strip():
             raise InputError(f"depth sources '{text}' (--depth, run.depth) have an empty item")
-        name = depth_source_name(item.strip(), conf)
+        name = run_depth_source(item.strip(), conf)
         if name not in SOURCES:
             raise InputError(f"depth source '{item.strip()}' (--depth, run.depth) is unknown; valid: "
                              f"gt, {', '.join(SOURCES)}")

@@ -61,11 +61,11 @@ def run_section(conf, section: str):
     return conf[section] if section in conf else shipped_section(section)
 
 
-def depth_source_name(depth: str | None, conf) -> str:
+def run_depth_source(depth: str | None, conf) -> str:
     """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``)."""
-    from ..depth import depth_source_name as canonical
+    from ..depth import depth_source_name
 
-    return canonical(depth or str(conf.run.depth))
+    return depth_source_name(depth or str(conf.run.depth))
 
 
 def camera_z(scene, conf) -> float:
@@ -173,7 +173,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     if budget < 1:
         raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
-    depth_name = depth_source_name(depth, conf)
+    depth_name = run_depth_source(depth, conf)
     # the explorer's own draws read run.seed; config.yaml records what the run used
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
     sim = run_section(conf, "sim")

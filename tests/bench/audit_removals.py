@@ -13,8 +13,8 @@ the map's unknown volume) and a summary to OUT.json; prints the summary.
         oracle [tracking.gain_reduction=none ...]
     DEPTH=emulated MODEL=model.onnx .venv/bin/python tests/bench/audit_removals.py ... frontiernet
 """
-import os
 import json
+import os
 import sys
 import time
 
@@ -29,6 +29,7 @@ from frontiernet.simulator.camera import PinholeCamera
 out_path, scene, start = sys.argv[1:4]
 method = sys.argv[4] if len(sys.argv) > 4 else "oracle"
 overrides = sys.argv[5:]
+depth, model = os.environ.get("DEPTH", "gt"), os.environ.get("MODEL")
 conf = load_run_config(overrides=overrides)
 CURRENT = {}
 RECORDS = []
@@ -75,11 +76,11 @@ def remove(self, frontier_id, reason):
 explorer_module.Explorer._track = _track
 tracking.FrontierTracker.remove = remove
 clock = time.time()
-record = main(conf, scene, out_path + ".run", method=method, model=os.environ.get("MODEL"),
-              depth=os.environ.get("DEPTH", "gt"), max_steps=300, start=start, video=False, progress=False)
+record = main(conf, scene, out_path + ".run", method=method, model=model, depth=depth, max_steps=300, start=start,
+              video=False, progress=False)
 low = [r for r in RECORDS if r["reason"] == "low_gain"]
 true = np.array([r["true_unseen_m3"] for r in low]) if low else np.zeros(0)
-summary = {"scene": scene, "method": method, "depth": os.environ.get("DEPTH", "gt"), "overrides": overrides,
+summary = {"scene": scene, "method": method, "depth": depth, "overrides": overrides,
            "vox100": record["coverage"], "steps": record["steps"], "stop_reason": record["stop_reason"],
            "removals": len(RECORDS), "low_gain": len(low),
            "low_gain_true_ge_1m3": int((true >= 1.0).sum()), "low_gain_true_ge_5m3": int((true >= 5.0).sum()),
