@@ -210,7 +210,8 @@ def test_emulated_far_wall_is_far_and_leaves_no_phantom_wall_in_the_map():
     centre = (35, 47)
     assert np.isnan(frame.depth[centre]) and frame.hit_depth[centre] == pytest.approx(9.0, abs=1e-3)
     source = make_depth_source("emulated", EMULATED)
-    assert source.sees_past_range
+    assert source.sees_past_range and source.flying_pixels  # the explorer's map skips its depth edges
+    assert not make_depth_source("ground_truth", {}).flying_pixels
     source.reset(0)
     far = source.estimate(frame.rgb, frame.K, frame.hit_depth)
     assert far[centre] > 5.0  # far, wrong by the error model

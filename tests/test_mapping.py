@@ -13,7 +13,7 @@ from conftest import box_scene, room_boxes, sim_section
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import pose_from_heading
-from frontiernet.mapping import FREE, OCCUPIED, UNKNOWN, OccupancyMap, frustum_volume
+from frontiernet.mapping import FREE, OCCUPIED, UNKNOWN, OccupancyMap, depth_edges, frustum_volume
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 from frontiernet.simulator.voxels import voxelize_scene
 
@@ -137,6 +137,50 @@ def test_invalid_and_out_of_range_depth(invalid_depth):
     beyond.integrate(np.full((60, 60), 10.0, np.float32), SMALL.K / 2 + np.diag([0, 0, 0.5]), T)
     assert beyond.state_at(np.array([[3.0, 0, 0], [3.7, 0, 0], [5.0, 0, 0]])).tolist() == [FREE, UNKNOWN, UNKNOWN]
     assert not beyond.occupied_mask().any(), "depth beyond the range is no hit"
+
+
+def smeared_doorway() -> np.ndarray:
+    """(60, 60) depth: a door frame at 1 m (columns < 28), the room behind at 3 m, and between
+    them four columns smeared from one to the other as a monocular decoder does."""
+    depth = np.full((60, 60), 3.0, np.float32)
+    depth[:, :28] = 1.0
+    depth[:, 28:32] = [1.4, 1.8, 2.2, 2.6]
+    return depth
+
+
+def test_depth_edges_are_the_discontinuities_not_slopes_or_invalid_pixels():
+    sharp = np.full((20, 20), 3.0, np.float32)
+    sharp[:, :10] = 1.0
+    sharp[0, 0] = np.nan
+    edges = depth_edges(sharp, 0.1)
+    assert edges.dtype == bool and edges.shape == sharp.shape
+    assert np.flatnonzero(edges[5]).tolist() == [9, 10], "the pixels either side of the jump"
+    assert not edges[0, 0] and not edges[1:, 0].any(), "an invalid neighbour is no edge"
+    slope = np.tile(np.linspace(2.0, 3.0, 40, dtype=np.float32), (20, 1))  # 2.5 cm a pixel: a wall seen at a slant
+    assert not depth_edges(slope, 0.1).any()
+    assert depth_edges(smeared_doorway(), 0.1)[:, 27:33].all()
+
+
+def test_flying_pixels_are_hits_in_free_space_unless_depth_edges_are_skipped():
+    """The smeared columns between a door frame and the room behind would mark occupied voxels
+    in the free space of the doorway; skipping depth edges keeps the doorway free and both
+    surfaces occupied."""
+    T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)  # camera z = world +x
+    K = SMALL.K / 2 + np.diag([0, 0, 0.5])
+    bounds = np.array([[-0.05, -3.05, -3.05], [6.05, 3.05, 3.05]])
+    maps = {}
+    for skip in (False, True):
+        maps[skip] = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1))
+        maps[skip].integrate(smeared_doorway(), K, T, skip_depth_edges=skip)
+    occupied_x = {skip: occupancy.index_to_world(np.argwhere(occupancy.occupied_mask()))[:, 0]
+                  for skip, occupancy in maps.items()}
+    between = {skip: int(np.sum((x > 1.2) & (x < 2.8))) for skip, x in occupied_x.items()}
+    assert between[False] > 0, "flying pixels become occupied voxels in free space"
+    assert between[True] == 0
+    assert np.any(np.abs(occupied_x[True] - 1.0) < 0.1) and np.any(np.abs(occupied_x[True] - 3.0) < 0.1)
+    off = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None))
+    off.integrate(smeared_doorway(), K, T, skip_depth_edges=True)
+    np.testing.assert_array_equal(off.log_odds, maps[False].log_odds)  # null: no filter
 
 
 def test_stride_two_sees_nearly_what_stride_one_sees(renderer):
@@ -284,7 +328,7 @@ def test_bad_inputs_raise_input_errors(two_room_voxels):
         with pytest.raises(InputError, match=name):
             occupancy.integrate(*args)
     for key, value in [("invalid_depth", "maybe"), ("ray_stride_px", 0), ("voxel_size", -0.1),
-                       ("log_odds_min", 1.0), ("log_odds_hit", float("nan"))]:
+                       ("log_odds_min", 1.0), ("log_odds_hit", float("nan")), ("depth_edge_rtol", 0.0)]:
         with pytest.raises(InputError, match=key):
             OccupancyMap.from_bounds(BOUNDS, map_conf(**{key: value}))
     with pytest.raises(InputError, match="voxel_size"):

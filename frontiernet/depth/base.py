@@ -30,6 +30,10 @@ class DepthSource(ABC):
     #: distance, NaN only where nothing is hit; the simulator's ``Frame.hit_depth``): a monocular
     #: model sees far surfaces too. False: the range-limited sensor depth (``Frame.depth``).
     sees_past_range: bool = False
+    #: True when the depth smears foreground into background at discontinuities ("flying pixels":
+    #: monocular networks, whose decoders upsample from a coarse grid): the explorer's map leaves
+    #: out the pixels at depth edges (``map.depth_edge_rtol``). False: sharp edges (ground truth).
+    flying_pixels: bool = False
     #: True when the output depends on the seed given to :meth:`reset` (emulated noise): runs
     #: that differ only in their seed differ.
     seeded: bool = False

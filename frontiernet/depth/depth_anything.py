@@ -110,6 +110,7 @@ class DepthAnythingV2(DepthSource):
 
     name = "depth_anything_v2"
     requires_ground_truth = False
+    flying_pixels = True
     options = ("path", "repo_id", "device", "min_depth")
 
     def __init__(self, conf: Mapping[str, Any]) -> None:

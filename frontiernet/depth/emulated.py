@@ -128,6 +128,7 @@ class EmulatedMonocularDepth(DepthSource):
     name = "emulated"
     requires_ground_truth = True
     sees_past_range = True
+    flying_pixels = True
     seeded = True
     options = ("seed", "scale_sigma", "scale_per_frame", "frame_correlation", "edge_threshold", "edge_band_px",
                "edge_sigma_px", "blur_sigma_px", "noise_sigma", "noise_sigma_per_m", "noise_smooth_px",

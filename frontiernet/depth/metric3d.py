@@ -107,6 +107,7 @@ class Metric3DV2(DepthSource):
 
     name = "metric3d_v2"
     requires_ground_truth = False
+    flying_pixels = True
     options = ("repo_dir", "model", "weights", "trust_checkpoint", "device", "input_size", "canonical_focal",
                "pad_value", "mean", "std", "min_depth", "max_depth")
 

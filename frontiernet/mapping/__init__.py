@@ -7,8 +7,8 @@ of ``configs/explore.yaml`` (:class:`MapSettings`).
 """
 
 from .checks import MapSettings
-from .occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyMap
+from .occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyMap, depth_edges
 from .traversal import frustum_volume, mark_depth_rays, mark_traversed
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "MapSettings", "OccupancyMap", "frustum_volume", "mark_depth_rays",
-           "mark_traversed"]
+__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "MapSettings", "OccupancyMap", "depth_edges", "frustum_volume",
+           "mark_depth_rays", "mark_traversed"]

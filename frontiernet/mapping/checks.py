@@ -26,6 +26,7 @@ class MapSettings(ConfigSection):
     ray_stride_px: int
     max_range_m: float
     invalid_depth: str
+    depth_edge_rtol: float | None
 
     SECTION = "map"
 
@@ -49,9 +50,12 @@ class MapSettings(ConfigSection):
             raise InputError(f"map.ray_stride_px must be an integer >= 1, got {stride!r}")
         if values["invalid_depth"] not in ("free", "skip"):
             raise InputError(f"map.invalid_depth must be 'free' or 'skip', got {values['invalid_depth']!r}")
+        edge_rtol = values["depth_edge_rtol"]
+        if edge_rtol is not None:
+            edge_rtol = positive_number(scalar(edge_rtol), "map.depth_edge_rtol (or null)")
         return cls(voxel_size=positive_number(values["voxel_size"], "map.voxel_size", "metres"), ray_stride_px=stride,
                    max_range_m=positive_number(values["max_range_m"], "map.max_range_m", "metres"),
-                   invalid_depth=str(values["invalid_depth"]), **numbers)
+                   invalid_depth=str(values["invalid_depth"]), depth_edge_rtol=edge_rtol, **numbers)
 
 
 def scalar(value):

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from scipy import ndimage
 
 from ..errors import InputError, positive_number
 from ..io import atomic_write
@@ -205,7 +206,8 @@ class OccupancyMap:
 
     # -- updates ---------------------------------------------------------------------------------
 
-    def integrate(self, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> None:
+    def integrate(self, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray,
+                  skip_depth_edges: bool = False) -> None:
         """Integrate one depth frame (see the module docstring for the update rule).
 
         Args:
@@ -215,6 +217,10 @@ class OccupancyMap:
             K: (3, 3) float64 pinhole intrinsics of the depth image, pixels (centres at
                 integer coordinates).
             T_world_cam: (4, 4) float64 camera pose (OpenCV camera frame to world).
+            skip_depth_edges: leave out the pixels at depth discontinuities
+                (:func:`depth_edges` with ``depth_edge_rtol``; nothing when that is null): for
+                depth that smears foreground into background there (monocular networks), whose
+                "flying pixels" would be hits in free space.
         Raises:
             InputError: a depth image that is not 2D, bad intrinsics (or a principal point
                 outside the image), a non-finite or non-rigid pose.
@@ -229,9 +235,11 @@ class OccupancyMap:
             return  # the frustum misses the grid
         passed = np.zeros(tuple(hi - lo), bool)
         hit = np.zeros_like(passed)
+        skip = (depth_edges(depth, s.depth_edge_rtol) if skip_depth_edges and s.depth_edge_rtol is not None
+                else np.zeros((0, 0), bool))
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
-                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit)
+                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip)
         self._latest_frame, self._slices = (lo, passed | hit), {}
         self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                            np.float32(s.log_odds_hit), np.float32(s.log_odds_miss),
@@ -348,6 +356,7 @@ class OccupancyMap:
                 if str(data["format"]) != _FORMAT:
                     raise InputError(f"{path}: not an occupancy map file (format {str(data['format'])!r})")
                 settings = ast.literal_eval(str(data["settings"]))
+                settings.setdefault("depth_edge_rtol", None)  # files written before the key: no edge filter
                 occupancy = cls(data["origin"], data["log_odds"].shape, settings)
                 occupancy._log_odds[...] = data["log_odds"]
                 occupancy._observed[...] = data["observed"]
@@ -413,6 +422,30 @@ class OccupancyMap:
             camera = PinholeCamera(width, width, focal, focal, centre, centre, np.inf)  # directions only: no range
             self._view_directions[key] = camera.ray_directions().reshape(-1, 3).astype(np.float64)
         return self._view_directions[key]
+
+
+def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarray:
+    """Pixels at depth discontinuities: (H, W) bool, True where the depths of the pixel's
+    `kernel_px` x `kernel_px` neighbourhood span more than `rtol` times its own depth.
+
+    The edge test of utils3d's ``depth_edge`` (max - min over the window, relative to the
+    pixel's depth), which MoGe applies to its own monocular output before building a point
+    cloud or mesh ("remove edge", rtol 0.04 in its demo): at a discontinuity an upsampling
+    decoder gives intermediate depths, points in the free space between the two surfaces.
+
+    Args:
+        depth: (H, W) float z-depth in metres, NaN (or <= 0) where invalid; invalid
+            neighbours are ignored, invalid pixels are never edges.
+        rtol: relative depth span, > 0.
+        kernel_px: odd window side, pixels.
+    """
+    depth = np.asarray(depth, np.float32)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(depth) & (depth > 0)
+    highest = ndimage.maximum_filter(np.where(valid, depth, -np.inf), size=kernel_px, mode="nearest")
+    lowest = ndimage.minimum_filter(np.where(valid, depth, np.inf), size=kernel_px, mode="nearest")
+    with np.errstate(invalid="ignore"):
+        return valid & (highest - lowest > rtol * np.where(valid, depth, 1.0))
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:

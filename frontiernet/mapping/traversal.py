@@ -129,14 +129,14 @@ def mark_traversed(origin, directions, t_end, box_origin, voxel_size, traversed)
 
 @numba.njit(cache=True, parallel=True)
 def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, invalid_is_free,
-                    box_origin, voxel_size, passed, hit):  # pragma: no cover
+                    box_origin, voxel_size, passed, hit, skip):  # pragma: no cover
     """Walk the ray of every `stride`-th pixel of a depth image; mark voxels passed and hit.
 
     A pixel with depth in (0, max_range] ends in a hit: its end voxel is set in `hit`,
     the voxels before it in `passed`. Depth beyond `max_range` (+inf included) is free
     up to `max_range`, with no hit; invalid depth (NaN, <= 0) likewise when
-    `invalid_is_free`, else the pixel is skipped. The camera may lie outside the box:
-    rays then start where they enter it.
+    `invalid_is_free`, else the pixel is skipped. Pixels set in `skip` are skipped whatever
+    their depth. The camera may lie outside the box: rays then start where they enter it.
 
     Args:
         depth: (H, W) float32 z-depth, metres.
@@ -146,8 +146,10 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
         max_range: metres (z-depth); invalid_is_free: bool.
         box_origin: (3,) float64 world corner of the box; voxel_size: metres.
         passed, hit: (X, Y, Z) bool box arrays, updated in place (set only, never cleared).
+        skip: (H, W) bool pixels not integrated, or a (0, 0) array for none.
     """
     H, W = depth.shape
+    any_skip = skip.shape[0] > 0
     shape = passed.shape
     px = (origin[0] - box_origin[0]) / voxel_size
     py = (origin[1] - box_origin[1]) / voxel_size
@@ -156,6 +158,8 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
         v = row * stride
         ry = (v - cy) / fy
         for u in range(0, W, stride):
+            if any_skip and skip[v, u]:
+                continue
             z = depth[v, u]
             is_hit = 0.0 < z <= max_range
             if is_hit:
