@@ -61,7 +61,7 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
 
 
 def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict, on_frame=None,
-                    progress: bool = True) -> TrackedSequence:
+                    progress: bool = True, skip_depth_edges: bool = False) -> TrackedSequence:
     """Run pass 2 over the cached frames.
 
     Args:
@@ -71,6 +71,8 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
         conf: the whole sequence config (sections ``anchoring``, ``tracking``, ``map``).
         labels: the model's label encoding.
         on_frame: optional ``callback(index, cached arrays, tracked)`` after each frame (video).
+        skip_depth_edges: the map leaves out depth-edge pixels (a depth model's flying pixels,
+            :attr:`~frontiernet.depth.base.DepthSource.flying_pixels`; ``map.depth_edge_rtol``).
     """
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
@@ -91,7 +93,7 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
             observations = anchor_prediction(arrays["distance_field"].astype(np.float32), arrays["gain_class"],
                                              arrays["depth"], arrays["K"], T, conf.anchoring, labels, rng)
             clock("anchoring")
-            occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T)
+            occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T, skip_depth_edges)
             clock("map")
             ids = tracker.add(observations, index, index)
             tracker.update_gains(occupancy)
