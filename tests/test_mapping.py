@@ -363,4 +363,5 @@ def test_bench_map_reports_update_and_query_times_as_ratios_to_a_render(tmp_path
     result = json.loads(capsys.readouterr().out)
     for stride in (1, 2, 4):
         assert result[f"integrate_stride{stride}_over_render"] > 0
+    assert result["integrate_edges_over_render"] > 0
     assert result["views"] == 3 and result["known_m3"] > 1.0

@@ -171,6 +171,8 @@ def run_map(args) -> int:
         default = " (config)" if stride == configured else ""
         rows.append((f"map update, stride {stride}{default}", result[f"integrate_stride{stride}_ms"],
                      result[f"integrate_stride{stride}_over_render"], "goal < 1x"))
+    rows.append((f"map update, stride {configured}, edges", result["integrate_edges_ms"],
+                 result["integrate_edges_over_render"], "depth edges left out (monocular depth)"))
     rows.append((f"visible_known_volume x{result['views']}", result["visible_known_volume_ms"],
                  result["visible_known_volume_over_render"],
                  f"({explore.tracking.gain_view.width_px} px views, {result['known_m3']} m^3 known)"))

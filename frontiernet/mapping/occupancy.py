@@ -23,9 +23,9 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
+import cv2
 import numba
 import numpy as np
-from scipy import ndimage
 
 from ..errors import InputError, positive_number
 from ..io import atomic_write
@@ -442,8 +442,9 @@ def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarra
     depth = np.asarray(depth, np.float32)
     with np.errstate(invalid="ignore"):
         valid = np.isfinite(depth) & (depth > 0)
-    highest = ndimage.maximum_filter(np.where(valid, depth, -np.inf), size=kernel_px, mode="nearest")
-    lowest = ndimage.minimum_filter(np.where(valid, depth, np.inf), size=kernel_px, mode="nearest")
+    window = np.ones((kernel_px, kernel_px), np.uint8)  # grey dilation / erosion = max / min filters
+    highest = cv2.dilate(np.where(valid, depth, -np.inf), window, borderType=cv2.BORDER_REPLICATE)
+    lowest = cv2.erode(np.where(valid, depth, np.inf), window, borderType=cv2.BORDER_REPLICATE)
     with np.errstate(invalid="ignore"):
         return valid & (highest - lowest > rtol * np.where(valid, depth, 1.0))
 
