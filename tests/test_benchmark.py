@@ -411,6 +411,15 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     assert resumable_plan(tmp_path, protocol("sim.voxels.explorable=enclosed"))["start_poses"] == stored["start_poses"]
     with pytest.raises(InputError, match=r"\(conf.sim.voxels.explorable: 'enclosed' in the plan, 'reachable' now\)"):
         resumable_plan(tmp_path, protocol())
+    # the published plan (ground truth only) predates map.depth_edge_rtol, which changes no ground-truth
+    # run: it resumes with any value; the same plan on emulated depth would run differently: refused
+    assert "depth_edge_rtol" not in stored["settings"]["conf"]["map"]
+    assert resumable_plan(published, protocol("map.depth_edge_rtol=0.2"))["start_poses"] == stored["start_poses"]
+    emulated = json.loads(json.dumps(stored))
+    emulated["settings"]["depth"] = "emulated"
+    (tmp_path / "plan.json").write_text(json.dumps(emulated))
+    with pytest.raises(InputError, match=r"\(conf.map.depth_edge_rtol: absent in the plan, 0.1 now\)"):
+        resumable_plan(tmp_path, {**protocol(), "depth": "emulated"})
     del stored["settings"]["conf"]["planner"]["clearance_m"]
     (tmp_path / "plan.json").write_text(json.dumps(stored))
     with pytest.raises(InputError, match=r"\(conf.planner.clearance_m: absent in the plan, 0.3 now\)"):

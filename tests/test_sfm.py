@@ -206,9 +206,9 @@ def test_featureless_images_cannot_be_reconstructed(tmp_path):
 
 
 class RenderedDepth:
-    """A stand-in monocular depth model: the rendered depth of the image it is shown."""
+    """A stand-in monocular depth model: the rendered depth of the image it is shown (sharp edges)."""
 
-    name, requires_ground_truth = "rendered", False
+    name, requires_ground_truth, flying_pixels = "rendered", False, False
 
     def __init__(self, folder, depths):
         self.by_image = {np.asarray(Image.open(folder / name).convert("RGB")).tobytes(): depth

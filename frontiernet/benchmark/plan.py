@@ -119,6 +119,30 @@ def depth_sources(depth: str | None, conf) -> list[str]:
     return names
 
 
+KEYS_IDLE_ON_GROUND_TRUTH = ("map.depth_edge_rtol",)
+"""Keys added to ``configs/explore.yaml`` after benchmarks had been planned that change no run on
+ground-truth depth (the map leaves out depth edges only for sources with flying pixels, 94cd18a). A
+plan of ground-truth runs only that lacks one resumes with the value this run's config has
+(:func:`with_keys_idle_on_ground_truth`); a plan with another depth source that lacks one is
+refused, as its runs would change."""
+
+
+def with_keys_idle_on_ground_truth(stored: dict, settings: dict) -> dict:
+    """A stored plan's settings (a dict, changed in place and returned) with each key of
+    :data:`KEYS_IDLE_ON_GROUND_TRUTH` its config lacks taken from this run's `settings`, when every
+    run of the plan is on ground-truth depth (see there)."""
+    from omegaconf import OmegaConf
+
+    if depth_sources(stored["depth"], OmegaConf.create(stored["conf"])) != ["ground_truth"]:
+        return stored
+    for dotted in KEYS_IDLE_ON_GROUND_TRUTH:
+        section, key = dotted_parent(stored["conf"], dotted)
+        now, now_key = dotted_parent(settings["conf"], dotted)
+        if section is not None and now is not None and now_key in now:
+            section.setdefault(key, now[now_key])
+    return stored
+
+
 def with_keys_added_after(conf: dict) -> dict:
     """A stored plan's run config (a dict, changed in place and returned) with every key of
     :data:`KEYS_ADDED_AFTER_PLANS` it lacks set to the value of the code before the key (see there);
