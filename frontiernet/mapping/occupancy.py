@@ -446,7 +446,7 @@ def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarra
     highest = cv2.dilate(np.where(valid, depth, -np.inf), window, borderType=cv2.BORDER_REPLICATE)
     lowest = cv2.erode(np.where(valid, depth, np.inf), window, borderType=cv2.BORDER_REPLICATE)
     with np.errstate(invalid="ignore"):
-        return valid & (highest - lowest > rtol * np.where(valid, depth, 1.0))
+        return valid & (highest - lowest > rtol * depth)  # NaN (invalid) pixels compare False
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
