@@ -27,6 +27,9 @@ class MapSettings(ConfigSection):
     max_range_m: float
     invalid_depth: str
     depth_edge_rtol: float | None
+    monocular_hit_range_m: float | None = None
+    monocular_log_odds_miss: float | None = None
+    monocular_free_fraction: float | None = None
 
     SECTION = "map"
 
@@ -53,9 +56,24 @@ class MapSettings(ConfigSection):
         edge_rtol = values["depth_edge_rtol"]
         if edge_rtol is not None:
             edge_rtol = positive_number(scalar(edge_rtol), "map.depth_edge_rtol (or null)")
+        hit_range = values["monocular_hit_range_m"]
+        if hit_range is not None:
+            hit_range = positive_number(scalar(hit_range), "map.monocular_hit_range_m (or null)", "metres")
+        miss = values["monocular_log_odds_miss"]
+        if miss is not None:
+            miss = finite_number(miss, "map.monocular_log_odds_miss (or null)")
+            if miss >= 0.0:
+                raise InputError(f"map.monocular_log_odds_miss must be < 0 (or null), got {miss}")
+        fraction = values["monocular_free_fraction"]
+        if fraction is not None:
+            fraction = finite_number(fraction, "map.monocular_free_fraction (or null)")
+            if not 0.0 < fraction <= 1.0:
+                raise InputError(f"map.monocular_free_fraction must be in (0, 1] (or null), got {fraction}")
         return cls(voxel_size=positive_number(values["voxel_size"], "map.voxel_size", "metres"), ray_stride_px=stride,
                    max_range_m=positive_number(values["max_range_m"], "map.max_range_m", "metres"),
-                   invalid_depth=str(values["invalid_depth"]), depth_edge_rtol=edge_rtol, **numbers)
+                   invalid_depth=str(values["invalid_depth"]), depth_edge_rtol=edge_rtol,
+                   monocular_hit_range_m=hit_range, monocular_log_odds_miss=miss,
+                   monocular_free_fraction=fraction, **numbers)
 
 
 def scalar(value):

@@ -237,12 +237,21 @@ class OccupancyMap:
         hit = np.zeros_like(passed)
         skip = (depth_edges(depth, s.depth_edge_rtol) if skip_depth_edges and s.depth_edge_rtol is not None
                 else np.zeros((0, 0), bool))
+        hit_range, miss, free_fraction = s.max_range_m, s.log_odds_miss, 1.0
+        if skip_depth_edges:
+            if s.monocular_free_fraction is not None:
+                free_fraction = s.monocular_free_fraction
+            if s.monocular_hit_range_m is not None:
+                hit_range = min(hit_range, s.monocular_hit_range_m)
+            if s.monocular_log_odds_miss is not None:
+                miss = s.monocular_log_odds_miss
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
-                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip)
+                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip, hit_range,
+                        free_fraction)
         self._latest_frame, self._slices = (lo, passed | hit), {}
         self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
-                                           np.float32(s.log_odds_hit), np.float32(s.log_odds_miss),
+                                           np.float32(s.log_odds_hit), np.float32(miss),
                                            np.float32(s.log_odds_min), np.float32(s.log_odds_max))
 
     def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
@@ -357,6 +366,9 @@ class OccupancyMap:
                     raise InputError(f"{path}: not an occupancy map file (format {str(data['format'])!r})")
                 settings = ast.literal_eval(str(data["settings"]))
                 settings.setdefault("depth_edge_rtol", None)  # files written before the key: no edge filter
+                settings.setdefault("monocular_hit_range_m", None)  # ... and none of the monocular sensor model
+                settings.setdefault("monocular_log_odds_miss", None)
+                settings.setdefault("monocular_free_fraction", None)
                 occupancy = cls(data["origin"], data["log_odds"].shape, settings)
                 occupancy._log_odds[...] = data["log_odds"]
                 occupancy._observed[...] = data["observed"]

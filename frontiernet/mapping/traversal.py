@@ -129,21 +129,26 @@ def mark_traversed(origin, directions, t_end, box_origin, voxel_size, traversed)
 
 @numba.njit(cache=True, parallel=True)
 def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, invalid_is_free,
-                    box_origin, voxel_size, passed, hit, skip):  # pragma: no cover
+                    box_origin, voxel_size, passed, hit, skip, hit_range, free_fraction):  # pragma: no cover
     """Walk the ray of every `stride`-th pixel of a depth image; mark voxels passed and hit.
 
-    A pixel with depth in (0, max_range] ends in a hit: its end voxel is set in `hit`,
-    the voxels before it in `passed`. Depth beyond `max_range` (+inf included) is free
-    up to `max_range`, with no hit; invalid depth (NaN, <= 0) likewise when
-    `invalid_is_free`, else the pixel is skipped. Pixels set in `skip` are skipped whatever
-    their depth. The camera may lie outside the box: rays then start where they enter it.
+    A pixel with depth in (0, hit_range] ends in a hit: its end voxel is set in `hit`,
+    the voxels before it in `passed`. Depth in (hit_range, max_range] is free up to one voxel
+    (in z) before it, with no hit (a surface too far to place, but nothing nearer). Depth beyond
+    `max_range` (+inf included) is free up to `max_range`, with no hit; invalid depth (NaN,
+    <= 0) likewise when `invalid_is_free`, else the pixel is skipped. A ray without a hit is
+    free only up to `free_fraction` of its finite depth (1: as above): an uncertain depth
+    may lie beyond its surface. Pixels set in `skip` are
+    skipped whatever their depth. The camera may lie outside the box: rays then start where they
+    enter it.
 
     Args:
         depth: (H, W) float32 z-depth, metres.
         fx, fy, cx, cy: intrinsics, pixels (pixel centres at integer coordinates).
         stride: pixels (rows and columns 0, stride, 2 * stride, ...).
         rotation: (3, 3) float64 ``R_world_cam``; origin: (3,) float64 world camera centre.
-        max_range: metres (z-depth); invalid_is_free: bool.
+        max_range: metres (z-depth); invalid_is_free: bool; hit_range: metres (z-depth), <=
+            max_range (equal: every depth in range is a hit); free_fraction: in (0, 1].
         box_origin: (3,) float64 world corner of the box; voxel_size: metres.
         passed, hit: (X, Y, Z) bool box arrays, updated in place (set only, never cleared).
         skip: (H, W) bool pixels not integrated, or a (0, 0) array for none.
@@ -161,13 +166,17 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
             if any_skip and skip[v, u]:
                 continue
             z = depth[v, u]
-            is_hit = 0.0 < z <= max_range
+            is_hit = 0.0 < z <= hit_range
             if is_hit:
                 end = z
+            elif z <= max_range and z > 0.0:  # beyond hit_range: free short of the surface
+                end = z - voxel_size
             elif z > max_range or invalid_is_free:
                 end = max_range
             else:
                 continue
+            if not is_hit and free_fraction < 1.0 and 0.0 < z < np.inf:
+                end = min(end, free_fraction * z)
             rx = (u - cx) / fx
             dx = (rotation[0, 0] * rx + rotation[0, 1] * ry + rotation[0, 2]) / voxel_size
             dy = (rotation[1, 0] * rx + rotation[1, 1] * ry + rotation[1, 2]) / voxel_size
