@@ -183,6 +183,35 @@ def test_flying_pixels_are_hits_in_free_space_unless_depth_edges_are_skipped():
     np.testing.assert_array_equal(off.log_odds, maps[False].log_odds)  # null: no filter
 
 
+def test_the_monocular_sensor_model_places_near_hits_only_and_frees_short_of_far_depth():
+    """A wall 3 m ahead and a post 1.5 m ahead, seen by a monocular source: with
+    ``monocular_hit_range_m`` 2 the post is occupied and the wall is no hit; with
+    ``monocular_free_fraction`` 0.8 the wall's rays are free up to 2.4 m only, so an error that
+    puts the wall too far cannot carve through it. Ground-truth depth (monocular False) keeps the
+    plain rule, whatever the monocular keys say."""
+    T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)  # camera z = world +x
+    K = SMALL.K / 2 + np.diag([0, 0, 0.5])
+    bounds = np.array([[-0.05, -3.05, -3.05], [6.05, 3.05, 3.05]])
+    depth = np.full((60, 60), 3.0, np.float32)
+    depth[:, 20:24] = 1.5
+    keys = dict(ray_stride_px=1, monocular_hit_range_m=2.0, monocular_free_fraction=0.8)
+    probes = np.array([[1.0, 0, 0], [2.2, 0, 0], [2.7, 0, 0], [3.0, 0, 0]])  # on the wall's ray (centre pixel)
+    maps = {}
+    for monocular in (False, True):
+        maps[monocular] = OccupancyMap.from_bounds(bounds, map_conf(**keys))
+        maps[monocular].integrate(depth, K, T, skip_depth_edges=monocular)
+    assert maps[False].state_at(probes).tolist() == [FREE, FREE, FREE, OCCUPIED], "ground truth: the plain rule"
+    assert maps[True].state_at(probes).tolist() == [FREE, FREE, UNKNOWN, UNKNOWN]
+    occupied_x = maps[True].index_to_world(np.argwhere(maps[True].occupied_mask()))[:, 0]
+    assert len(occupied_x) and np.all(np.abs(occupied_x - 1.5) < 0.1), "only the near post is a hit"
+    plain = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None))
+    plain.integrate(depth, K, T, skip_depth_edges=True)
+    np.testing.assert_array_equal(plain.log_odds, maps[False].log_odds)  # null keys: the plain rule
+    miss = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, monocular_log_odds_miss=-0.85))
+    miss.integrate(depth, K, T, skip_depth_edges=True)
+    np.testing.assert_allclose(miss.log_odds[tuple(miss.world_to_index(probes[:1]).T)], [-0.85])
+
+
 def test_stride_two_sees_nearly_what_stride_one_sees(renderer):
     poses = surround_poses()[:3]
     fine = integrated(renderer, poses, ray_stride_px=1)
@@ -328,7 +357,9 @@ def test_bad_inputs_raise_input_errors(two_room_voxels):
         with pytest.raises(InputError, match=name):
             occupancy.integrate(*args)
     for key, value in [("invalid_depth", "maybe"), ("ray_stride_px", 0), ("voxel_size", -0.1),
-                       ("log_odds_min", 1.0), ("log_odds_hit", float("nan")), ("depth_edge_rtol", 0.0)]:
+                       ("log_odds_min", 1.0), ("log_odds_hit", float("nan")), ("depth_edge_rtol", 0.0),
+                       ("monocular_hit_range_m", 0.0), ("monocular_free_fraction", 1.5),
+                       ("monocular_free_fraction", 0.0), ("monocular_log_odds_miss", 0.4)]:
         with pytest.raises(InputError, match=key):
             OccupancyMap.from_bounds(BOUNDS, map_conf(**{key: value}))
     with pytest.raises(InputError, match="voxel_size"):

@@ -30,6 +30,7 @@ class MapSettings(ConfigSection):
     monocular_hit_range_m: float | None = None
     monocular_log_odds_miss: float | None = None
     monocular_free_fraction: float | None = None
+    monocular_far_hit_max: float | None = None
 
     SECTION = "map"
 
@@ -69,11 +70,16 @@ class MapSettings(ConfigSection):
             fraction = finite_number(fraction, "map.monocular_free_fraction (or null)")
             if not 0.0 < fraction <= 1.0:
                 raise InputError(f"map.monocular_free_fraction must be in (0, 1] (or null), got {fraction}")
+        far_max = values["monocular_far_hit_max"]
+        if far_max is not None:
+            far_max = finite_number(far_max, "map.monocular_far_hit_max (or null)")
+            if not 0.0 < far_max <= numbers["log_odds_max"]:
+                raise InputError(f"map.monocular_far_hit_max must be in (0, log_odds_max] (or null), got {far_max}")
         return cls(voxel_size=positive_number(values["voxel_size"], "map.voxel_size", "metres"), ray_stride_px=stride,
                    max_range_m=positive_number(values["max_range_m"], "map.max_range_m", "metres"),
                    invalid_depth=str(values["invalid_depth"]), depth_edge_rtol=edge_rtol,
                    monocular_hit_range_m=hit_range, monocular_log_odds_miss=miss,
-                   monocular_free_fraction=fraction, **numbers)
+                   monocular_free_fraction=fraction, monocular_far_hit_max=far_max, **numbers)
 
 
 def scalar(value):

@@ -245,14 +245,18 @@ class OccupancyMap:
                 hit_range = min(hit_range, s.monocular_hit_range_m)
             if s.monocular_log_odds_miss is not None:
                 miss = s.monocular_log_odds_miss
+        weak = skip_depth_edges and s.monocular_far_hit_max is not None and hit_range < s.max_range_m
+        far = np.zeros_like(passed) if weak else np.zeros((0, 0, 0), bool)
+        far_max = s.monocular_far_hit_max if weak else s.log_odds_max
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
                         self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip, hit_range,
-                        free_fraction)
-        self._latest_frame, self._slices = (lo, passed | hit), {}
+                        free_fraction, far)
+        self._latest_frame, self._slices = (lo, passed | hit | far if weak else passed | hit), {}
         self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                            np.float32(s.log_odds_hit), np.float32(miss),
-                                           np.float32(s.log_odds_min), np.float32(s.log_odds_max))
+                                           np.float32(s.log_odds_min), np.float32(s.log_odds_max), far,
+                                           np.float32(far_max))
 
     def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
@@ -369,6 +373,7 @@ class OccupancyMap:
                 settings.setdefault("monocular_hit_range_m", None)  # ... and none of the monocular sensor model
                 settings.setdefault("monocular_log_odds_miss", None)
                 settings.setdefault("monocular_free_fraction", None)
+                settings.setdefault("monocular_far_hit_max", None)
                 occupancy = cls(data["origin"], data["log_odds"].shape, settings)
                 occupancy._log_odds[...] = data["log_odds"]
                 occupancy._observed[...] = data["observed"]
@@ -476,23 +481,34 @@ def _image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarra
 
 
 @numba.njit(cache=True, parallel=True)
-def _apply_marks(log_odds, observed, lo, passed, hit, l_hit, l_miss, l_min, l_max):  # pragma: no cover
+def _apply_marks(log_odds, observed, lo, passed, hit, l_hit, l_miss, l_min, l_max, far, l_far_max):  # pragma: no cover
     """One frame's update over a box at offset `lo` (3,) int64 of the (X, Y, Z) map arrays:
     `hit` voxels get `l_hit`, other `passed` ones `l_miss`, clamped to [l_min, l_max]
-    (float32 log-odds). Returns the number of voxels observed for the first time."""
+    (float32 log-odds); other `far` voxels (a (0, 0, 0) array: none) get `l_hit` but rise no
+    higher than `l_far_max` (weak hits), and passed wins over them. Returns the number of voxels
+    observed for the first time."""
     newly = 0
+    any_far = far.shape[0] > 0
     for i in numba.prange(passed.shape[0]):
         gi = lo[0] + i
         for j in range(passed.shape[1]):
             gj = lo[1] + j
             for k in range(passed.shape[2]):
+                gk = lo[2] + k
                 if hit[i, j, k]:
                     delta = l_hit
                 elif passed[i, j, k]:
                     delta = l_miss
+                elif any_far and far[i, j, k]:
+                    value = log_odds[gi, gj, gk]
+                    if value < l_far_max:
+                        log_odds[gi, gj, gk] = min(value + l_hit, l_far_max)
+                    if not observed[gi, gj, gk]:
+                        observed[gi, gj, gk] = True
+                        newly += 1
+                    continue
                 else:
                     continue
-                gk = lo[2] + k
                 log_odds[gi, gj, gk] = min(max(log_odds[gi, gj, gk] + delta, l_min), l_max)
                 if not observed[gi, gj, gk]:
                     observed[gi, gj, gk] = True

@@ -129,7 +129,7 @@ def mark_traversed(origin, directions, t_end, box_origin, voxel_size, traversed)
 
 @numba.njit(cache=True, parallel=True)
 def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, invalid_is_free,
-                    box_origin, voxel_size, passed, hit, skip, hit_range, free_fraction):  # pragma: no cover
+                    box_origin, voxel_size, passed, hit, skip, hit_range, free_fraction, far):  # pragma: no cover
     """Walk the ray of every `stride`-th pixel of a depth image; mark voxels passed and hit.
 
     A pixel with depth in (0, hit_range] ends in a hit: its end voxel is set in `hit`,
@@ -138,7 +138,9 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
     `max_range` (+inf included) is free up to `max_range`, with no hit; invalid depth (NaN,
     <= 0) likewise when `invalid_is_free`, else the pixel is skipped. A ray without a hit is
     free only up to `free_fraction` of its finite depth (1: as above): an uncertain depth
-    may lie beyond its surface. Pixels set in `skip` are
+    may lie beyond its surface. With a `far` array (not (0, 0, 0)), depth in (hit_range,
+    max_range] ends in a weak hit instead: its end voxel is set in `far`, the voxels before it
+    in `passed`. Pixels set in `skip` are
     skipped whatever their depth. The camera may lie outside the box: rays then start where they
     enter it.
 
@@ -155,6 +157,7 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
     """
     H, W = depth.shape
     any_skip = skip.shape[0] > 0
+    weak_far = far.shape[0] > 0
     shape = passed.shape
     px = (origin[0] - box_origin[0]) / voxel_size
     py = (origin[1] - box_origin[1]) / voxel_size
@@ -167,7 +170,8 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
                 continue
             z = depth[v, u]
             is_hit = 0.0 < z <= hit_range
-            if is_hit:
+            is_far = weak_far and hit_range < z <= max_range
+            if is_hit or is_far:
                 end = z
             elif z <= max_range and z > 0.0:  # beyond hit_range: free short of the surface
                 end = z - voxel_size
@@ -175,7 +179,7 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
                 end = max_range
             else:
                 continue
-            if not is_hit and free_fraction < 1.0 and 0.0 < z < np.inf:
+            if not (is_hit or is_far) and free_fraction < 1.0 and 0.0 < z < np.inf:
                 end = min(end, free_fraction * z)
             rx = (u - cx) / fx
             dx = (rotation[0, 0] * rx + rotation[0, 1] * ry + rotation[0, 2]) / voxel_size
@@ -185,8 +189,8 @@ def mark_depth_rays(depth, fx, fy, cx, cy, stride, rotation, origin, max_range, 
             if t_out <= max(t_in, 0.0) or t_in >= end:
                 continue
             shift = max(t_in + _ENTRY_NUDGE_M, 0.0)
-            _walk(px + shift * dx, py + shift * dy, pz + shift * dz, dx, dy, dz, end - shift, is_hit,
-                  passed, hit)
+            _walk(px + shift * dx, py + shift * dy, pz + shift * dz, dx, dy, dz, end - shift, is_hit or is_far,
+                  passed, far if is_far else hit)
 
 
 @numba.njit(cache=True, parallel=True)

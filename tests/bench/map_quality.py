@@ -13,7 +13,9 @@ reachable from the robot on the reference grid:
 - ``extra``: cells reachable on the variant's grid that are not traversable on the reference's,
   as a share of the reference's reachable cells (space carved through walls);
 - ``occ_far``: the variant's occupied voxels in the planning band farther than one voxel from
-  every occupied voxel of the reference map, per reference occupied voxel (thickening, phantoms).
+  every occupied voxel of the reference map, per reference occupied voxel (thickening, phantoms);
+- ``frontiers``: the variant's map frontiers (``classic``'s, :func:`map_frontiers`) per frontier of
+  the reference map (unknown left beside free space becomes goals).
 
 Variants are ``name:key=value,key=value`` of the ``map`` section (e.g.
 ``sym:log_odds_miss=-0.85``); ``base`` is the shipped section.
@@ -45,8 +47,11 @@ def band_occupied(occupancy, z: float, band: float) -> np.ndarray:
     return occupancy.slice_2d(z - band, z + band)[1]
 
 
-def compare(reference, variant, z: float, xy: np.ndarray, planner) -> dict:
+def compare(reference, variant, z: float, xy: np.ndarray, conf, T: np.ndarray) -> dict:
+    from frontiernet.frontiers.map_frontiers import map_frontiers
     from frontiernet.planning.planner import PlanningGrid
+
+    planner = conf.planner
 
     ref_grid = PlanningGrid.from_map(reference, z, planner, xy)
     var_grid = PlanningGrid.from_map(variant, z, planner, xy)
@@ -57,7 +62,9 @@ def compare(reference, variant, z: float, xy: np.ndarray, planner) -> dict:
     near_ref = ndimage.binary_dilation(ref_occ, np.ones((3, 3), bool))
     return {"lost": float((ref_reach & ~var_reach).sum()) / n,
             "extra": float((var_reach & ~np.isfinite(ref_grid.cost)).sum()) / n,
-            "occ_far": float((var_occ & ~near_ref).sum()) / max(int(ref_occ.sum()), 1)}
+            "occ_far": float((var_occ & ~near_ref).sum()) / max(int(ref_occ.sum()), 1),
+            "frontiers": len(map_frontiers(variant, z, conf, T, "uniform"))
+            / max(len(map_frontiers(reference, z, conf, T, "uniform")), 1)}
 
 
 def trajectory(scene: str, start: list, budget: int, out: Path) -> list[np.ndarray]:
@@ -95,7 +102,7 @@ def replay(scene: str, poses: list, variants: dict, checkpoints: list[int]) -> d
             occupancy.clear_sphere(T[:3, 3], radius)
         if index in checkpoints or index == len(poses) - 1:
             for name, occupancy in maps.items():
-                rows[name][index] = compare(reference, occupancy, float(T[2, 3]), T[:2, 3], conf.planner)
+                rows[name][index] = compare(reference, occupancy, float(T[2, 3]), T[:2, 3], conf, T)
     return rows
 
 
@@ -132,7 +139,7 @@ def main() -> None:
             last = {name: rows[max(rows, key=int)] for name, rows in results[key].items()}
             print(key, {name: {m: round(v, 3) for m, v in row.items()} for name, row in last.items()}, flush=True)
     for name in variants:
-        for metric in ("lost", "extra", "occ_far"):
+        for metric in ("lost", "extra", "occ_far", "frontiers"):
             values = [rows[name][max(rows[name], key=int)][metric] for rows in results.values() if name in rows]
             print(f"{name:>12} {metric:>8} mean {np.mean(values):.3f} median {np.median(values):.3f} (n {len(values)})")
 
