@@ -212,6 +212,28 @@ def test_the_monocular_sensor_model_places_near_hits_only_and_frees_short_of_far
     np.testing.assert_allclose(miss.log_odds[tuple(miss.world_to_index(probes[:1]).T)], [-0.85])
 
 
+def test_far_monocular_hits_are_weak_hits_that_a_later_miss_clears():
+    """With ``monocular_far_hit_max`` a monocular depth beyond ``monocular_hit_range_m`` is a
+    hit that raises its voxel to at most that log-odds, however often it repeats; rays that
+    later pass the voxel clear it. Near hits keep OctoMap's rule."""
+    T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)
+    K = SMALL.K / 2 + np.diag([0, 0, 0.5])
+    bounds = np.array([[-0.05, -3.05, -3.05], [6.05, 3.05, 3.05]])
+    occupancy = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, monocular_hit_range_m=2.0,
+                                                          monocular_far_hit_max=0.5))
+    wall, post = np.array([[3.0, 0.0, 0.0]]), np.array([[1.5, 0.0, 0.0]])
+    for _ in range(3):
+        occupancy.integrate(np.full((60, 60), 3.0, np.float32), K, T, skip_depth_edges=True)
+    np.testing.assert_allclose(occupancy.log_odds[tuple(occupancy.world_to_index(wall).T)], [0.5], rtol=1e-6)
+    assert occupancy.state_at(wall).tolist() == [OCCUPIED]
+    for _ in range(2):  # the wall was a misplaced far depth: nearer views see through it
+        occupancy.integrate(np.full((60, 60), 4.0, np.float32), K, T, skip_depth_edges=True)
+    assert occupancy.state_at(wall).tolist() == [FREE]
+    before = occupancy.log_odds[tuple(occupancy.world_to_index(post).T)]
+    occupancy.integrate(np.full((60, 60), 1.5, np.float32), K, T, skip_depth_edges=True)
+    np.testing.assert_allclose(occupancy.log_odds[tuple(occupancy.world_to_index(post).T)] - before, [0.85], rtol=1e-5)
+
+
 def test_stride_two_sees_nearly_what_stride_one_sees(renderer):
     poses = surround_poses()[:3]
     fine = integrated(renderer, poses, ray_stride_px=1)
@@ -359,7 +381,8 @@ def test_bad_inputs_raise_input_errors(two_room_voxels):
     for key, value in [("invalid_depth", "maybe"), ("ray_stride_px", 0), ("voxel_size", -0.1),
                        ("log_odds_min", 1.0), ("log_odds_hit", float("nan")), ("depth_edge_rtol", 0.0),
                        ("monocular_hit_range_m", 0.0), ("monocular_free_fraction", 1.5),
-                       ("monocular_free_fraction", 0.0), ("monocular_log_odds_miss", 0.4)]:
+                       ("monocular_free_fraction", 0.0), ("monocular_log_odds_miss", 0.4),
+                       ("monocular_far_hit_max", 4.0)]:
         with pytest.raises(InputError, match=key):
             OccupancyMap.from_bounds(BOUNDS, map_conf(**{key: value}))
     with pytest.raises(InputError, match="voxel_size"):
