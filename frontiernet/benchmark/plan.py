@@ -45,6 +45,11 @@ KEYS_ADDED_AFTER_PLANS = {
     "sim.voxels.floor_clearance_m": 0.2,
     "sim.voxels.seed_search_m": 0.5,
     "tracking.observe_every_steps": 1,  # every frame, as before the key
+    # 3cfd09c: the monocular sensor model of the map, off (null) as before the keys
+    "map.monocular_hit_range_m": None,
+    "map.monocular_free_fraction": None,
+    "map.monocular_far_hit_max": None,
+    "map.monocular_log_odds_miss": None,
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config
