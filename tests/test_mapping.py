@@ -171,7 +171,7 @@ def test_flying_pixels_are_hits_in_free_space_unless_depth_edges_are_skipped():
     maps = {}
     for skip in (False, True):
         maps[skip] = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1))
-        maps[skip].integrate(smeared_doorway(), K, T, skip_depth_edges=skip)
+        maps[skip].integrate(smeared_doorway(), K, T, monocular=skip)
     occupied_x = {skip: occupancy.index_to_world(np.argwhere(occupancy.occupied_mask()))[:, 0]
                   for skip, occupancy in maps.items()}
     between = {skip: int(np.sum((x > 1.2) & (x < 2.8))) for skip, x in occupied_x.items()}
@@ -179,7 +179,7 @@ def test_flying_pixels_are_hits_in_free_space_unless_depth_edges_are_skipped():
     assert between[True] == 0
     assert np.any(np.abs(occupied_x[True] - 1.0) < 0.1) and np.any(np.abs(occupied_x[True] - 3.0) < 0.1)
     off = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None))
-    off.integrate(smeared_doorway(), K, T, skip_depth_edges=True)
+    off.integrate(smeared_doorway(), K, T, monocular=True)
     np.testing.assert_array_equal(off.log_odds, maps[False].log_odds)  # null: no filter
 
 
@@ -199,16 +199,16 @@ def test_the_monocular_sensor_model_places_near_hits_only_and_frees_short_of_far
     maps = {}
     for monocular in (False, True):
         maps[monocular] = OccupancyMap.from_bounds(bounds, map_conf(**keys))
-        maps[monocular].integrate(depth, K, T, skip_depth_edges=monocular)
+        maps[monocular].integrate(depth, K, T, monocular=monocular)
     assert maps[False].state_at(probes).tolist() == [FREE, FREE, FREE, OCCUPIED], "ground truth: the plain rule"
     assert maps[True].state_at(probes).tolist() == [FREE, FREE, UNKNOWN, UNKNOWN]
     occupied_x = maps[True].index_to_world(np.argwhere(maps[True].occupied_mask()))[:, 0]
     assert len(occupied_x) and np.all(np.abs(occupied_x - 1.5) < 0.1), "only the near post is a hit"
     plain = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None))
-    plain.integrate(depth, K, T, skip_depth_edges=True)
+    plain.integrate(depth, K, T, monocular=True)
     np.testing.assert_array_equal(plain.log_odds, maps[False].log_odds)  # null keys: the plain rule
     miss = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, monocular_log_odds_miss=-0.85))
-    miss.integrate(depth, K, T, skip_depth_edges=True)
+    miss.integrate(depth, K, T, monocular=True)
     np.testing.assert_allclose(miss.log_odds[tuple(miss.world_to_index(probes[:1]).T)], [-0.85])
 
 
@@ -223,14 +223,14 @@ def test_far_monocular_hits_are_weak_hits_that_a_later_miss_clears():
                                                           monocular_far_hit_max=0.5))
     wall, post = np.array([[3.0, 0.0, 0.0]]), np.array([[1.5, 0.0, 0.0]])
     for _ in range(3):
-        occupancy.integrate(np.full((60, 60), 3.0, np.float32), K, T, skip_depth_edges=True)
+        occupancy.integrate(np.full((60, 60), 3.0, np.float32), K, T, monocular=True)
     np.testing.assert_allclose(occupancy.log_odds[tuple(occupancy.world_to_index(wall).T)], [0.5], rtol=1e-6)
     assert occupancy.state_at(wall).tolist() == [OCCUPIED]
     for _ in range(2):  # the wall was a misplaced far depth: nearer views see through it
-        occupancy.integrate(np.full((60, 60), 4.0, np.float32), K, T, skip_depth_edges=True)
+        occupancy.integrate(np.full((60, 60), 4.0, np.float32), K, T, monocular=True)
     assert occupancy.state_at(wall).tolist() == [FREE]
     before = occupancy.log_odds[tuple(occupancy.world_to_index(post).T)]
-    occupancy.integrate(np.full((60, 60), 1.5, np.float32), K, T, skip_depth_edges=True)
+    occupancy.integrate(np.full((60, 60), 1.5, np.float32), K, T, monocular=True)
     np.testing.assert_allclose(occupancy.log_odds[tuple(occupancy.world_to_index(post).T)] - before, [0.85], rtol=1e-5)
 
 

@@ -159,7 +159,7 @@ class Explorer:
         self.surface_coverage = float(self.surface_seen.mean()) if len(self.surface_seen) else 0.0
 
     def _integrate(self, depth, frame, T) -> None:
-        self.map.integrate(depth, frame.K, T, skip_depth_edges=self.depth_source.flying_pixels)
+        self.map.integrate(depth, frame.K, T, monocular=self.depth_source.flying_pixels)
         self.map.clear_sphere(T[:3, 3], self.agent.radius)  # the robot stands in free space
 
     def _track(self, observations, T) -> None:

@@ -207,7 +207,7 @@ class OccupancyMap:
     # -- updates ---------------------------------------------------------------------------------
 
     def integrate(self, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray,
-                  skip_depth_edges: bool = False) -> None:
+                  monocular: bool = False) -> None:
         """Integrate one depth frame (see the module docstring for the update rule).
 
         Args:
@@ -217,10 +217,11 @@ class OccupancyMap:
             K: (3, 3) float64 pinhole intrinsics of the depth image, pixels (centres at
                 integer coordinates).
             T_world_cam: (4, 4) float64 camera pose (OpenCV camera frame to world).
-            skip_depth_edges: leave out the pixels at depth discontinuities
-                (:func:`depth_edges` with ``depth_edge_rtol``; nothing when that is null): for
-                depth that smears foreground into background there (monocular networks), whose
-                "flying pixels" would be hits in free space.
+            monocular: the depth of a monocular network (a source with
+                :attr:`~frontiernet.depth.base.DepthSource.flying_pixels`): the pixels at depth
+                discontinuities are left out (:func:`depth_edges` with ``depth_edge_rtol``;
+                nothing when that is null), as their "flying pixels" would be hits in free space,
+                and the ``monocular_*`` keys of the map section apply (all off when null).
         Raises:
             InputError: a depth image that is not 2D, bad intrinsics (or a principal point
                 outside the image), a non-finite or non-rigid pose.
@@ -235,17 +236,17 @@ class OccupancyMap:
             return  # the frustum misses the grid
         passed = np.zeros(tuple(hi - lo), bool)
         hit = np.zeros_like(passed)
-        skip = (depth_edges(depth, s.depth_edge_rtol) if skip_depth_edges and s.depth_edge_rtol is not None
+        skip = (depth_edges(depth, s.depth_edge_rtol) if monocular and s.depth_edge_rtol is not None
                 else np.zeros((0, 0), bool))
         hit_range, miss, free_fraction = s.max_range_m, s.log_odds_miss, 1.0
-        if skip_depth_edges:
+        if monocular:
             if s.monocular_free_fraction is not None:
                 free_fraction = s.monocular_free_fraction
             if s.monocular_hit_range_m is not None:
                 hit_range = min(hit_range, s.monocular_hit_range_m)
             if s.monocular_log_odds_miss is not None:
                 miss = s.monocular_log_odds_miss
-        weak = skip_depth_edges and s.monocular_far_hit_max is not None and hit_range < s.max_range_m
+        weak = monocular and s.monocular_far_hit_max is not None and hit_range < s.max_range_m
         far = np.zeros_like(passed) if weak else np.zeros((0, 0, 0), bool)
         far_max = s.monocular_far_hit_max if weak else s.log_odds_max
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),

@@ -159,7 +159,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         writer = VideoWriter(out / "overlay.mp4", float(conf.outputs.video_fps))
     pictures = _Pictures(sequence, conf, labels, writer)
     tracked = track_frontiers(sequence, poses, cache_paths, conf, labels, on_frame=pictures, progress=progress,
-                              skip_depth_edges=depth_source is not None and depth_source.flying_pixels)
+                              monocular=depth_source is not None and depth_source.flying_pixels)
     names = [frame.name for frame in sequence]
     summary = {
         "input": str(input_path), "format": sequence.format, "frames": len(sequence), "depth": depth,

@@ -61,7 +61,7 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
 
 
 def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict, on_frame=None,
-                    progress: bool = True, skip_depth_edges: bool = False) -> TrackedSequence:
+                    progress: bool = True, monocular: bool = False) -> TrackedSequence:
     """Run pass 2 over the cached frames.
 
     Args:
@@ -71,8 +71,9 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
         conf: the whole sequence config (sections ``anchoring``, ``tracking``, ``map``).
         labels: the model's label encoding.
         on_frame: optional ``callback(index, cached arrays, tracked)`` after each frame (video).
-        skip_depth_edges: the map leaves out depth-edge pixels (a depth model's flying pixels,
-            :attr:`~frontiernet.depth.base.DepthSource.flying_pixels`; ``map.depth_edge_rtol``).
+        monocular: the depth is a depth model's (its flying pixels,
+            :attr:`~frontiernet.depth.base.DepthSource.flying_pixels`): the map integrates it as
+            such (``OccupancyMap.integrate``'s `monocular`: ``map.depth_edge_rtol``, ``map.monocular_*``).
     """
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
@@ -93,7 +94,7 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
             observations = anchor_prediction(arrays["distance_field"].astype(np.float32), arrays["gain_class"],
                                              arrays["depth"], arrays["K"], T, conf.anchoring, labels, rng)
             clock("anchoring")
-            occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T, skip_depth_edges)
+            occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T, monocular)
             clock("map")
             ids = tracker.add(observations, index, index)
             tracker.update_gains(occupancy)
