@@ -19,6 +19,7 @@ from multiprocessing import Pool
 from pathlib import Path
 
 import frontiernet.exploration.explorer as explorer_module
+from frontiernet.benchmark.plan import scene_key
 
 
 def integrate_ground_truth(self, depth, frame, T) -> None:
@@ -53,7 +54,7 @@ def main() -> None:
     plan = json.loads((Path(args.plan_folder) / "plan.json").read_text())
     tasks = [{"scene": scene, "index": index, "start": ",".join(str(v) for v in pose), "method": args.method,
               "model": args.model, "budget": args.budget, "out": args.out,
-              "key": f"{scene.replace('/', '_').replace(':', '_')}_start{index}"}
+              "key": f"{scene_key(scene)}_start{index}"}
              for scene, poses in plan["start_poses"].items() for index, pose in enumerate(poses)]
     Path(args.out).mkdir(parents=True, exist_ok=True)
     with Pool(args.workers) as pool:

@@ -43,34 +43,34 @@ def reachable(grid, xy: np.ndarray) -> np.ndarray:
     return labels == labels[i, j] if labels[i, j] else np.zeros_like(traversable)
 
 
-def band_occupied(occupancy, z: float, band: float) -> np.ndarray:
-    return occupancy.slice_2d(z - band, z + band)[1]
-
-
-def compare(reference, variant, z: float, xy: np.ndarray, conf, T: np.ndarray) -> dict:
+def grid_view(occupancy, z: float, xy: np.ndarray, conf, T: np.ndarray) -> dict:
+    """What :func:`compare` reads of one map at the robot's pose: its planning grid, the cells
+    reachable from the robot, the occupied cells of the planning band and its map frontiers."""
     from frontiernet.frontiers.map_frontiers import map_frontiers
     from frontiernet.planning.planner import PlanningGrid
 
-    planner = conf.planner
+    band = float(conf.planner["height_band_m"])
+    grid = PlanningGrid.from_map(occupancy, z, conf.planner, xy)
+    return {"traversable": np.isfinite(grid.cost), "reach": reachable(grid, xy),
+            "occupied": occupancy.slice_2d(z - band, z + band)[1],
+            "frontiers": len(map_frontiers(occupancy, z, conf, T, "uniform"))}
 
-    ref_grid = PlanningGrid.from_map(reference, z, planner, xy)
-    var_grid = PlanningGrid.from_map(variant, z, planner, xy)
-    ref_reach, var_reach = reachable(ref_grid, xy), reachable(var_grid, xy)
-    n = max(int(ref_reach.sum()), 1)
-    band = float(planner["height_band_m"])
-    ref_occ, var_occ = band_occupied(reference, z, band), band_occupied(variant, z, band)
-    near_ref = ndimage.binary_dilation(ref_occ, np.ones((3, 3), bool))
-    return {"lost": float((ref_reach & ~var_reach).sum()) / n,
-            "extra": float((var_reach & ~np.isfinite(ref_grid.cost)).sum()) / n,
-            "occ_far": float((var_occ & ~near_ref).sum()) / max(int(ref_occ.sum()), 1),
-            "frontiers": len(map_frontiers(variant, z, conf, T, "uniform"))
-            / max(len(map_frontiers(reference, z, conf, T, "uniform")), 1)}
+
+def compare(reference: dict, variant: dict) -> dict:
+    """The four measures of a variant's :func:`grid_view` against the reference's."""
+    n = max(int(reference["reach"].sum()), 1)
+    near_ref = ndimage.binary_dilation(reference["occupied"], np.ones((3, 3), bool))
+    return {"lost": float((reference["reach"] & ~variant["reach"]).sum()) / n,
+            "extra": float((variant["reach"] & ~reference["traversable"]).sum()) / n,
+            "occ_far": float((variant["occupied"] & ~near_ref).sum()) / max(int(reference["occupied"].sum()), 1),
+            "frontiers": variant["frontiers"] / max(reference["frontiers"], 1)}
 
 
 def trajectory(scene: str, start: list, budget: int, out: Path) -> list[np.ndarray]:
+    from frontiernet.benchmark.plan import scene_key
     from frontiernet.exploration.run import load_run_config, main
 
-    folder = out / f"{scene.replace('/', '_').replace(':', '_')}_{'_'.join(map(str, start))}"
+    folder = out / f"{scene_key(scene)}_{'_'.join(map(str, start))}"
     if not (folder / "trajectory.json").exists():
         main(load_run_config(), scene, folder, method="classic", depth="gt", max_steps=budget,
              start=",".join(map(str, start)), seed=0, video=False, progress=False)
@@ -98,11 +98,13 @@ def replay(scene: str, poses: list, variants: dict, checkpoints: list[int]) -> d
         reference.integrate(frame.depth, frame.K, T)
         reference.clear_sphere(T[:3, 3], radius)
         for occupancy in maps.values():
-            occupancy.integrate(depth, frame.K, T, skip_depth_edges=True)
+            occupancy.integrate(depth, frame.K, T, monocular=True)
             occupancy.clear_sphere(T[:3, 3], radius)
         if index in checkpoints or index == len(poses) - 1:
+            z, xy = float(T[2, 3]), T[:2, 3]
+            seen = grid_view(reference, z, xy, conf, T)  # once per checkpoint, not per variant
             for name, occupancy in maps.items():
-                rows[name][index] = compare(reference, occupancy, float(T[2, 3]), T[:2, 3], conf, T)
+                rows[name][index] = compare(seen, grid_view(occupancy, z, xy, conf, T))
     return rows
 
 
