@@ -15,7 +15,7 @@ from typing import ClassVar, Iterable, Mapping, Sequence
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from .errors import InputError
+from .errors import InputError, check_keys
 
 
 class ConfigSection:
@@ -144,53 +144,3 @@ def option_section(conf, options: Sequence[str], where: str) -> dict:
     if missing:
         raise InputError(f"{where}: missing option(s) {', '.join(missing)}")
     return dict(conf)
-
-
-def _kind(value) -> str | None:
-    """What a config value is, as far as a user's value must match the default's: a section, a
-    list, a number or a true/false; None (anything goes) for text, null and open sections."""
-    if isinstance(value, dict):
-        return "a section (key: value lines)" if value else None
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, bool):
-        return "true or false"
-    if isinstance(value, (int, float)):
-        return "a number"
-    return None
-
-
-def check_keys(base: DictConfig | Mapping, extra: DictConfig | Mapping, source: str, noun: str = "config key") -> None:
-    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings
-    (else the valid keys there), or whose value is of another kind than the default's
-    (:func:`_kind`; null is always taken). `source` (a file, "override", a scene spec) starts
-    the message; `noun` names what a key is to the user ("config key", "option")."""
-    from difflib import get_close_matches
-
-    def deeper(tree: dict, prefix: str):  # every dotted key below `tree`
-        for key, value in tree.items():
-            yield f"{prefix}{key}"
-            if isinstance(value, dict):
-                yield from deeper(value, f"{prefix}{key}.")
-
-    def walk(defaults, given, prefix: str):
-        for key, value in given.items():
-            name = f"{prefix}{key}"
-            if key not in defaults:
-                nested = [path for path in deeper(defaults, prefix) if path.rsplit(".", 1)[-1] == str(key)]
-                close = nested or [prefix + k for k in get_close_matches(str(key), [str(k) for k in defaults], n=3)]
-                hint = (f"; did you mean {', '.join(close[:3])}?" if close
-                        else f"; valid: {', '.join(prefix + str(k) for k in defaults)}")
-                raise InputError(f"{source}: unknown {noun} '{name}'{hint}")
-            default = defaults[key]
-            expected = _kind(default)
-            if value is not None and expected is not None and _kind(value) != expected:
-                shown = "" if isinstance(default, dict) else f" (default {default!r})"
-                raise InputError(f"{source}: {noun} '{name}' takes {expected}{shown}, got {value!r}")
-            if isinstance(value, dict) and isinstance(default, dict) and default:
-                walk(default, value, f"{name}.")
-
-    def plain(tree):
-        return OmegaConf.to_container(tree, resolve=False) if isinstance(tree, DictConfig) else dict(tree)
-
-    walk(plain(base), plain(extra), "")

@@ -1,12 +1,16 @@
-"""The one error type for bad user input.
+"""The one error type for bad user input, and the checks that raise it.
 
 The CLI turns an :class:`InputError` into a single line on stderr and exit code 2,
 with no traceback. Library code raises it whenever a file, value or spec given by
-the user is wrong, and names that input in the message.
+the user is wrong, and names that input in the message. The checks here are the shared
+ones: numbers (:func:`positive_number`, :func:`number_range`, :func:`whole_number`) and keys
+(:func:`check_keys`, for config files, overrides and scene-spec options alike).
 """
 
+from __future__ import annotations
 
 import math
+from typing import Mapping
 
 
 class InputError(ValueError):
@@ -55,3 +59,55 @@ def whole_number(value, name: str, minimum: int = 0, maximum: float = math.inf) 
         bound = f">= {minimum}" if maximum == math.inf else f"in [{minimum}, {maximum}]"
         raise InputError(f"{name} must be an integer {bound}, got {value!r}")
     return int(value)
+
+
+def _kind(value) -> str | None:
+    """What a config value is, as far as a user's value must match the default's: a section, a
+    list, a number or a true/false; None (anything goes) for text, null and open sections."""
+    if isinstance(value, dict):
+        return "a section (key: value lines)" if value else None
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return None
+
+
+def check_keys(base: Mapping, extra: Mapping, source: str, noun: str = "config key") -> None:
+    """InputError naming the first key of `extra` that `base` lacks, with its closest spellings
+    (else the valid keys there), or whose value is of another kind than the default's
+    (:func:`_kind`; null is always taken). `source` (a file, "override", a scene spec) starts
+    the message; `noun` names what a key is to the user ("config key", "option")."""
+    from difflib import get_close_matches
+
+    def deeper(tree: dict, prefix: str):  # every dotted key below `tree`
+        for key, value in tree.items():
+            yield f"{prefix}{key}"
+            if isinstance(value, dict):
+                yield from deeper(value, f"{prefix}{key}.")
+
+    def walk(defaults, given, prefix: str):
+        for key, value in given.items():
+            name = f"{prefix}{key}"
+            if key not in defaults:
+                nested = [path for path in deeper(defaults, prefix) if path.rsplit(".", 1)[-1] == str(key)]
+                close = nested or [prefix + k for k in get_close_matches(str(key), [str(k) for k in defaults], n=3)]
+                hint = (f"; did you mean {', '.join(close[:3])}?" if close
+                        else f"; valid: {', '.join(prefix + str(k) for k in defaults)}")
+                raise InputError(f"{source}: unknown {noun} '{name}'{hint}")
+            default = defaults[key]
+            expected = _kind(default)
+            if value is not None and expected is not None and _kind(value) != expected:
+                shown = "" if isinstance(default, dict) else f" (default {default!r})"
+                raise InputError(f"{source}: {noun} '{name}' takes {expected}{shown}, got {value!r}")
+            if isinstance(value, dict) and isinstance(default, dict) and default:
+                walk(default, value, f"{name}.")
+
+    def plain(tree):
+        from omegaconf import DictConfig, OmegaConf
+
+        return OmegaConf.to_container(tree, resolve=False) if isinstance(tree, DictConfig) else dict(tree)
+
+    walk(plain(base), plain(extra), "")

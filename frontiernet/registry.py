@@ -14,7 +14,7 @@ bench action                ``frontiernet.bench``     ``frontiernet.cli.bench.BE
 model runtime (by suffix)   ``frontiernet.runtimes``  ``frontiernet.model.predictor.RUNTIMES``
 exploration method          ``frontiernet.methods``   ``frontiernet.exploration.methods.METHODS``
 depth source                none (built in)           ``frontiernet.depth.DEPTH_SOURCES``
-scene source                none (built in)           ``frontiernet.scenes.sources.SCENE_SOURCES``
+scene source                none (built in)           ``frontiernet.scenes.spec.SCENE_SOURCES``
 ==========================  ========================  =========================================
 
 Entry points are read when names are asked for and loaded (imported) only when one is used. A

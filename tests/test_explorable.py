@@ -3,7 +3,7 @@
 Meshes built here from boxes, one trait each (a roofless room, a wall of glassless windows, a
 3 m wide entrance, a courtyard, a mezzanine) and the shop of the issue (roofless, a row of tall
 glassless windows, shelves, tables, a counter): the ``reachable`` rule
-(frontiernet/simulator/explorable.py) finds within 10 % of the true interior volume, the
+(frontiernet/scenes/explorable.py) finds within 10 % of the true interior volume, the
 ``enclosed`` rule (the published benchmark's) loses much of it where the issue says it does.
 """
 

@@ -68,8 +68,7 @@ def test_every_kind_has_its_registry():
     from frontiernet.cli.main import COMMANDS
     from frontiernet.depth import DEPTH_SOURCES
     from frontiernet.model.predictor import RUNTIMES, Predictor
-    from frontiernet.scenes.sources import SCENE_SOURCES
-    from frontiernet.scenes.spec import SOURCES
+    from frontiernet.scenes.spec import SCENE_SOURCES, SOURCES
 
     assert {"scene", "explore", "bench", "datagen", "train", "deploy"} <= set(COMMANDS.names())
     assert "inference" in BENCH_ACTIONS.names()

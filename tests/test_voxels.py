@@ -14,7 +14,7 @@ from frontiernet.errors import InputError
 from frontiernet.scenes import load_scene
 from frontiernet.scenes.builder import MeshBuilder
 from frontiernet.scenes.floorplan import plan_pixel_to_world
-from frontiernet.scenes.interior import enclosed_free
+from frontiernet.scenes.explorable import enclosed_free
 from frontiernet.scenes.scene import Material, SceneMetadata
 from frontiernet.simulator.voxels import VoxelGrid, surface_voxels, voxelize_scene
 

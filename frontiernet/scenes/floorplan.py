@@ -19,8 +19,8 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
-from .builder import MeshBuilder
-from .interior import enclosed_free as building_inside  # shared with 3D voxelisation
+from .builder import MeshBuilder, mask_rectangles, rect_boxes
+from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
 from .textures import make_texture
 
@@ -70,46 +70,6 @@ def plan_start_positions(path: Path, plan: FloorPlan) -> list[list[float]]:
         raise InputError(f"{path}: start pose(s) off the plan or on a wall: "
                          f"{[starts[i] for i in np.flatnonzero(bad | plan.occupied[np.clip(rows, 0, shape[0] - 1), np.clip(cols, 0, shape[1] - 1)])]}")
     return np.round(plan_pixel_to_world(rows, cols, shape, plan.resolution), 4).tolist()
-
-
-def mask_rectangles(mask: np.ndarray) -> np.ndarray:
-    """Cover a boolean (H, W) mask exactly with axis-aligned rectangles.
-
-    Horizontal runs of each row are merged with identical runs of the rows below.
-    Returns (N, 4) int64 ``[row0, col0, row1, col1)`` (half-open).
-    """
-    mask = np.asarray(mask, bool)
-    padded = np.pad(mask, ((0, 0), (1, 1))).astype(np.int8)
-    changes = np.diff(padded, axis=1)
-    run_rows, run_starts = np.nonzero(changes == 1)  # row-major order
-    _, run_ends = np.nonzero(changes == -1)
-    rectangles = []
-    open_runs: dict[tuple[int, int], int] = {}  # (col0, col1) -> first row
-    previous_row = -2
-    split_at = np.flatnonzero(np.diff(run_rows)) + 1
-    for rows, starts, ends in zip(np.split(run_rows, split_at), np.split(run_starts, split_at),
-                                  np.split(run_ends, split_at)):
-        if len(rows) == 0:
-            continue
-        row = int(rows[0])
-        runs = set(zip(starts.tolist(), ends.tolist()))
-        for key in list(open_runs):
-            if row != previous_row + 1 or key not in runs:
-                rectangles.append((open_runs.pop(key), key[0], previous_row + 1, key[1]))
-        for key in runs:
-            open_runs.setdefault(key, row)
-        previous_row = row
-    for key, first_row in open_runs.items():
-        rectangles.append((first_row, key[0], previous_row + 1, key[1]))
-    return np.asarray(rectangles, np.int64).reshape(-1, 4)
-
-
-def rect_boxes(rects: np.ndarray, shape, resolution: float, z0: float, z1: float):
-    """Rectangles [r0, c0, r1, c1) -> box corners (N, 3) lower, (N, 3) upper in world metres."""
-    H = shape[0]
-    lower = np.stack([rects[:, 1] * resolution, (H - rects[:, 2]) * resolution, np.full(len(rects), z0)], 1)
-    upper = np.stack([rects[:, 3] * resolution, (H - rects[:, 0]) * resolution, np.full(len(rects), z1)], 1)
-    return lower, upper
 
 
 def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below: int, free_above: int,

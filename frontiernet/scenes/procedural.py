@@ -9,7 +9,7 @@ Pipeline (all randomness from ``np.random.default_rng([seed, stream])``, no glob
 3. :mod:`.furniture_placement`: door leaves, windows, furniture per room kind, lights,
    never in front of doors and never cutting the room's free space apart.
 4. This module: extrude the plan per room with per-room floor/wall textures
-   (:func:`frontiernet.scenes.floorplan.mask_rectangles`), add stairs, slab, ceiling.
+   (:func:`frontiernet.scenes.builder.mask_rectangles`), add stairs, slab, ceiling.
 
 World frame: Z-up, metres; the ground floor's top is z = 0; a second floor's top is at
 ``wall_height + slab_thickness``. Plan pixels map to world x, y as in
@@ -25,8 +25,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..errors import InputError
-from .builder import MeshBuilder
-from .floorplan import rect_boxes, mask_rectangles
+from .builder import MeshBuilder, mask_rectangles, rect_boxes
 from .furniture import furniture_materials
 from .furniture_placement import Boxes, FloorFurnisher, Placed
 from .procedural_doors import FloorLayout, Stair, make_floor, make_stair, wall_split

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .floorplan import mask_rectangles
+from .builder import mask_rectangles
 
 PUBLIC_KINDS = ("corridor", "hall", "living", "kitchen", "dining", "stairs")  # rooms doors prefer
 

@@ -53,7 +53,7 @@ class SceneMetadata:
         extra: source-specific facts (resolution, seed, room count, warnings...).
         explorable_seed: None, or (2,) / (3,) float64 world metres from the spec's ``?seed=x,y[,z]``:
             a point on the floor inside the building that the explorable space is grown from
-            (:mod:`frontiernet.simulator.explorable`).
+            (:mod:`frontiernet.scenes.explorable`).
         explorable_bounds: None, or (2, 3) float64 world [min, max] corners (metres) from the spec's
             ``?bounds=xmin,ymin,zmin,xmax,ymax,zmax``: nothing outside the box is explorable.
     """

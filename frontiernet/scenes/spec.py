@@ -18,7 +18,7 @@ Several scenes at once (:func:`expand_specs`, for commands that take many):
   ROOT/train                          a folder of scene folders (HM3D scenes, KTH floor plans)
 
 Every source also takes two options about the space exploration is scored on
-(frontiernet/simulator/explorable.py, docs/exploration.md):
+(frontiernet/scenes/explorable.py, docs/exploration.md):
 
   shop.glb?seed=2.5,4                 a point (x,y or x,y,z, metres) on the floor inside the
                                       building: the explorable space is grown from there
@@ -29,6 +29,12 @@ A bare path is recognised by what it is: a mesh file by its extension, a folder 
 occ_map.npy as a floor plan, a folder with a .glb as an HM3D scene. Options after '?'
 override the source's section of configs/scenes.yaml (e.g. floorplan: wall_height,
 ceiling, door_height; mesh: up, scale).
+
+:func:`load_scene` is the one way from a spec to a :class:`~frontiernet.scenes.scene.Scene`:
+parse it, look its source up in :data:`SCENE_SOURCES` (name -> loader
+``load(spec, options) -> Scene``, where `options` is the source's section of the scenes config
+with the spec's options merged in; each loader imports its module when used, so naming the
+sources costs nothing) and call that loader.
 """
 
 from __future__ import annotations
@@ -39,11 +45,13 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from omegaconf import DictConfig, OmegaConf
 
-from ..errors import InputError
-from .sources import SCENE_SOURCES
+from ..errors import InputError, check_keys
+from ..registry import Registry
+from .scene import Scene
 
-SOURCES = tuple(SCENE_SOURCES.names())  # the sources a spec may name before ':'
+
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
 DEFAULT_SPEC = "procedural:0"
 
@@ -194,3 +202,72 @@ def expand_specs(texts) -> list[str]:
         else:
             out.append(text)
     return list(dict.fromkeys(out))
+
+
+def _mesh(spec, options):
+    from .mesh_files import load_mesh_file
+
+    return load_mesh_file(spec.argument, spec.text, up=options.up, scale=options.scale,
+                          max_texture_size=int(options.max_texture_size), geometry_only=bool(options.geometry_only))
+
+
+def _hm3d(spec, options):
+    from .mesh_files import load_hm3d
+
+    return load_hm3d(spec.argument, spec.text, geometry_only=bool(options.geometry_only),
+                     max_texture_size=int(options.max_texture_size))
+
+
+def _floorplan(spec, options):
+    from .floorplan import load_floorplan
+
+    return load_floorplan(spec.argument, spec.text, options)
+
+
+def _procedural(spec, options):
+    from .procedural import generate_procedural_scene
+
+    try:
+        seed = int(spec.argument)
+    except ValueError:
+        raise InputError(f"scene spec '{spec.text}': procedural seed must be an integer") from None
+    if seed < 0:
+        raise InputError(f"scene spec '{spec.text}': procedural seed must be >= 0")
+    return generate_procedural_scene(seed, spec.text, options)
+
+
+SCENE_SOURCES = Registry("scene source", None, {"mesh": _mesh, "hm3d": _hm3d, "floorplan": _floorplan,
+                                                "procedural": _procedural})
+"""The scene sources, in the order specs name them (built in only: each has its section of
+``configs/scenes.yaml``)."""
+
+SOURCES = tuple(SCENE_SOURCES.names())  # the sources a spec may name before ':'
+
+
+def _section(conf: DictConfig, source: str, spec: SceneSpec) -> DictConfig:
+    base = conf[source]
+    own = {key: value for key, value in spec.options.items() if key not in EXPLORABLE_OPTIONS}
+    check_keys(base, own, f"scene spec '{spec.text}'", noun=f"{source} option")
+    return OmegaConf.merge(base, own)
+
+
+def load_scene(spec: str | SceneSpec, conf: DictConfig) -> Scene:
+    """Load a scene from a spec string (see the syntax above).
+
+    Args:
+        spec: e.g. ``"procedural:3"``, ``"house.glb"``, ``"floorplan:plan.png?resolution=0.05"``.
+        conf: the scenes config as the command resolved it (``configs/scenes.yaml``: one section
+            per source, merged with the spec's options).
+    Returns:
+        A validated :class:`Scene` in world coordinates (Z-up, metres).
+    Raises:
+        InputError: unknown source, missing or corrupt file, empty mesh, bad option.
+
+    Every source also takes the options ``seed`` and ``bounds`` (:func:`explorable_options`),
+    kept on the scene's metadata for the voxeliser's explorable space.
+    """
+    spec = parse_spec(spec) if isinstance(spec, str) else spec
+    seed, box = explorable_options(spec)
+    scene = SCENE_SOURCES.get(spec.source)(spec, _section(conf, spec.source, spec))
+    scene.metadata.explorable_seed, scene.metadata.explorable_bounds = seed, box
+    return scene

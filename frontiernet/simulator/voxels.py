@@ -41,7 +41,7 @@ from scipy import ndimage
 
 from ..errors import InputError, positive_number
 from ..scenes import Scene
-from ..scenes.interior import enclosed_free
+from ..scenes.explorable import enclosed_free, reachable_space
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -201,8 +201,6 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
                               chunk=int(conf.chunk_candidates))
     meta = scene.metadata
     if rule == "reachable":
-        from .explorable import reachable_space
-
         space = reachable_space(occupied, origin, size, conf, seed=meta.explorable_seed,
                                 box=meta.explorable_bounds, where=meta.spec)
         interior, explorable, seed = space.enclosed, space.explorable, space.seed

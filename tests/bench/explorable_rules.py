@@ -2,7 +2,7 @@
 
 Each scene is voxelised once (the surface voxels are the same for both rules); the ``enclosed``
 rule (the published benchmark's per-slice flood) and the ``reachable`` rule
-(frontiernet/simulator/explorable.py) then pick their explorable voxels from it. Printed per
+(frontiernet/scenes/explorable.py) then pick their explorable voxels from it. Printed per
 scene: both volumes in m^3, the change, and the voxels only one rule counts (where they lie in
 height, so that a change can be explained). Default scenes: the shared house, the four KTH
 plans, procedural:1000-1009 (published) and procedural:2000-2003 (development).
@@ -23,7 +23,7 @@ from omegaconf import OmegaConf
 from frontiernet.config import load_config
 from frontiernet.scenes import load_scene
 from frontiernet.scenes.spec import expand_specs
-from frontiernet.simulator.explorable import reachable_space
+from frontiernet.scenes.explorable import reachable_space
 from frontiernet.simulator.voxels import voxelize_scene
 
 SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data"
