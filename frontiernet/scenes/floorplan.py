@@ -19,10 +19,9 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
-from .builder import MeshBuilder, mask_rectangles, rect_boxes
+from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
-from .textures import make_texture
 
 IMAGE_SUFFIXES = (".png", ".pgm", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 

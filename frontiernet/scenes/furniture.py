@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .builder import MeshBuilder
+from .builder import MeshBuilder, make_texture
 from .scene import Material
-from .textures import make_texture
 
 
 @dataclass

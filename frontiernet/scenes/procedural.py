@@ -25,13 +25,12 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..errors import InputError
-from .builder import MeshBuilder, mask_rectangles, rect_boxes
+from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .furniture import furniture_materials
 from .furniture_placement import Boxes, FloorFurnisher, Placed
 from .procedural_doors import FloorLayout, Stair, make_floor, make_stair, wall_split
 from .procedural_layout import Room, Skeleton, assign_kinds, make_skeleton, split_rooms
 from .scene import Material, Scene, SceneMetadata
-from .textures import make_texture
 
 _PROBABILITIES = ("second_floor_probability", "l_shape_probability", "u_shape_probability", "corridor_probability",
                   "open_plan_probability", "extra_door_probability", "closet_probability", "door_leaf_probability")
