@@ -13,7 +13,8 @@ SCENE_HELP = "scene spec (see `frontiernet scene --help`)"
 """Help of a command's one scene (``render SPEC``, ``explore --scene SPEC``)."""
 MODEL_FILE_HELP = "model file (.safetensors) or checkpoint (.ckpt)"
 """Help of a torch model a command reads (``export MODEL``, ``evaluate MODEL``)."""
-EXPLORE_CONFIG = "configs/explore.yaml, and sim.yaml, depth.yaml and scenes.yaml under sections sim:, depth: and scenes:"
+EXPLORE_CONFIG = ("configs/explore.yaml, and sim.yaml, depth.yaml and scenes.yaml under sections sim:, depth: "
+                  "and scenes:")
 """What ``--config`` overrides in the commands that explore (``explore``, ``bench --scenes``): the files
 of :func:`~frontiernet.exploration.run.load_run_config`."""
 
