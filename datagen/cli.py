@@ -16,6 +16,9 @@ import json
 import sys
 from pathlib import Path
 
+from frontiernet.cli import options
+from frontiernet.cli.bench import scene_benchmark
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -23,21 +26,15 @@ def add_parser(subparsers) -> None:
         description="Generate a sharded FrontierNet dataset from scenes (docs/design.md section 3). "
                     "Subcommands: 'preview DIR' draws contact sheets, 'bench' times one view, "
                     "'consistency' measures how well the gain labels agree with themselves.")
-    parser.add_argument("--scenes", nargs="+", metavar="SPEC",
-                        help="scene specs: files, hm3d:/floorplan: folders, procedural:SEED, seed ranges "
-                             "procedural:0-199, quoted globs, folders of scene folders")
+    options.scene_specs(parser)
     parser.add_argument("--views-per-scene", type=int, metavar="N", help="views per scene")
     parser.add_argument("--out", metavar="DIR", help="dataset folder")
-    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes or Ray tasks (default 1)")
-    parser.add_argument("--backend", choices=("local", "ray"), default="local",
-                        help="local processes, or Ray tasks (set RAY_ADDRESS to use a cluster)")
+    options.parallel(parser)
     parser.add_argument("--seed", type=int, default=0, help="run seed: same seed, same bytes (default 0)")
     parser.add_argument("--resume", action="store_true", help="continue the dataset in --out")
-    parser.add_argument("--config", metavar="FILE", help="YAML overriding configs/sim.yaml and configs/datagen.yaml, "
-                                                         "and scenes.yaml under section scenes:")
-    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                        help="config overrides, e.g. writer.shard_size=16")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    options.config_file(parser, "configs/sim.yaml and configs/datagen.yaml, and scenes.yaml under section scenes:")
+    options.config_overrides(parser, "writer.shard_size=16", option=True)
+    options.no_progress(parser)
     parser.set_defaults(func=run_generate)
     actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser))
     preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
@@ -45,30 +42,24 @@ def add_parser(subparsers) -> None:
     preview.add_argument("--n", type=int, default=16, help="number of samples (spread over the dataset)")
     preview.add_argument("--out", metavar="DIR", help="where to write (default: DIR/preview)")
     preview.set_defaults(func=run_preview)
-    bench = actions.add_parser("bench", help="cost of one ground-truth view in depth renders, views/s per core")
-    bench.add_argument("--scene", default=None, help="scene spec (default: perf.scene of "
-                                                     "configs/bench.yaml, the shared house next to the "
-                                                     "checkout, when present; else perf.fallback_scene)")
+    bench = scene_benchmark(actions, "bench", "cost of one ground-truth view in depth renders, views/s per core",
+                            run_bench)
     bench.add_argument("--views", type=int, default=20, help="views to time (default 20)")
     bench.add_argument("--raycast", nargs="+", metavar="ENGINE", choices=("open3d", "embree"),
                        help="ray-cast engines to time, the first is the baseline (default: every one importable)")
-    bench.add_argument("--json", action="store_true", help="print JSON only")
-    bench.set_defaults(func=run_bench)
     consistency = actions.add_parser(
         "consistency", help="the gain labels' own agreement (resampled gain, nearby views): the ceiling of any Dice",
         description="Label views as datagen does, then label each view again with a different random "
                     "generator (the gain is measured at sampled frontier voxels) and label a view a small step "
                     "away (configs/label_consistency.yaml); report the Dice between the labelings, computed "
                     "as frontiernet evaluate computes a model's.")
-    consistency.add_argument("--scenes", nargs="+", required=True, metavar="SPEC", help="scene specs (as datagen's)")
+    options.scene_specs(consistency, required=True)
     consistency.add_argument("--views-per-scene", type=int, default=24, metavar="N",
                              help="views per scene (default 24)")
     consistency.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
-    consistency.add_argument("--config", metavar="FILE",
-                             help="YAML overriding sim.yaml, datagen.yaml and label_consistency.yaml")
-    consistency.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                             help="config overrides, e.g. consistency.translation_m=0.2")
-    consistency.add_argument("--json", metavar="FILE", help="also write the figures (confusion matrices too) as JSON")
+    options.config_file(consistency, "configs/sim.yaml, datagen.yaml and label_consistency.yaml")
+    options.config_overrides(consistency, "consistency.translation_m=0.2", option=True)
+    options.json_file(consistency, "the figures (confusion matrices too)")
     consistency.set_defaults(func=run_consistency)
 
 

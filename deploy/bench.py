@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from frontiernet.cli import options
+
 # torch (and the benchmark package) are imported where they are used: `frontiernet` loads this
 # module to list `bench inference` with every command it parses, and importing torch took seconds
 # of each start.
@@ -174,14 +176,14 @@ def _training_throughput(model, channels: int, crop: int, batch: int, conf, infe
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("inference", help="network speed: torch, TorchScript, onnxruntime; training "
                                                      "images/s")
-    parser.add_argument("--model", default=None, help="model file (default: the shipped model)")
+    options.model_option(parser, exports=False)
     parser.add_argument("--sizes", type=int, nargs="+", default=[320, 480], help="square input sizes")
     parser.add_argument("--repeats", type=int, default=10, help="timed repetitions (median is reported)")
     parser.add_argument("--encoders", metavar="A,B,...",
                         help="compare these encoders instead (comma-separated, e.g. resnet18,mobilenet_v3_large,"
                              "efficientnet_b0): random weights, the model's other network settings; speed-ups over "
                              "the first")
-    parser.add_argument("--json", action="store_true", help="print JSON only")
+    options.json_only(parser)
     parser.set_defaults(func=run)
 
 

@@ -9,17 +9,18 @@
 
 from __future__ import annotations
 
+from frontiernet.cli import options
+
 
 def add_parser(subparsers) -> None:
     export = subparsers.add_parser(
         "export", help="export a model to ONNX, TorchScript or a compact safetensors file",
         description="Export a FrontierNet model file or training checkpoint. ONNX and TorchScript take any "
                     "batch and image size; each file carries the model config for the runtime.")
-    export.add_argument("model", metavar="MODEL", help="model file (.safetensors) or checkpoint (.ckpt)")
+    options.model_file(export)
     export.add_argument("--format", required=True, choices=("onnx", "torchscript", "safetensors"))
-    export.add_argument("--out", required=True, metavar="FILE", help="output file")
+    options.output_file(export)
     export.add_argument("--half", action="store_true", help="safetensors: float16 weights (half the size)")
-    export.add_argument("--force", action="store_true", help="replace --out if it exists (refused without it)")
     export.add_argument("--frontier-threshold", type=float, metavar="PX",
                         help="threshold l (px) the exported file's runtimes use for D < l, e.g. the best-F1 l "
                              "of frontiernet evaluate (default: keep the model's)")
@@ -35,7 +36,7 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--model", metavar="M", help="model file, checkpoint, .onnx or TorchScript .pt "
                                                       "(default: the shipped model for the inputs given: RGB + depth, or RGB "
                                                       "only for --image alone)")
-    predict.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    options.output_folder(predict)
     predict.add_argument("--size", type=int, metavar="PX", help="network input size: the short side is resized "
                                                                 "to PX and centre-cropped (default: the model's, "
                                                                 "320; 0 keeps the image as is)")

@@ -8,6 +8,7 @@ an optional user file and ``key.sub=value`` overrides on top.
 
 from __future__ import annotations
 
+from dataclasses import field, fields
 from importlib import resources
 from pathlib import Path
 from typing import ClassVar, Iterable, Mapping, Sequence
@@ -18,12 +19,37 @@ from omegaconf.errors import OmegaConfBaseException
 from .errors import InputError, check_keys
 
 
+_MISSING = object()
+
+
+def setting(check, *args, key: str | None = None, **kwargs):
+    """A field of a :class:`ConfigSection`: the value of the section's `key` (the field's name
+    unless given; dotted: a key of a sub-section) as ``check(value, name, *args, **kwargs)``
+    returns it, `name` being ``<SECTION>.<key>``; `check` raises InputError naming it for a bad
+    value (``setting(whole_number, 1)``: an integer >= 1, see :mod:`frontiernet.errors`)."""
+    return field(metadata={"check": (check, args, kwargs), "key": key})
+
+
+def section_value(section, key: str, where: str):
+    """``section[key]``, `key` dotted for a key of a sub-section; `where` names `section`
+    (``anchoring``, ``anchoring.feature_weights``). InputError ``<where>.<key> is missing from
+    the <config> config`` naming the first part that is missing."""
+    value, path = section, where
+    for part in key.split("."):
+        path = f"{path}.{part}"
+        value = value.get(part, _MISSING) if hasattr(value, "get") else _MISSING
+        if value is _MISSING:
+            raise InputError(f"{path} is missing from the {where.split('.')[0]} config")
+    return value
+
+
 class ConfigSection:
-    """Base of the checked, typed settings of one config section (frozen dataclasses such as
-    ``MapSettings``): :meth:`from_config` takes the settings themselves, the section (an OmegaConf
-    ``DictConfig`` or a dict), or a whole config holding it under :attr:`SECTION`, and has the
-    subclass's :meth:`from_section` check and type the section (raising
-    :class:`~frontiernet.errors.InputError` naming the first bad key)."""
+    """Base of the checked, typed settings of one config section: frozen dataclasses such as
+    ``MapSettings``, each field declared with :func:`setting`, which says its key and its check.
+    :meth:`from_config` takes the settings themselves, the section (an OmegaConf ``DictConfig`` or
+    a dict), or a whole config holding it under :attr:`SECTION`, and has :meth:`from_section`
+    check and type the section, raising :class:`~frontiernet.errors.InputError` naming the first
+    missing or bad key (a subclass's ``__post_init__`` checks what ties keys together)."""
 
     SECTION: ClassVar[str] = ""
 
@@ -37,7 +63,15 @@ class ConfigSection:
 
     @classmethod
     def from_section(cls, section):
-        raise NotImplementedError
+        """The settings of `section` (a DictConfig or dict): each field's key read and checked,
+        in the order of the fields, as its :func:`setting` says."""
+        values = {}
+        for spec in fields(cls):
+            key = spec.metadata["key"] or spec.name
+            check, args, kwargs = spec.metadata["check"]
+            value = section_value(section, key, cls.SECTION)
+            values[spec.name] = check(value, f"{cls.SECTION}.{key}", *args, **kwargs)
+        return cls(**values)
 
 
 def default_config_path(name: str) -> Path:

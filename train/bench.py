@@ -14,6 +14,8 @@ from __future__ import annotations
 import json
 import time
 
+from frontiernet.cli import options
+
 # torch and lightning are imported where they are used: `frontiernet` loads this module to list
 # `bench train` with every command it parses.
 
@@ -173,9 +175,8 @@ def format_report(result: dict) -> str:
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("train", help="training loader samples/s vs the model's training images/s",
                                    description=__doc__.split("\n\n")[0])
-    parser.add_argument("--config", metavar="FILE", help="YAML overriding configs/train.yaml (as `frontiernet train`)")
-    parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
-                        help="training config overrides, e.g. data.path=DIR data.batch_size=64 (data.path is required)")
+    options.config_file(parser, "configs/train.yaml (as `frontiernet train`)")
+    options.config_overrides(parser, "data.path=DIR data.batch_size=64 (data.path is required)")
     parser.add_argument("--workers", type=int, nargs="+", metavar="W",
                         help="loader worker counts to time (default: 0, 1 and the machine's cores)")
     parser.add_argument("--batches", type=int, default=20, help="batches timed per loader (default 20)")
@@ -183,7 +184,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--precision", help="model precision: 32-true, bf16-mixed or 16-mixed "
                                             "(default: bf16-mixed on a GPU, else 32-true)")
     parser.add_argument("--no-baseline", action="store_true", help="skip the decode-every-read loader")
-    parser.add_argument("--json", action="store_true", help="print JSON only")
+    options.json_only(parser)
     parser.set_defaults(func=run)
 
 

@@ -9,25 +9,26 @@ from __future__ import annotations
 
 import json
 
+from frontiernet.cli import options
+
 
 def add_parser(subparsers) -> None:
     train = subparsers.add_parser(
         "train", help="train FrontierNet on a datagen dataset (Lightning)",
         description="Train FrontierNet (configs/model.yaml + configs/train.yaml). Outputs in <out>/<name>/: "
                     "checkpoints/last.ckpt and best.ckpt, metrics.csv, model.safetensors, summary.json.")
-    train.add_argument("--config", metavar="FILE", help="YAML overriding configs/train.yaml (and model.*)")
-    train.add_argument("overrides", nargs="*", metavar="KEY=VALUE",
-                       help="config overrides, e.g. data.path=DIR trainer.max_epochs=2 model.network.inputs=rgb")
+    options.config_file(train, "configs/train.yaml (and model.*)")
+    options.config_overrides(train, "data.path=DIR trainer.max_epochs=2 model.network.inputs=rgb")
     train.add_argument("--resume", nargs="?", const="last", metavar="CKPT",
                        help="continue the run's last checkpoint (or the given one)")
-    train.add_argument("--no-progress", action="store_true", help="no progress bar")
+    options.no_progress(train)
     train.set_defaults(func=run_train)
 
     evaluate = subparsers.add_parser(
         "evaluate", help="Table II metrics of a model on a dataset (held-out scenes)",
         description="Distance-field error (px), gain Dice and frontier precision/recall next to the "
                     "depth-discontinuity baseline, on the model's held-out scenes by default.")
-    evaluate.add_argument("model", metavar="MODEL", help="model file (.safetensors) or checkpoint (.ckpt)")
+    options.model_file(evaluate)
     evaluate.add_argument("--data", required=True, metavar="DIR", help="a frontiernet datagen dataset")
     evaluate.add_argument("--scenes", nargs="+", metavar="SPEC", help="evaluate on these scenes")
     evaluate.add_argument("--all", action="store_true", help="evaluate on every scene of the dataset")
@@ -38,7 +39,7 @@ def add_parser(subparsers) -> None:
                                "emulated (monocular-like) or another source of configs/depth.yaml")
     evaluate.add_argument("--workers", type=int, default=0, metavar="W",
                           help="processes decoding the dataset (default 0: in this process)")
-    evaluate.add_argument("--json", metavar="FILE", help="also write the metrics as JSON")
+    options.json_file(evaluate, "the metrics")
     evaluate.set_defaults(func=run_evaluate)
 
 

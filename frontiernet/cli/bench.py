@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 from ..registry import Registry
+from . import options
 
 BENCH_ACTIONS = Registry("bench action", "frontiernet.bench")
 """Benchmarks added by packages built on the library (``deploy``'s ``bench inference``): modules
@@ -26,15 +27,15 @@ def add_parser(subparsers) -> None:
     actions = parser.add_subparsers(dest="action", metavar="BENCHMARK", required=False,
                                     parser_class=type(parser))
     parser.set_defaults(func=run_exploration_benchmark)
-    render = _scene_bench(actions, "render", "render time per frame vs a bare cast_rays", run_render)
+    render = scene_benchmark(actions, "render", "render time per frame vs a bare cast_rays", run_render)
     render.add_argument("--repeats", type=int, default=20, help="timed repetitions (median is reported)")
     render.add_argument("--batch", type=int, default=8, help="poses per batched render")
     render.add_argument("--raycast", choices=("auto", "open3d", "embree"),
                         help="ray-cast engine (default: raycast.backend of configs/sim.yaml)")
-    occupancy = _scene_bench(actions, "map", "occupancy map update per frame vs a render", run_map)
+    occupancy = scene_benchmark(actions, "map", "occupancy map update per frame vs a render", run_map)
     occupancy.add_argument("--frames", type=int, default=20, help="frames rendered and integrated (median is reported)")
     occupancy.add_argument("--views", type=int, default=50, help="frontier views of one visible_known_volume call")
-    explore = _scene_bench(actions, "explore", "cost of one exploration step by stage vs a render", run_explore)
+    explore = scene_benchmark(actions, "explore", "cost of one exploration step by stage vs a render", run_explore)
     explore.add_argument("--method", default="frontiernet", help="exploration method (see `frontiernet explore -h`)")
     explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
@@ -44,15 +45,14 @@ def add_parser(subparsers) -> None:
 def _exploration_options(parser) -> None:
     """``frontiernet bench --scenes ... --methods ...``: every method on the same scenes, starts and budget."""
     group = parser.add_argument_group("exploration benchmark (docs/benchmark.md)")
-    group.add_argument("--scenes", nargs="+", metavar="SPEC",
-                       help="scene specs; ranges (procedural:1000-1009), globs and folders of scenes expand")
+    options.scene_specs(group)
     group.add_argument("--methods", default="frontiernet,classic",
                        help="comma-separated methods (default frontiernet,classic; see `frontiernet explore -h`)")
     group.add_argument("--starts", type=int, default=3, help="start poses per scene (sampled once, shared)")
     group.add_argument("--scene-starts", action="store_true",
                        help="use the start positions a scene ships first (KTH plan folders: MapEx's)")
     group.add_argument("--repeats", type=int, default=3, help="runs per start and method (seeds seed..seed+R-1)")
-    group.add_argument("--max-steps", type=int, help="step budget (default: configs/explore.yaml run.max_steps)")
+    options.max_steps(group, "configs/explore.yaml")
     group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
     group.add_argument("--report", action="store_true",
                        help="with --out only: rebuild results.csv, table.md and the plots from the runs finished "
@@ -61,17 +61,14 @@ def _exploration_options(parser) -> None:
                        help="with --out only: move the finished runs' metrics.json into one compressed file per "
                             "scene and method (runs/<scene>/<method>.jsonl.gz), which --report and a resumed "
                             "benchmark read; runs nothing (before --report when both are given)")
-    group.add_argument("--workers", type=int, default=1, help="parallel runs")
-    group.add_argument("--backend", default="local", help="local (processes) or ray")
+    options.parallel(group)
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
-    group.add_argument("--model", help="model file of the learned methods (default: the shipped model)")
+    options.model_option(group, what="model file of the learned methods")
     group.add_argument("--depth", help="depth source of every run (default: run.depth), or a comma list of "
                                        "sources, e.g. gt,emulated: every run once per source, from the same "
                                        "starts and seeds, with the monocular penalty in table.md")
-    group.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml, depth.yaml and "
-                                        "scenes.yaml under sections sim:, depth: and scenes:")
-    group.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                       help="config overrides, e.g. planner.clearance_m=0.3 depth.emulated.scale_per_frame=false")
+    options.config_file(group, options.EXPLORE_CONFIG)
+    options.config_overrides(group, "planner.clearance_m=0.3 depth.emulated.scale_per_frame=false", option=True)
 
 
 def run_exploration_benchmark(args) -> int:
@@ -113,13 +110,12 @@ def run_exploration_benchmark(args) -> int:
     return 0
 
 
-def _scene_bench(actions, name: str, help_text: str, func):
-    """A benchmark subcommand with the options every scene benchmark takes (--scene, --json)."""
+def scene_benchmark(actions, name: str, help_text: str, func):
+    """A benchmark subcommand with the options every benchmark of one scene takes (--scene,
+    --json), run by `func`; also ``datagen bench``'s."""
     parser = actions.add_parser(name, help=help_text)
-    parser.add_argument("--scene", default=None,
-                        help="scene spec (default: perf.scene of configs/bench.yaml, the shared house next to "
-                             "the checkout, when present; else perf.fallback_scene)")
-    parser.add_argument("--json", action="store_true", help="print JSON only")
+    options.benchmark_scene(parser)
+    options.json_only(parser)
     parser.set_defaults(func=func)
     return parser
 

@@ -8,15 +8,17 @@ and writes ``exploration.mp4``, ``coverage.png`` and ``metrics.json`` to ``--out
 
 from __future__ import annotations
 
+from . import options
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("demo", help="explore the default scene with the shipped model",
                                    description=__doc__.splitlines()[0])
     parser.add_argument("--scene", help="scene spec (default: configs/demo.yaml `scene`)")
-    parser.add_argument("--out", default="outputs/demo", help="output folder (default outputs/demo)")
-    parser.add_argument("--max-steps", type=int, help="step budget (default: configs/demo.yaml run.max_steps)")
-    parser.add_argument("--model", help="model file (default: the shipped model)")
-    parser.add_argument("--config", help="YAML overriding configs/demo.yaml")
+    options.output_folder(parser, default="outputs/demo")
+    options.max_steps(parser, "configs/demo.yaml")
+    options.model_option(parser)
+    options.config_file(parser, "configs/demo.yaml")
     parser.set_defaults(func=run)
 
 

@@ -7,20 +7,22 @@ collisions, time per stage), ``trajectory.json``, ``frontiers.json``, ``coverage
 
 from __future__ import annotations
 
+from . import options
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("explore", help="explore a scene with FrontierNet (or another method)",
                                    description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", required=True, help="scene spec (see `frontiernet scene --help`)")
+    parser.add_argument("--scene", required=True, help=options.SCENE_HELP)
     parser.add_argument("--method", default="frontiernet",
                         help="exploration method: frontiernet (the model), oracle (ground-truth frontiers), its hybrids "
                              "oracle-uniform and frontiernet-oracle-gain, the Fig. 9 "
                              "ablations df-uniform, discontinuity-gain, discontinuity-uniform, the baselines classic, "
                              "gain-distance, random-frontier, vacuum, or a plugin (docs/exploration.md)")
-    parser.add_argument("--model", help="model file (.safetensors, .ckpt, .onnx, .pt; default: the shipped model)")
+    options.model_option(parser)
     parser.add_argument("--depth", help="depth source: gt, emulated, depth_anything_v2, metric3d_v2 "
                                         "(default: configs/explore.yaml run.depth)")
-    parser.add_argument("--max-steps", type=int, help="step budget (default: run.max_steps)")
+    options.max_steps(parser, "configs/explore.yaml")
     parser.add_argument("--start", help="start pose x,y,z,yaw (metres; yaw in degrees, or radians with a "
                                          "'rad' suffix; default: sampled with the seed)")
     parser.add_argument("--seed", type=int, help="seed (default: run.seed)")
@@ -28,13 +30,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")
     parser.add_argument("--rerun", action="store_true", help="also write recording.rrd for the Rerun viewer "
                                                              "(needs rerun-sdk)")
-    parser.add_argument("--config", help="YAML overriding configs/explore.yaml, and sim.yaml, depth.yaml and "
-                                         "scenes.yaml under sections sim:, depth: and scenes:")
-    parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--force", action="store_true", help="write over earlier outputs in --out (refused without it)")
-    parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. planner.clearance_m=0.3, "
-                                                              "sim.camera.max_depth=5, depth.emulated.fill_depth=20, "
-                                                              "scenes.floorplan.wall_height=2.4")
+    options.config_file(parser, options.EXPLORE_CONFIG)
+    options.output_folder(parser, force=True)
+    options.config_overrides(parser, "planner.clearance_m=0.3 sim.camera.max_depth=5 depth.emulated.fill_depth=20 "
+                                     "scenes.floorplan.wall_height=2.4")
     parser.set_defaults(func=run)
 
 

@@ -1,4 +1,5 @@
-"""``frontiernet render``: one view of a scene: ``rgb.png``, ``depth.npy`` (metres), ``depth.png``."""
+"""``frontiernet render``: one view of a scene. Writes rgb.png, depth.npy (float32 metres, z-depth,
+NaN = invalid), depth.png (coloured, invalid black), normals.png and camera.json (T_world_cam, K)."""
 
 from __future__ import annotations
 
@@ -7,21 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import parse_pose_text, pose_from_heading
+from . import options
 
 
 def add_parser(subparsers) -> None:
-    parser = subparsers.add_parser(
-        "render", help="render RGB, depth and normals from a pose",
-        description="Render one view. Writes rgb.png, depth.npy (float32 metres, z-depth, NaN = invalid), "
-                    "depth.png (coloured, invalid black), normals.png and camera.json (T_world_cam, K).")
-    parser.add_argument("spec", metavar="SPEC", help="scene spec (see `frontiernet scene --help`)")
+    parser = subparsers.add_parser("render", help="render RGB, depth and normals from a pose", description=__doc__)
+    options.scene_world(parser, "camera, voxels")
     parser.add_argument("--pose", required=True, metavar="x,y,z,yaw[,pitch]",
                         help="camera position (metres, world Z-up) and heading; angles in degrees, or radians with "
                              "a 'rad' suffix (e.g. 1.57rad); yaw 0 looks along +x, pitch > 0 up")
-    parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--force", action="store_true", help="write over earlier outputs in --out (refused without it)")
-    parser.add_argument("--config", help="YAML overriding configs/sim.yaml (camera, voxels), and scenes.yaml under "
-                                         "section scenes:")
+    options.output_folder(parser, force=True)
     parser.add_argument("--no-check", action="store_true",
                         help="skip the check that the pose lies in the scene's free space")
     parser.set_defaults(func=run)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenes import spec as spec_module
+from . import options
 
 
 def add_parser(subparsers) -> None:
@@ -19,14 +20,11 @@ def add_parser(subparsers) -> None:
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True,
                                     parser_class=type(parser))
     info = actions.add_parser("info", help="JSON: bounds, triangles, explorable volume, voxel counts")
-    info.add_argument("spec", metavar="SPEC")
-    info.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings), and scenes.yaml under "
-                                       "section scenes:")
+    options.scene_world(info, "voxel settings")
     info.set_defaults(func=run_info)
     topdown = actions.add_parser("topdown", help="save a cut-away top view PNG")
-    topdown.add_argument("spec", metavar="SPEC")
-    topdown.add_argument("--out", required=True, help="output PNG file")
-    topdown.add_argument("--force", action="store_true", help="replace --out if it exists (refused without it)")
+    options.scene_world(topdown, "voxel settings of the explorable region")
+    options.output_file(topdown, "output PNG file")
     topdown.add_argument("--pixel-size", type=float, default=0.05, help="metres per pixel (default 0.05)")
     topdown.add_argument("--cut-height", type=float, default=1.8,
                          help="metres above the floor where the view is cut, > 0 (default 1.8)")
@@ -34,8 +32,6 @@ def add_parser(subparsers) -> None:
                          help="leave out the explorable region (drawn by default: columns of the space "
                               "exploration is scored on, green where it reaches the cut height, amber where "
                               "it lies only above or below it, outlined, its seed a red cross)")
-    topdown.add_argument("--config", help="YAML overriding configs/sim.yaml (voxel settings of the explorable region), "
-                                          "and scenes.yaml under section scenes:")
     topdown.set_defaults(func=run_topdown)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..geometry import parse_intrinsics_text
+from . import options
 
 
 def add_parser(subparsers) -> None:
@@ -25,15 +26,15 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--depth", default="sensor",
                         help="sensor (the sequence's depth images) or a monocular model: depth_anything_v2, "
                              "metric3d_v2 (local weights; configs/depth.yaml says where)")
-    parser.add_argument("--model", help="FrontierNet model file (default: the shipped model)")
+    options.model_option(parser, what="FrontierNet model file")
     parser.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                         help="pinhole intrinsics in pixels, overriding the reader's (TUM, Redwood, images)")
     parser.add_argument("--stride", type=int, help="use every n-th frame (default: frames.stride)")
     parser.add_argument("--max-frames", type=int, help="use at most this many frames")
     parser.add_argument("--no-video", action="store_true", help="skip overlay.mp4")
-    parser.add_argument("--config", help="YAML overriding configs/sequence.yaml")
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    parser.add_argument("overrides", nargs="*", help="config overrides key=value, e.g. tracking.merge_distance_m=0.8")
+    options.config_file(parser, "configs/sequence.yaml")
+    options.output_folder(parser)
+    options.config_overrides(parser, "tracking.merge_distance_m=0.8")
     parser.set_defaults(func=run)
 
 

@@ -1,24 +1,20 @@
-"""Options of a depth source: its section of a depth config (``configs/depth.yaml`` as resolved), checked."""
+"""Options of a depth source: the keys of its section of the shipped ``configs/depth.yaml``, and
+their values, checked."""
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any, Mapping
 
-from omegaconf import DictConfig
-
-from ..config import option_section
+from ..config import load_config
 from ..errors import InputError
 
 
-def source_conf(name: str, conf: Mapping[str, Any] | DictConfig | None, options: tuple[str, ...]) -> dict[str, Any]:
-    """Section `name` of a depth config (``configs/depth.yaml`` as the run resolved it) as a plain
-    ``dict``: every key of `options` (the source's option names), no other.
-
-    Raises:
-        InputError: not a mapping, a missing option, or an unknown one (named, with its closest
-            spellings: typos fail loudly).
-    """
-    return option_section(conf, options, f"depth.{name}")
+@lru_cache(maxsize=None)
+def shipped_options(name: str) -> tuple[str, ...]:
+    """The keys of section `name` of the shipped ``configs/depth.yaml``: the options of the depth
+    source `name`, each with its default and its comment there."""
+    return tuple(load_config("depth")[name])
 
 
 def number(conf: Mapping[str, Any], key: str, section: str, minimum: float = 0.0) -> float:

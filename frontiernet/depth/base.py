@@ -14,14 +14,22 @@ A depth source turns a camera frame into a metric depth map:
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import Any
 
 import numpy as np
 
+from ..config import option_section
 from ..errors import InputError
+from ._conf import shipped_options
 
 
 class DepthSource(ABC):
-    """A depth source. Subclasses set :attr:`name` and :attr:`requires_ground_truth`."""
+    """A depth source. Subclasses set :attr:`name` and those of the flags below that differ from
+    their defaults.
+
+    A source is built as ``Source(conf)``, `conf` its section of ``configs/depth.yaml`` as the run
+    resolved it: every key of the shipped section (:meth:`options`), no other (:meth:`section`).
+    """
 
     name: str = "depth"
     #: True when :meth:`estimate` needs ``gt_depth`` (simulation only).
@@ -37,8 +45,23 @@ class DepthSource(ABC):
     #: True when the output depends on the seed given to :meth:`reset` (emulated noise): runs
     #: that differ only in their seed differ.
     seeded: bool = False
-    #: The keys of the source's section of ``configs/depth.yaml``, all of which its constructor takes.
-    options: tuple[str, ...] = ()
+
+    @classmethod
+    def options(cls) -> tuple[str, ...]:
+        """The keys of the source's section of the shipped ``configs/depth.yaml``, all of which its
+        constructor takes."""
+        return shipped_options(cls.name)
+
+    @classmethod
+    def section(cls, conf) -> dict[str, Any]:
+        """`conf`, the source's section of a depth config (DictConfig or mapping, as the run resolved
+        it), as a plain ``dict``: every key of :meth:`options`, no other.
+
+        Raises:
+            InputError: not a mapping, a missing option, or an unknown one (named, with its closest
+                spellings: typos fail loudly).
+        """
+        return option_section(conf, cls.options(), f"depth.{cls.name}")
 
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode; sources with randomness reseed from `seed`."""

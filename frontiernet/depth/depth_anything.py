@@ -18,7 +18,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import InputError
-from ._conf import number, source_conf
+from ._conf import number
 from .base import DepthSource, check_K, check_rgb, resolve_device
 
 WEIGHT_FILES = ("config.json", "model.safetensors", "preprocessor_config.json")
@@ -101,20 +101,14 @@ def load_depth_anything(path: str | Path | None, repo_id: str, device: str):
 
 
 class DepthAnythingV2(DepthSource):
-    """Depth Anything V2 metric depth: (H, W, 3) uint8 RGB -> (H, W) float32 metres, dense.
-
-    Args:
-        conf: section ``depth_anything_v2`` of ``configs/depth.yaml`` (as the run resolved it):
-            ``path`` or ``repo_id``, ``device``, ``min_depth``.
-    """
+    """Depth Anything V2 metric depth: (H, W, 3) uint8 RGB -> (H, W) float32 metres, dense. Its
+    weights: ``path``, else ``repo_id`` from the Hugging Face hub cache."""
 
     name = "depth_anything_v2"
-    requires_ground_truth = False
     flying_pixels = True
-    options = ("path", "repo_id", "device", "min_depth")
 
     def __init__(self, conf: Mapping[str, Any]) -> None:
-        c = source_conf(self.name, conf, self.options)
+        c = self.section(conf)
         self.device = resolve_device(c["device"])
         self.min_depth = number(c, "min_depth", self.name)
         self.processor, self.model = load_depth_anything(c["path"], str(c["repo_id"]), self.device)

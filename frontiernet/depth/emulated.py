@@ -45,7 +45,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
-from ._conf import number, source_conf
+from ._conf import number
 from .base import DepthSource, check_gt_depth, check_rgb
 
 FILL_MODES = ("far", "nearest", "none")
@@ -119,23 +119,16 @@ def correlated_noise(rng: np.random.Generator, shape: tuple[int, int], smooth_px
 
 
 class EmulatedMonocularDepth(DepthSource):
-    """Ground truth degraded like a monocular metric-depth model (see module docstring).
-
-    Args:
-        conf: section ``emulated`` of ``configs/depth.yaml`` (as the run resolved it), every key.
-    """
+    """Ground truth degraded like a monocular metric-depth model (see module docstring)."""
 
     name = "emulated"
     requires_ground_truth = True
     sees_past_range = True
     flying_pixels = True
     seeded = True
-    options = ("seed", "scale_sigma", "scale_per_frame", "frame_correlation", "edge_threshold", "edge_band_px",
-               "edge_sigma_px", "blur_sigma_px", "noise_sigma", "noise_sigma_per_m", "noise_smooth_px",
-               "fill_invalid", "fill_depth", "min_depth", "max_depth")
 
     def __init__(self, conf: Mapping[str, Any]) -> None:
-        c = source_conf(self.name, conf, self.options)
+        c = self.section(conf)
         self.scale_sigma = number(c, "scale_sigma", self.name)
         self.scale_per_frame = bool(c["scale_per_frame"])
         self.frame_correlation = number(c, "frame_correlation", self.name)

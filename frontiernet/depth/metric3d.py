@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ._conf import number, source_conf
+from ._conf import number
 from .base import DepthSource, check_K, check_rgb, resolve_device
 
 #: Checkpoint file of each v2 model, as named in Metric3D's hubconf.py.
@@ -99,20 +99,13 @@ def load_metric3d(repo_dir: Path, model: str, weights: Path, device: str, trust_
 
 
 class Metric3DV2(DepthSource):
-    """Metric3D v2 metric depth: (H, W, 3) uint8 RGB + K -> (H, W) float32 metres, dense.
-
-    Args:
-        conf: section ``metric3d_v2`` of ``configs/depth.yaml`` (as the run resolved it), every key.
-    """
+    """Metric3D v2 metric depth: (H, W, 3) uint8 RGB + K -> (H, W) float32 metres, dense."""
 
     name = "metric3d_v2"
-    requires_ground_truth = False
     flying_pixels = True
-    options = ("repo_dir", "model", "weights", "trust_checkpoint", "device", "input_size", "canonical_focal",
-               "pad_value", "mean", "std", "min_depth", "max_depth")
 
     def __init__(self, conf: Mapping[str, Any]) -> None:
-        c = source_conf(self.name, conf, self.options)
+        c = self.section(conf)
         self.model_name = str(c["model"])
         if self.model_name not in CHECKPOINTS:
             raise InputError(f"depth.metric3d_v2.model: expected one of {sorted(CHECKPOINTS)}, got '{self.model_name}'")

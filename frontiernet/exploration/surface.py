@@ -33,7 +33,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..config import ConfigSection
+from ..config import ConfigSection, setting
 from ..errors import InputError, positive_number, whole_number
 from ..mapping import OccupancyMap
 
@@ -44,23 +44,12 @@ _OVERSAMPLE, _RADIUS_DIVISOR = 3, 5.0  # 3 n uniform samples thinned at sqrt(are
 class SurfaceSettings(ConfigSection):
     """The ``surface`` section of ``configs/explore.yaml`` (see there for each value)."""
 
-    num_points: int
-    tolerance_voxels: int
-    max_distance_to_explorable_m: float
-    completeness_threshold_m: float
-
     SECTION = "surface"
 
-    @classmethod
-    def from_section(cls, conf) -> SurfaceSettings:
-        """From the ``surface`` section (DictConfig or dict)."""
-        try:
-            return cls(whole_number(conf["num_points"], "surface.num_points", 1),
-                       whole_number(conf["tolerance_voxels"], "surface.tolerance_voxels", 0, 3),
-                       *(positive_number(conf[key], f"surface.{key}", "metres")
-                         for key in ("max_distance_to_explorable_m", "completeness_threshold_m")))
-        except KeyError as error:
-            raise InputError(f"surface config lacks the key {error}") from None
+    num_points: int = setting(whole_number, 1)
+    tolerance_voxels: int = setting(whole_number, 0, 3)
+    max_distance_to_explorable_m: float = setting(positive_number, "metres")
+    completeness_threshold_m: float = setting(positive_number, "metres")
 
 
 def even_surface_samples(vertices: np.ndarray, triangles: np.ndarray, count: int, seed: int = 0) -> np.ndarray:

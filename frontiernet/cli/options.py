@@ -1,0 +1,119 @@
+"""Options that several ``frontiernet`` commands take with one meaning, each declared here once:
+its flag, metavar, default and help text.
+
+A command's ``add_parser`` calls these where it would call ``parser.add_argument`` (an argument
+group works as well), in the order its help lists its options; the commands of packages built on
+the library (``datagen``, ``train``, ``deploy``) call them too. Options whose meaning is the
+command's own are declared in its module.
+"""
+
+from __future__ import annotations
+
+SCENE_HELP = "scene spec (see `frontiernet scene --help`)"
+"""Help of a command's one scene (``render SPEC``, ``explore --scene SPEC``)."""
+MODEL_FILE_HELP = "model file (.safetensors) or checkpoint (.ckpt)"
+"""Help of a torch model a command reads (``export MODEL``, ``evaluate MODEL``)."""
+EXPLORE_CONFIG = ("configs/explore.yaml, and sim.yaml, depth.yaml and scenes.yaml under sections sim:, depth: "
+                  "and scenes:")
+"""What ``--config`` overrides in the commands that explore (``explore``, ``bench --scenes``): the files
+of :func:`~frontiernet.exploration.run.load_run_config`."""
+
+
+def config_file(parser, overriding: str) -> None:
+    """``--config FILE``: a YAML file whose keys replace the shipped config's; `overriding` says
+    which files and sections it overrides (``configs/train.yaml (and model.*)``)."""
+    parser.add_argument("--config", metavar="FILE", help=f"YAML overriding {overriding}")
+
+
+def config_overrides(parser, example: str, *, option: bool = False) -> None:
+    """``KEY=VALUE ...``: dotted config keys set over the config and ``--config`` (`example`: a few
+    for the help). Positional words (``args.overrides``), or with `option` the words after
+    ``--set`` (``args.set``, default none): a command with subcommands takes them so, as a
+    positional list would take the subcommand's name."""
+    text = f"config overrides, e.g. {example}"
+    if option:
+        parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help=text)
+    else:
+        parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help=text)
+
+
+def output_folder(parser, *, force: bool = False, default: str | None = None) -> None:
+    """``--out DIR``, the folder a command writes (required unless it has a `default`), and with
+    `force` ``--force``, which a command checks with :func:`~frontiernet.io.check_output_folder`."""
+    parser.add_argument("--out", metavar="DIR", required=default is None, default=default,
+                        help="output folder" + (f" (default {default})" if default else ""))
+    if force:
+        parser.add_argument("--force", action="store_true",
+                            help="write over earlier outputs in --out (refused without it)")
+
+
+def output_file(parser, what: str = "output file") -> None:
+    """``--out FILE`` (required; `what` is its help) and ``--force``, which a command checks with
+    :func:`~frontiernet.io.check_output_file`."""
+    parser.add_argument("--out", metavar="FILE", required=True, help=what)
+    parser.add_argument("--force", action="store_true", help="replace --out if it exists (refused without it)")
+
+
+def json_only(parser) -> None:
+    """``--json``: print the result as one JSON object instead of the report."""
+    parser.add_argument("--json", action="store_true", help="print JSON only")
+
+
+def json_file(parser, what: str) -> None:
+    """``--json FILE``: also write the result (`what`, e.g. ``the metrics``) as JSON there."""
+    parser.add_argument("--json", metavar="FILE", help=f"also write {what} as JSON")
+
+
+def no_progress(parser) -> None:
+    """``--no-progress``: no progress bar (logs, batch jobs)."""
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def model_file(parser) -> None:
+    """``MODEL``: the torch model a command reads (positional, required)."""
+    parser.add_argument("model", metavar="MODEL", help=MODEL_FILE_HELP)
+
+
+def model_option(parser, *, exports: bool = True, what: str = "model file") -> None:
+    """``--model``: the FrontierNet model to run (default: the shipped one); with `exports` the
+    exported files of ``frontiernet export`` too. `what` names it (``model file of the learned
+    methods``)."""
+    files = ".safetensors, .ckpt, .onnx, .pt" if exports else ".safetensors, .ckpt"
+    parser.add_argument("--model", help=f"{what} ({files}; default: the shipped model)")
+
+
+def scene_world(parser, uses: str) -> None:
+    """``SPEC`` (``args.spec``) and ``--config FILE``: the scene a command builds with
+    :func:`~frontiernet.simulator.world.build_world`, and a YAML file over the config it reads
+    (:func:`~frontiernet.simulator.world.load_world_config`: sim.yaml, and scenes.yaml as section
+    ``scenes``); `uses` says which of sim.yaml's settings the command uses (``camera, voxels``)."""
+    parser.add_argument("spec", metavar="SPEC", help=SCENE_HELP)
+    config_file(parser, f"configs/sim.yaml ({uses}), and scenes.yaml under section scenes:")
+
+
+def scene_specs(parser, *, required: bool = False) -> None:
+    """``--scenes SPEC ...``: many scenes (:func:`~frontiernet.scenes.spec.expand_specs` expands them)."""
+    parser.add_argument("--scenes", nargs="+", required=required, metavar="SPEC",
+                        help="scene specs: files, hm3d:/floorplan: folders, procedural:SEED, seed ranges "
+                             "procedural:0-199, quoted globs, folders of scene folders")
+
+
+def benchmark_scene(parser) -> None:
+    """``--scene``: the scene a hot-path benchmark times (:func:`~frontiernet.benchmark.perf.default_bench_scene`)."""
+    parser.add_argument("--scene", default=None,
+                        help="scene spec (default: perf.scene of configs/bench.yaml, the shared house next to "
+                             "the checkout, when present; else perf.fallback_scene)")
+
+
+def parallel(parser) -> None:
+    """``--workers W --backend local|ray``: how a command runs its tasks
+    (:func:`~frontiernet.workers.run_parallel`, which checks both with
+    :func:`~frontiernet.workers.check_backend` before anything is written)."""
+    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes or Ray tasks (default 1)")
+    parser.add_argument("--backend", default="local",
+                        help="local (processes, the default) or ray (Ray tasks; set RAY_ADDRESS to use a cluster)")
+
+
+def max_steps(parser, config: str) -> None:
+    """``--max-steps``: an exploration's step budget, by default ``run.max_steps`` of `config`."""
+    parser.add_argument("--max-steps", type=int, help=f"step budget (default: {config} run.max_steps)")
