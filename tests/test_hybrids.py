@@ -15,8 +15,7 @@ from frontiernet.exploration.ablations import GainFrom
 from frontiernet.exploration.methods import ImageSource, MethodContext, make_method, method_names
 from frontiernet.exploration.perception import ModelPerception
 from frontiernet.geometry import pose_from_heading
-from frontiernet.model import FrontierNet, NetworkConfig, open_runtime, save_model
-from frontiernet.model.inputs import resize_and_crop
+from frontiernet.model import FrontierNet, NetworkConfig, open_runtime, resize_and_crop, save_model
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
 SIZE = 96  # the frame's size (pixels); the tiny model works at 64 px

@@ -110,7 +110,7 @@ def plain_view(frame, depth: np.ndarray, size: int | None = None, labels: dict |
     if size is None:
         rgb, depth, K = frame.rgb, np.asarray(depth, np.float32), frame.K
     else:
-        from ..model.inputs import resize_and_crop
+        from ..model import resize_and_crop
 
         rgb, depth, K = resize_and_crop(frame.rgb, depth, frame.K, int(size))
     return PerceptionResult(rgb, depth, K, np.full(depth.shape, float(labels["truncation_px"]), np.float32),

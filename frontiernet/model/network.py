@@ -121,10 +121,10 @@ class FrontierNet(nn.Module):
     """UNet with a torchvision encoder, a shared decoder and two heads.
 
     ``forward(x)`` takes the normalised input (B, C, H, W) float32 (see
-    :func:`frontiernet.model.inputs.network_input`) and returns
+    :func:`frontiernet.model.predictor.network_input`) and returns
 
     - ``distance``: (B, 1, H, W) float32, the normalised distance field y >= 0
-      (``D = r * exp(-y)`` pixels, :func:`frontiernet.model.inputs.decode_distance`);
+      (``D = r * exp(-y)`` pixels, :func:`frontiernet.model.predictor.decode_distance`);
     - ``gain_logits``: (B, K, H, W) float32 logits of the gain classes.
     """
 
