@@ -30,9 +30,9 @@ import cv2
 import numpy as np
 import torch
 
-from .checkpoint import load_model
 from ..errors import InputError
 from ..registry import Registry
+from .network import load_model
 
 
 RANGE_TOLERANCE_M = 1e-3
