@@ -18,7 +18,7 @@ import torch
 from frontiernet.errors import InputError, positive_number
 from frontiernet.io import atomic_write, check_output_file
 from frontiernet.model import load_model, save_model
-from frontiernet.model.checkpoint import CONFIG_KEY
+from frontiernet.model.network import CONFIG_KEY
 
 FORMATS = ("onnx", "torchscript", "safetensors")
 TORCHSCRIPT_EXTRA = "frontiernet_model.json"

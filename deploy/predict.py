@@ -17,7 +17,7 @@ from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.geometry import intrinsics_matrix
 from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
-from frontiernet.model.inputs import beyond_range_invalid, fill_invalid_nearest
+from frontiernet.model.predictor import beyond_range_invalid, fill_invalid_nearest
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 from frontiernet.sequences.images import read_depth, read_rgb
 from frontiernet.sequences.single import LEVEL_FRAME, frame_frontiers
@@ -35,7 +35,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         depth_scale, depth_encoding: how the depth file is decoded
             (:func:`frontiernet.sequences.read_depth`).
         fill_invalid: fill the depth's holes from the nearest valid pixel (real sensors; see
-            :func:`frontiernet.model.inputs.fill_invalid_nearest`). Off for rendered depth, whose 0
+            :func:`frontiernet.model.predictor.fill_invalid_nearest`). Off for rendered depth, whose 0
             means beyond range.
         intrinsics: (fx, fy, cx, cy) pixels of the image: also anchor the frontier pixels to 3D
             frontiers and write ``frontiers.json`` (:mod:`frontiernet.sequences.single`; needs depth).

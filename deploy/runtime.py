@@ -20,7 +20,7 @@ import torch
 
 from frontiernet.errors import InputError
 from frontiernet.model import Runtime, open_runtime
-from frontiernet.model.checkpoint import CONFIG_KEY
+from frontiernet.model.network import CONFIG_KEY
 from frontiernet.model.predictor import torch_threads
 
 from .export import TORCHSCRIPT_EXTRA

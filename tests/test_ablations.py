@@ -20,8 +20,8 @@ from frontiernet.exploration.ablations import (
     UniformGain,
     model_labels,
 )
-from frontiernet.exploration.methods import METHODS, MethodContext, make_method
-from frontiernet.exploration.perception import ModelPerception, Perception, PerceptionResult
+from frontiernet.exploration.methods import METHODS, MethodContext, ModelPerception, make_method
+from frontiernet.exploration.perception import Perception, PerceptionResult
 from frontiernet.frontiers.discontinuity import discontinuity_mask, distance_field
 from frontiernet.model import FrontierNet, NetworkConfig, save_model
 

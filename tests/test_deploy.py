@@ -188,13 +188,13 @@ def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_pat
 def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypatch, capsys, one_line_error):
     """--image alone takes the shipped RGB-only model (the public demo's single-image inference),
     --image with --depth the RGB + depth one; a missing shipped file is one line naming it."""
-    import frontiernet.model.checkpoint as checkpoint
+    import frontiernet.model.network as network
 
     weights = tmp_path / "weights"
     weights.mkdir()
     torch.manual_seed(0)
     small = dict(decoder_channels=(32, 16, 16, 8, 8), head_channels=8)
-    save_model(weights / checkpoint.SHIPPED_MODELS["rgbd"], FrontierNet(NetworkConfig(**small)).eval(), MODEL_CONF)
+    save_model(weights / network.SHIPPED_MODELS["rgbd"], FrontierNet(NetworkConfig(**small)).eval(), MODEL_CONF)
 
     class Files:  # importlib.resources.files("frontiernet") with the weights folder in tmp_path
         def __init__(self, root):
@@ -203,7 +203,7 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
         def joinpath(self, *parts):
             return self.root.joinpath(*parts[1:]) if parts[0] == "weights" else self.root.joinpath(*parts)
 
-    monkeypatch.setattr(checkpoint.resources, "files", lambda package: Files(weights))
+    monkeypatch.setattr(network.resources, "files", lambda package: Files(weights))
     rgb = tmp_path / "photo.png"
     cv2.imwrite(str(rgb), np.full((60, 80, 3), 128, np.uint8))
     depth = tmp_path / "depth.npy"
@@ -211,7 +211,7 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
     assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "a")]) == 2
     assert "frontiernet_rgb_mobilenet_v3_large.safetensors: no shipped model takes an RGB image alone" in one_line_error()
     assert main(["predict", "--image", str(rgb), "--depth", str(depth), "--out", str(tmp_path / "b")]) == 0
-    save_model(weights / checkpoint.SHIPPED_MODELS["rgb"],
+    save_model(weights / network.SHIPPED_MODELS["rgb"],
                FrontierNet(NetworkConfig(inputs="rgb", **small)).eval(), MODEL_CONF)
     capsys.readouterr()
     assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "c")]) == 0

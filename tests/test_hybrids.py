@@ -12,11 +12,9 @@ from datagen.oracle import OraclePerception
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.exploration.ablations import GainFrom
-from frontiernet.exploration.methods import ImageSource, MethodContext, make_method, method_names
-from frontiernet.exploration.perception import ModelPerception
+from frontiernet.exploration.methods import ImageSource, MethodContext, ModelPerception, make_method, method_names
 from frontiernet.geometry import pose_from_heading
-from frontiernet.model import FrontierNet, NetworkConfig, open_runtime, save_model
-from frontiernet.model.inputs import resize_and_crop
+from frontiernet.model import FrontierNet, NetworkConfig, open_runtime, resize_and_crop, save_model
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
 SIZE = 96  # the frame's size (pixels); the tiny model works at 64 px

@@ -186,7 +186,7 @@ def test_predict_with_intrinsics_writes_3d_frontiers_of_a_real_frame(shared_data
 
 
 def test_holes_in_real_depth_are_filled_from_the_nearest_valid_pixel():
-    from frontiernet.model.inputs import fill_invalid_nearest
+    from frontiernet.model.predictor import fill_invalid_nearest
 
     depth = np.full((6, 8), 2.0, np.float32)
     depth[:, 4:] = 3.0

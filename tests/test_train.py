@@ -354,7 +354,7 @@ def test_a_model_and_a_dataset_of_other_gain_definitions_are_refused(tiny_datase
     assert main(args + ["name=b", "init_weights=default"]) == 2  # the shipped model: made before, unobserved/blend
     assert "init_weights: default was trained on gain definition unobserved/blend" in one_line_error()
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists() and not (other / "cache").exists()
-    from frontiernet.model.checkpoint import default_model_path
+    from frontiernet.model import default_model_path
 
     assert main(["evaluate", str(default_model_path()), "--data", str(other), "--all", "--max-samples", "2"]) == 2
     assert "holds gain labels of definition occluded/blend" in one_line_error()

@@ -83,7 +83,7 @@ class GainFrom(Perception):
     """The base perception's frontier pixels with another perception's gain classes.
 
     The gain source's class image is brought to the base's working size the way the model's
-    input is (:func:`~frontiernet.model.inputs.resize_and_crop`: short side to the size, centre
+    input is (:func:`~frontiernet.model.predictor.resize_and_crop`: short side to the size, centre
     crop, nearest neighbour) when its shape differs, e.g. the oracle's 480 px labels under the
     model's 320 px field. The labels keep the base's distance-field encoding (``truncation_px``,
     ``frontier_threshold_px``) and take the gain source's class encoding (``bin_edges``,
@@ -105,7 +105,7 @@ class GainFrom(Perception):
         classes, logits = gain.gain_class, gain.gain_logits  # (h', w') uint8, (K, h', w') or None
         if classes.shape != seen.gain_class.shape:
             logits = None  # not resampled: ``gain_decoding: expected`` decodes these classes to midpoints
-            from ..model.inputs import resize_and_crop
+            from ..model import resize_and_crop
 
             height, width = seen.gain_class.shape
             if height != width:

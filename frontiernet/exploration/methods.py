@@ -48,7 +48,7 @@ import numpy as np
 from ..errors import InputError
 from ..registry import Registry
 from .ablations import discontinuity_frontiers, uniform_gain
-from .perception import ModelPerception, Perception, PerceptionResult, plain_view
+from .perception import Perception, PerceptionResult, plain_view
 from .vacuum import VacuumMoves
 
 GOAL_RULES = ("utility", "nearest", "random", "vacuum")
@@ -200,6 +200,27 @@ def image_method(name: str, perception: Perception, context: MethodContext, uses
     return Method(name, ImageSource(perception, context.conf.anchoring, context.rng), uses_model=uses_model)
 
 
+class ModelPerception(Perception):
+    """FrontierNet on each frame through a runtime (:class:`~frontiernet.model.Runtime`).
+
+    Args:
+        runtime: anything with ``conf``, ``labels`` and ``predict_frame`` (torch Predictor, ONNX,
+            TorchScript).
+        size: working size (None: the model's ``inference.size``).
+    """
+
+    name = "frontiernet"
+
+    def __init__(self, runtime, size: int | None = None) -> None:
+        self.runtime = runtime
+        self.size = int(size or runtime.conf["inference"]["size"])
+
+    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
+        result, K = self.runtime.predict_frame(frame.rgb, depth, frame.K, size=self.size)
+        return PerceptionResult(result["rgb"], result["depth"], K, result["distance_field"], result["gain_class"],
+                                dict(self.runtime.labels), result["gain_logits"])
+
+
 def model_perception(context: MethodContext) -> ModelPerception:
     """FrontierNet on each frame, from the context's model file (None: the shipped model)."""
     from ..model import open_runtime
@@ -280,5 +301,5 @@ def make_method(name: str, context: MethodContext) -> Method:
 
 
 __all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "MethodContext", "METHODS", "make_method",
-           "method_names", "image_method", "model_perception", "GOAL_RULES", "DRAW_FREE_METHODS",
+           "method_names", "image_method", "ModelPerception", "model_perception", "GOAL_RULES", "DRAW_FREE_METHODS",
            "repeats_identically"]

@@ -1,18 +1,23 @@
-"""Frontier perception: one camera frame -> per-pixel frontier mask and gain.
+"""Frontier perception, the interface: one camera frame -> per-pixel frontier mask and gain.
 
-The explorer calls a :class:`Perception` with the rendered :class:`~frontiernet.simulator.camera.Frame`
-and the depth the robot has (from a depth source); it returns a :class:`PerceptionResult`
-at the perception's working size, which anchoring lifts to 3D frontiers.
+An image method's source (:class:`~frontiernet.exploration.methods.ImageSource`) calls a
+:class:`Perception` with the rendered :class:`~frontiernet.simulator.camera.Frame` and the depth
+the robot has (from a depth source); it returns a :class:`PerceptionResult` at the perception's
+working size, which anchoring lifts to 3D frontiers. Each perception lives with the methods that
+use it:
 
-* :class:`ModelPerception` runs a FrontierNet model (any runtime: torch, ONNX, TorchScript)
-  at its inference size (320 px, the public demo's resize + centre crop, intrinsics adjusted).
+* :class:`~frontiernet.exploration.methods.ModelPerception` (:mod:`.methods`, with ``frontiernet``):
+  a FrontierNet model (any runtime: torch, ONNX, TorchScript) at its inference size (320 px, the
+  public demo's resize + centre crop, intrinsics adjusted).
 * :mod:`.ablations`: the stand-ins of the paper's Fig. 9 ablations (uniform gain,
   depth-discontinuity frontiers) and the hybrids' :class:`~.ablations.GainFrom`, wrapping a base.
 * ``datagen``'s :class:`~datagen.oracle.OraclePerception`: ground-truth frontiers in place of the
   network, the upper bound the issue asks to report.
 
 A perception is part of an image method (:func:`~frontiernet.exploration.methods.image_method`);
-methods, not perceptions, are what is registered and named on the command line.
+methods, not perceptions, are what is registered and named on the command line. This module
+holds what they all share: the result type, the base class and the plain camera view
+(:func:`plain_view`) that methods without image frontiers show.
 """
 
 from __future__ import annotations
@@ -60,27 +65,6 @@ class Perception:
         raise NotImplementedError
 
 
-class ModelPerception(Perception):
-    """FrontierNet on each frame through a runtime (:class:`~frontiernet.model.Runtime`).
-
-    Args:
-        runtime: anything with ``conf``, ``labels`` and ``predict_frame`` (torch Predictor, ONNX,
-            TorchScript).
-        size: working size (None: the model's ``inference.size``).
-    """
-
-    name = "frontiernet"
-
-    def __init__(self, runtime, size: int | None = None) -> None:
-        self.runtime = runtime
-        self.size = int(size or runtime.conf["inference"]["size"])
-
-    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
-        result, K = self.runtime.predict_frame(frame.rgb, depth, frame.K, size=self.size)
-        return PerceptionResult(result["rgb"], result["depth"], K, result["distance_field"], result["gain_class"],
-                                dict(self.runtime.labels), result["gain_logits"])
-
-
 @functools.lru_cache(maxsize=1)
 def _model_labels() -> tuple:
     from omegaconf import OmegaConf
@@ -110,11 +94,11 @@ def plain_view(frame, depth: np.ndarray, size: int | None = None, labels: dict |
     if size is None:
         rgb, depth, K = frame.rgb, np.asarray(depth, np.float32), frame.K
     else:
-        from ..model.inputs import resize_and_crop
+        from ..model import resize_and_crop
 
         rgb, depth, K = resize_and_crop(frame.rgb, depth, frame.K, int(size))
     return PerceptionResult(rgb, depth, K, np.full(depth.shape, float(labels["truncation_px"]), np.float32),
                             np.zeros(depth.shape, np.uint8), labels)
 
 
-__all__ = ["ModelPerception", "Perception", "PerceptionResult", "model_labels", "plain_view"]
+__all__ = ["Perception", "PerceptionResult", "model_labels", "plain_view"]

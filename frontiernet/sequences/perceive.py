@@ -76,7 +76,7 @@ def perceive_frame(frame, runtime, depth_source, conf) -> dict:
     ``conf.crop``, centre-cropped to a square as the public demo does (without: the network sees
     the whole frame). With ``conf.fill_invalid_depth`` the network's depth has its holes filled
     from the nearest valid pixel first (the map keeps them as no return)."""
-    from ..model.inputs import beyond_range_invalid, fill_invalid_nearest
+    from ..model.predictor import beyond_range_invalid, fill_invalid_nearest
 
     rgb = frame.rgb()
     depth = frame_depth(frame, rgb, depth_source)
