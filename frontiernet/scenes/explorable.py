@@ -271,3 +271,45 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
     explorable = labels == chosen if chosen > 0 else np.zeros(occupied.shape, bool)
     return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=navigable & explorable,
                           seed=seed_index)
+
+
+EXPLORABLE_RULES = ("reachable", "enclosed")
+"""Values of ``sim.voxels.explorable``: the ``reachable`` rule (:func:`reachable_space`), or the
+per-slice flood rule ``enclosed`` (:func:`enclosed_free`, the published benchmark's)."""
+
+
+def largest_component(mask: np.ndarray) -> np.ndarray:
+    """The largest 6-connected (face-connected) component of a 3D bool mask (all False if empty)."""
+    labels, count = ndimage.label(mask)
+    if count == 0:
+        return np.zeros_like(mask, bool)
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    return labels == int(np.argmax(sizes))
+
+
+def explorable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float, conf, *,
+                     seed: np.ndarray | None = None, box=None, where: str = "scene") -> ReachableSpace:
+    """The explorable space of a voxel grid under the rule ``conf.explorable`` (one of
+    :data:`EXPLORABLE_RULES`, checked by the caller before the grid is built).
+
+    Args: as :func:`reachable_space`; `conf` is the ``voxels`` section of configs/sim.yaml.
+    Returns:
+        ``reachable``: :func:`reachable_space`'s answer. ``enclosed``: every free voxel that a
+        flood from the grid's border cannot reach through gaps narrower than ``gap_closing_m``,
+        per horizontal slice (`enclosed`), its largest face-connected component when
+        ``keep_largest_component`` (`explorable`), no navigable floor computed (`navigable` all
+        False) and no seed.
+    Raises:
+        InputError: as :func:`reachable_space`; a seed or box under the ``enclosed`` rule.
+    """
+    if conf.explorable == "reachable":
+        return reachable_space(occupied, origin, voxel_size, conf, seed=seed, box=box, where=where)
+    if seed is not None or box is not None:
+        raise InputError(f"{where}: the options seed= and bounds= need voxels.explorable: reachable "
+                         "(this run uses enclosed)")
+    gap = positive_number(conf.gap_closing_m, "voxels.gap_closing_m", "metres", allow_zero=True)
+    enclosed = enclosed_free(~occupied, voxel_size, gap)
+    explorable = largest_component(enclosed) if bool(conf.keep_largest_component) else enclosed
+    return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=np.zeros(occupied.shape, bool),
+                          seed=None)

@@ -41,7 +41,7 @@ from scipy import ndimage
 
 from ..errors import InputError, positive_number
 from ..scenes import Scene
-from ..scenes.explorable import enclosed_free, reachable_space
+from ..scenes.explorable import EXPLORABLE_RULES, explorable_space
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -154,9 +154,6 @@ class VoxelGrid:
         return self.index_to_world(np.argwhere(self.explorable))
 
 
-EXPLORABLE_RULES = ("reachable", "enclosed")
-"""Values of ``sim.voxels.explorable``: :mod:`.explorable`'s rule, or the per-slice flood rule
-(module docstring) that the published benchmark used."""
 
 
 def voxels_config(conf: "DictConfig") -> "DictConfig":
@@ -184,7 +181,6 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
     """
     conf = voxels_config(conf)
     size = _positive(conf, "voxel_size")
-    gap = _positive(conf, "gap_closing_m", allow_zero=True)
     margin = _positive(conf, "lateral_margin_m", allow_zero=True)
     bounds = scene.bounds
     origin = bounds[0] - np.array([margin, margin, 0.0])
@@ -200,16 +196,9 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
     occupied = surface_voxels(scene.vertices, scene.triangles, origin, size, tuple(shape.tolist()),
                               chunk=int(conf.chunk_candidates))
     meta = scene.metadata
-    if rule == "reachable":
-        space = reachable_space(occupied, origin, size, conf, seed=meta.explorable_seed,
-                                box=meta.explorable_bounds, where=meta.spec)
-        interior, explorable, seed = space.enclosed, space.explorable, space.seed
-    else:
-        if meta.explorable_seed is not None or meta.explorable_bounds is not None:
-            raise InputError(f"{meta.spec}: the options seed= and bounds= need voxels.explorable: reachable "
-                             "(this run uses enclosed)")
-        interior, seed = enclosed_free(~occupied, size, gap), None
-        explorable = largest_component(interior) if bool(conf.keep_largest_component) else interior
+    space = explorable_space(occupied, origin, size, conf, seed=meta.explorable_seed, box=meta.explorable_bounds,
+                             where=meta.spec)
+    interior, explorable, seed = space.enclosed, space.explorable, space.seed
     if not explorable.any():
         raise InputError(f"{meta.spec}: the scene has no explorable free space at voxel size "
                          f"{size} m (rule {rule}: no {'building envelope' if rule == 'reachable' else 'enclosed interior'})")
@@ -312,15 +301,3 @@ def surface_voxels(vertices: np.ndarray, triangles: np.ndarray, origin: np.ndarr
         occupied[cols[0], cols[1], cols[2]] = True
     return occupied
 
-
-# ----------------------------------------------------------------------------- interior
-
-
-def largest_component(mask: np.ndarray) -> np.ndarray:
-    """The largest 6-connected (face-connected) component of a 3D bool mask (all False if empty)."""
-    labels, count = ndimage.label(mask)
-    if count == 0:
-        return np.zeros_like(mask, bool)
-    sizes = np.bincount(labels.ravel())
-    sizes[0] = 0
-    return labels == int(np.argmax(sizes))
