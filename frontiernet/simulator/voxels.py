@@ -17,8 +17,8 @@ Three classes of voxels:
 Which free voxels are explorable is ``voxels.explorable`` in configs/sim.yaml: ``reachable``
 follows what the robot can reach and see (the building's envelope seen from above, the
 free-space component with the most navigable floor or the scene spec's ``?seed=``, cut by its
-``?bounds=``: :mod:`.explorable`); ``enclosed``, the rule the published benchmark used, is
-described here.
+``?bounds=``); ``enclosed``, the rule the published benchmark used, is described here. Both
+are :mod:`frontiernet.scenes.explorable`'s (:func:`~frontiernet.scenes.explorable.explorable_space`).
 
 Under ``enclosed`` the interior is found per horizontal slice, so scenes without a ceiling (the shared
 house) and buildings with open doors to the outside still give a sensible volume: a
