@@ -61,12 +61,12 @@ def test_an_unseen_wall_end_beside_a_move_is_looked_at_before_the_move(pillar):
     T, target = explorer.agent.pose, north_west_target(explorer)
     # the target itself is mapped free and no occupied voxel is near: the old check let it pass
     assert explorer.map.state_at(target[None, :3, 3])[0] == FREE
-    assert not explorer.map.cylinder_touches_occupied(target[:2, 3], explorer.body_radius, *explorer._band())
-    verdict, look_xy = explorer._check_move(T, target)
+    assert not explorer.map.cylinder_touches_occupied(target[:2, 3], explorer.body_radius, *explorer.move_check.band)
+    verdict, look_xy = explorer.move_check(T, target)
     assert verdict == "look"
     assert look_xy[0] < ROBOT[0] - 0.1  # the unknown voxel to face lies to the west, where the pillar may be
     turn(explorer, float(np.arctan2(look_xy[1] - ROBOT[1], look_xy[0] - ROBOT[0])))
-    verdict, _ = explorer._check_move(explorer.agent.pose, target)
+    verdict, _ = explorer.move_check(explorer.agent.pose, target)
     # once seen: the pillar blocks the move; without it the move is allowed
     assert verdict == ("fail" if pillar else "ok")
     if pillar:  # and the move would have collided in the simulator
@@ -76,13 +76,13 @@ def test_an_unseen_wall_end_beside_a_move_is_looked_at_before_the_move(pillar):
 def test_an_unknown_voxel_still_unknown_once_faced_is_passed_not_failed(monkeypatch):
     explorer = explorer_facing_away_from_the_west(False)
     T, target = explorer.agent.pose, north_west_target(explorer)
-    verdict, look_xy = explorer._check_move(T, target)
+    verdict, look_xy = explorer.move_check(T, target)
     assert verdict == "look"
     # the camera faces the voxel, yet the map learns nothing (as between rays, or hidden)
-    monkeypatch.setattr(explorer, "_looked_at", lambda T, xy: True)
-    verdict, _ = explorer._check_move(T, target)
+    monkeypatch.setattr("frontiernet.exploration.move_check.looked_at", lambda T, xy: True)
+    verdict, _ = explorer.move_check(T, target)
     assert verdict == "ok"  # the move check of the published run failed the route here
-    assert any(np.allclose(xy, look_xy) for xy in explorer.faced_unknown)
+    assert any(np.allclose(xy, look_xy) for xy in explorer.move_check.faced_unknown)
     assert explorer.map.state_at(np.array([[*look_xy, ROBOT[2]]]))[0] == UNKNOWN
 
 
@@ -100,7 +100,7 @@ def test_a_held_look_ends_once_the_voxel_is_mapped():
     T_west = pose_from_heading(x, y, ROBOT[2], yaw=np.pi)
     frame = explorer.renderer.render(T_west)
     explorer.map.integrate(frame.depth, frame.K, T_west)
-    assert not explorer._unknown(explorer.look_xy)
+    assert not explorer.move_check.unknown(explorer.look_xy)
     second = explorer.next_pose()
     assert not np.allclose(second[:2, 3], [x, y])  # the route goes on: no turning to a mapped voxel
 

@@ -11,7 +11,8 @@ check. It stops when the step budget is spent or no frontier is left after looki
 
 Coverage, the metric, is measured against the scene's ground truth: the fraction of the
 explorable voxels that the camera has observed (rays of the rendered ground-truth depth),
-whatever depth the robot itself uses.
+whatever depth the robot itself uses (:mod:`.score`). Each increment passes the robot's move
+check first (:mod:`.move_check`).
 """
 
 from __future__ import annotations
@@ -23,16 +24,15 @@ import numpy as np
 
 from ..errors import InputError, whole_number
 from ..frontiers import FrontierTracker
-from ..mapping import UNKNOWN, OccupancyMap
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
 from .methods import Method
-from .motion import Motion, wrap_angle, yaw_of
+from .motion import Motion, yaw_of
+from .move_check import MoveCheck, body_radius, looked_at
 from .perception import plain_view
-from .surface import SurfaceCoverage
+from .score import GroundTruthScore
 
-_ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
 STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion", "coverage")
 SIMULATOR_STAGES = ("motion", "coverage")
 """Timed stages of a step. ``motion`` (the simulator's collision check) and ``coverage`` (the
@@ -97,18 +97,11 @@ class Explorer:
             raise InputError(f"planner.mode must be 'map' or 'map_free', got {conf.planner.mode!r}")
         self.agent = Agent(scene, T_start, context.sim_conf.agent, voxels)
         # moves are checked with the largest body that planned routes keep clear of occupied voxels
-        margin = float(conf.map.voxel_size) / np.sqrt(2.0) + _ROUTE_SLACK_M  # half a voxel's diagonal + slack
-        self.body_radius = float(conf.planner.clearance_m) - margin
-        if self.body_radius < self.agent.radius:
-            raise InputError(f"planner.clearance_m = {conf.planner.clearance_m} is too small for the agent radius "
-                             f"{self.agent.radius} m: it must be at least {self.agent.radius + margin:.3f} m (radius + "
-                             f"half a voxel's diagonal + {_ROUTE_SLACK_M} m)")
+        self.body_radius = body_radius(conf.planner, float(conf.map.voxel_size), self.agent.radius)
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = context.map
-        self.coverage_map = OccupancyMap.like(voxels, conf.map)  # ground-truth rays only: the metric
-        self.surface = SurfaceCoverage(scene, conf, int(conf.surface.seed), voxels=voxels)  # GLEAM's metrics
-        self.surface_seen = np.zeros(self.surface.num_samples, bool)  # once seen, a surface point stays seen
-        self.surface_coverage = 0.0
+        self.move_check = MoveCheck(self.map, self.motion, conf.planner, self.body_radius)
+        self.score = GroundTruthScore(scene, voxels, conf)  # the metrics; the robot never reads them
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
         self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed),
                                        body_radius_m=self.body_radius)
@@ -120,7 +113,6 @@ class Explorer:
         self.retreat_index = None  # while boxed in on the planning grid: the trajectory index stepped back to
         self.waypoint = 0
         self.look_xy = None  # (2,) world point the move check asked to face: turned to until faced or mapped
-        self.faced_unknown: list[np.ndarray] = []  # (2,) xy of camera-layer voxels faced and still unknown
         self.steps_since_plan = 0
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
         self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
@@ -150,13 +142,8 @@ class Explorer:
         else:  # between an image method's observations: the map and the bookkeeping go on
             observations, seen = [], plain_view(frame, depth)
         self._timed("tracking", self._track, observations, T)
-        self._timed("coverage", self.coverage_map.integrate, frame.depth, frame.K, T)
-        self._timed("coverage", self._cover_surface)
+        self._timed("coverage", self.score.observe, frame.depth, frame.K, T)
         return frame, seen
-
-    def _cover_surface(self) -> None:
-        self.surface_seen |= self.surface.covered_mask(self.coverage_map)
-        self.surface_coverage = float(self.surface_seen.mean()) if len(self.surface_seen) else 0.0
 
     def _integrate(self, depth, frame, T) -> None:
         self.map.integrate(depth, frame.K, T, monocular=self.depth_source.flying_pixels)
@@ -240,7 +227,7 @@ class Explorer:
         <frontiernet.exploration.methods.Method.moves>`), else along the route (None: nothing to do)."""
         T = self.agent.pose
         if self.method.moves is not None:
-            return self.method.moves.next_pose(T, self.motion, self._check_move)
+            return self.method.moves.next_pose(T, self.motion, self.move_check)
         if self.backoff is not None:
             target, self.backoff = self.backoff, None
             return self.motion.towards(T, target)
@@ -253,19 +240,19 @@ class Explorer:
         while self.waypoint < len(waypoints) and self.motion.reached(T[:2, 3], waypoints[self.waypoint]):
             self.waypoint += 1
         if self.waypoint < len(waypoints):
-            if self.waypoint >= self.route.mapped_until and not self.map_free and self._blocked(waypoints[self.waypoint]):
+            if self.waypoint >= self.route.mapped_until and not self.map_free and self.move_check.blocked(waypoints[self.waypoint]):
                 self._route_failed()  # the frontier-tree edge runs into a mapped obstacle
                 return None
-            if self.look_xy is not None and not self._looked_at(T, self.look_xy) and self._unknown(self.look_xy):
-                return self._face(T, self.look_xy)  # keep turning until faced or mapped, then check again
+            if self.look_xy is not None and not looked_at(T, self.look_xy) and self.move_check.unknown(self.look_xy):
+                return self.move_check.face(T, self.look_xy)  # keep turning until faced or mapped, then check again
             self.look_xy = None
             target = self.motion.towards(T, waypoints[self.waypoint])
-            verdict, look_xy = self._check_move(T, target)
+            verdict, look_xy = self.move_check(T, target)
             if verdict == "look":  # unknown ahead or beside: face it first, so the camera maps it
                 # held over the next increments: turning back towards the waypoint in between
                 # (a point more than one increment's turn off) would undo each turn, forever
                 self.look_xy = look_xy
-                return self._face(T, look_xy)
+                return self.move_check.face(T, look_xy)
             if verdict == "fail":
                 self._route_failed()
                 return None
@@ -290,80 +277,6 @@ class Explorer:
         self.start_turn_left -= turn
         self.look_around_left -= turn  # it is a look around: no second one if it finds no frontier
         return self.motion.turn_by(self.agent.pose, turn)
-
-    def _check_move(self, T: np.ndarray, target: np.ndarray) -> tuple[str, np.ndarray | None]:
-        """Whether the map allows the increment to `target` ((4, 4) poses, world frame), with the
-        world point ((2,) xy, metres) to face first when it says ``look``:
-
-        - ``ok``: a turn, or a move into known free space where an upright cylinder of
-          `body_radius` over the planning band (the planning grid's view of the body) touches no
-          occupied voxel and, at the camera's height, no unknown one;
-        - ``look``: the target, or an unknown voxel at the camera's height within the body, has
-          not been faced yet (the camera maps it when it turns there);
-        - ``fail``: occupied, or the target itself still unknown once faced.
-
-        An unknown voxel beside the target that is still unknown once faced is passed and
-        remembered (:attr:`faced_unknown`): the camera cannot map it from here, and facing it
-        again would not either. The explorer holds a look over the next increments
-        (:attr:`look_xy`) until the point is faced or mapped: turning back towards the waypoint
-        in between undid each turn, forever (a livelock, docs/benchmark.md).
-
-        `body_radius` is ``planner.clearance_m`` (kept between route cell centres and occupied
-        voxel centres) less a voxel's half diagonal and a slack for route points between cell
-        centres: a fresh route passes the occupied test on the map it was planned on, and the
-        body checked is at least the agent's. The unknown test keeps the body off wall ends the
-        camera never saw, which a move along a frontier-tree edge beyond the mapped space may pass
-        close beside (the published benchmark's one collision, docs/benchmark.md).
-        It looks at the camera's layer only: a voxel there within reach of the body is in the
-        middle of the image once faced, whereas the band's lowest and highest layers lie below
-        and above the field of view that close."""
-        from ..mapping import FREE
-
-        if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
-            return "ok", None
-        xy = target[:2, 3]
-        if self.map.cylinder_touches_occupied(xy, self.body_radius, *self._band()):
-            return "fail", None
-        if self.map.state_at(target[None, :3, 3])[0] != FREE:
-            return ("fail" if self._looked_at(T, xy) else "look"), xy
-        while True:
-            unknown_xy = self.map.nearest_unknown_in_disk(xy, self.body_radius, self.motion.z,
-                                                          exclude=self.faced_unknown)
-            if unknown_xy is None:
-                return "ok", None
-            if not self._looked_at(T, unknown_xy):
-                return "look", unknown_xy
-            # faced and still unknown: the camera cannot map it (between its rays, or hidden), so
-            # facing it again would not either; it no longer holds the body back (the occupied test
-            # still does, should it be mapped occupied later)
-            self.faced_unknown.append(unknown_xy)
-
-    def _unknown(self, xy: np.ndarray) -> bool:
-        """Whether the map's voxel at world point `xy` ((2,) metres) at the camera's height is unknown."""
-        return self.map.state_at(np.array([[xy[0], xy[1], self.motion.z]]))[0] == UNKNOWN
-
-    def _face(self, T: np.ndarray, xy: np.ndarray) -> np.ndarray:
-        """The next pose turning on the spot towards world point `xy` (2,)."""
-        offset = np.asarray(xy, np.float64) - T[:2, 3]
-        return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
-
-    def _looked_at(self, T: np.ndarray, xy: np.ndarray) -> bool:
-        """Whether the camera at `T` faces world point `xy` ((2,) metres; within a quarter of the
-        field of view)."""
-        offset = np.asarray(xy, np.float64) - T[:2, 3]
-        return abs(wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw_of(T))) < np.radians(20.0)
-
-    def _blocked(self, xy: np.ndarray) -> bool:
-        """Whether the map has an occupied voxel in the planning band (``planner.height_band_m``
-        around the camera) over world point `xy` (2,): the planning grid's obstacle test, so the
-        robot never walks (along a tree edge) onto cells it cannot plan from, such as a counter
-        top below its body."""
-        return self.map.cylinder_touches_occupied(xy, 1e-6, *self._band())
-
-    def _band(self) -> tuple[float, float]:
-        """The planning grid's height band (``planner.height_band_m`` around the camera), metres."""
-        band = float(self.conf.planner.height_band_m)
-        return self.motion.z - band, self.motion.z + band
 
     def move(self, T_target: np.ndarray) -> bool:
         """One increment with the collision check; returns whether it collided."""
@@ -416,18 +329,13 @@ class Explorer:
         else:
             self.result.stop_reason = "iteration limit"
         self.result.poses = [T.tolist() for T in self.agent.trajectory]
-        self.result.reconstruction = self.surface.chamfer(self.map)
+        self.result.reconstruction = self.score.reconstruction(self.map)
         return self.result
-
-    def coverage(self) -> float:
-        """Fraction of the scene's explorable volume observed so far (ground-truth rays)."""
-        observed = self.coverage_map.observed & self.voxels.explorable
-        return float(observed.sum()) / max(int(self.voxels.num_explorable), 1)
 
     def _record(self, iteration: int, collided: bool, frame, seen) -> None:
         T = self.agent.pose
         record = StepRecord(iteration, self.agent.steps, np.round(T[:3, 3], 4).tolist(), round(yaw_of(T), 4),
-                            self.coverage(), self.surface_coverage, float(self.map.known_volume_m3), len(self.tracker),
+                            self.score.coverage(), self.score.surface_coverage, float(self.map.known_volume_m3), len(self.tracker),
                             None if self.route is None else self.route.frontier_id, collided,
                             {k: round(v * 1e3, 2) for k, v in self._timings.items()})
         self.result.records.append(record)

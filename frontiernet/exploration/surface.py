@@ -14,7 +14,7 @@ Poisson-disk samples of the scene mesh (100k per scene). Here:
   what is never seen from inside: outer faces of walls, roofs, closed furniture.
 * **surface coverage**: the fraction of samples whose voxel, or one within
   ``tolerance_voxels`` of it (Chebyshev: the 3 x 3 x 3 block at 1), is observed-occupied in
-  the map (some camera ray ended there). Use the explorer's ``coverage_map`` (ground-truth
+  the map (some camera ray ended there). Use the run's ``GroundTruthScore.coverage_map`` (ground-truth
   depth only). The candidate voxels are computed once per map grid: a step is one gather.
 * **AUC** (:func:`coverage_auc`): area under the per-step coverage curve over the budget,
   divided by it (in [0, 1]).

@@ -1,0 +1,121 @@
+"""The robot's move check: whether its own map allows one increment (docs/exploration.md).
+
+The planner keeps routes ``planner.clearance_m`` from occupied cells; the move check tests each
+increment against the map the robot has now, with the largest body those routes keep clear
+(:func:`body_radius`), so that a fresh route passes it and a route that newer frames contradict
+does not. It reads the robot's map only, never the scene: with ``planner.mode: map_free`` there
+is no map to read and every increment passes (the simulator's collision check is what stops
+the robot then).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..mapping import FREE, UNKNOWN
+from .motion import Motion, wrap_angle, yaw_of
+
+ROUTE_SLACK_M = 0.01  # route points between two cell centres lie this much closer to a voxel, at most
+LOOKED_AT_DEG = 20.0  # a point within this of the heading is faced (a quarter of the field of view)
+
+
+def body_radius(planner_conf, voxel_size: float, agent_radius: float) -> float:
+    """The body the move check tests, metres: ``planner.clearance_m`` (kept between route cell
+    centres and occupied voxel centres) less a voxel's half diagonal and :data:`ROUTE_SLACK_M`
+    for route points between cell centres, so a fresh route passes the occupied test on the
+    map it was planned on.
+
+    Raises:
+        InputError: a clearance that leaves less than the agent's radius.
+    """
+    margin = float(voxel_size) / np.sqrt(2.0) + ROUTE_SLACK_M
+    radius = float(planner_conf.clearance_m) - margin
+    if radius < agent_radius:
+        raise InputError(f"planner.clearance_m = {planner_conf.clearance_m} is too small for the agent radius "
+                         f"{agent_radius} m: it must be at least {agent_radius + margin:.3f} m (radius + "
+                         f"half a voxel's diagonal + {ROUTE_SLACK_M} m)")
+    return radius
+
+
+def looked_at(T_world_cam: np.ndarray, xy: np.ndarray) -> bool:
+    """Whether the camera at the (4, 4) pose `T_world_cam` faces world point `xy` ((2,) metres;
+    within :data:`LOOKED_AT_DEG` of its heading)."""
+    offset = np.asarray(xy, np.float64) - T_world_cam[:2, 3]
+    return abs(wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw_of(T_world_cam))) < np.radians(LOOKED_AT_DEG)
+
+
+class MoveCheck:
+    """``check(T, target) -> (verdict, xy)``: whether the robot's map allows the increment from
+    `T` to `target` ((4, 4) poses, world frame), with the world point ((2,) xy, metres) to face
+    first when it says ``look``:
+
+    - ``ok``: a turn, or a move into known free space where an upright cylinder of `radius`
+      over the planning band (the planning grid's view of the body) touches no occupied voxel
+      and, at the camera's height, no unknown one;
+    - ``look``: the target, or an unknown voxel at the camera's height within the body, has
+      not been faced yet (the camera maps it when it turns there);
+    - ``fail``: occupied, or the target itself still unknown once faced.
+
+    An unknown voxel beside the target that is still unknown once faced is passed and remembered
+    (:attr:`faced_unknown`): the camera cannot map it from here, and facing it again would not
+    either. The explorer holds a look over the next increments until the point is faced or
+    mapped: turning back towards the waypoint in between undid each turn, forever (a livelock,
+    docs/benchmark.md).
+
+    The unknown test keeps the body off wall ends the camera never saw, which a move along a
+    frontier-tree edge beyond the mapped space may pass close beside (the published
+    benchmark's one collision, docs/benchmark.md). It looks at the camera's layer only: a voxel
+    there within reach of the body is in the middle of the image once faced, whereas the band's
+    lowest and highest layers lie below and above the field of view that close.
+
+    Args:
+        robot_map: the robot's :class:`~frontiernet.mapping.OccupancyMap`.
+        motion: the run's :class:`~frontiernet.exploration.motion.Motion` (camera height, turns).
+        planner_conf: the ``planner`` section (``height_band_m``, ``mode``).
+        radius: the body's radius, metres (:func:`body_radius`).
+    """
+
+    def __init__(self, robot_map, motion: Motion, planner_conf, radius: float) -> None:
+        self.map, self.motion, self.radius = robot_map, motion, float(radius)
+        half_band = float(planner_conf.height_band_m)
+        self.band = (motion.z - half_band, motion.z + half_band)  # the planning grid's height band, metres
+        self.map_free = str(planner_conf.mode) == "map_free"
+        self.faced_unknown: list[np.ndarray] = []  # (2,) xy of camera-layer voxels faced and still unknown
+
+    def __call__(self, T: np.ndarray, target: np.ndarray) -> tuple[str, np.ndarray | None]:
+        if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
+            return "ok", None
+        xy = target[:2, 3]
+        if self.map.cylinder_touches_occupied(xy, self.radius, *self.band):
+            return "fail", None
+        if self.map.state_at(target[None, :3, 3])[0] != FREE:
+            return ("fail" if looked_at(T, xy) else "look"), xy
+        while True:
+            unknown_xy = self.map.nearest_unknown_in_disk(xy, self.radius, self.motion.z, exclude=self.faced_unknown)
+            if unknown_xy is None:
+                return "ok", None
+            if not looked_at(T, unknown_xy):
+                return "look", unknown_xy
+            # faced and still unknown: the camera cannot map it (between its rays, or hidden), so
+            # facing it again would not either; it no longer holds the body back (the occupied test
+            # still does, should it be mapped occupied later)
+            self.faced_unknown.append(unknown_xy)
+
+    def blocked(self, xy: np.ndarray) -> bool:
+        """Whether the map has an occupied voxel in the planning band over world point `xy` (2,):
+        the planning grid's obstacle test, so the robot never walks (along a tree edge) onto cells
+        it cannot plan from, such as a counter top below its body."""
+        return self.map.cylinder_touches_occupied(xy, 1e-6, *self.band)
+
+    def unknown(self, xy: np.ndarray) -> bool:
+        """Whether the map's voxel at world point `xy` ((2,) metres) at the camera's height is unknown."""
+        return self.map.state_at(np.array([[xy[0], xy[1], self.motion.z]]))[0] == UNKNOWN
+
+    def face(self, T: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """The next pose turning on the spot from `T` towards world point `xy` (2,)."""
+        offset = np.asarray(xy, np.float64) - T[:2, 3]
+        return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
+
+
+__all__ = ["MoveCheck", "body_radius", "looked_at", "ROUTE_SLACK_M"]
