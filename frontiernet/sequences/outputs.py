@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geometry import back_projected_points
 from ..io import atomic_write, write_json
 from ..model.overlay import frontier_overlay
 
@@ -34,19 +35,6 @@ def write_frontiers(path: Path, tracked, names: list[str], info: dict) -> Path:
     ``reason`` and ``removed_frame``) and `info` (frame, transform, scale, counts)."""
     alive, removed = frontier_records(tracked, names)
     return write_json(path, {**info, "frontiers": alive, "removed": removed, "per_frame": tracked.per_frame})
-
-
-def back_projected_points(depth: np.ndarray, rgb: np.ndarray | None, K: np.ndarray, T_world_cam: np.ndarray,
-                          max_depth_m: float, stride: int) -> tuple[np.ndarray, np.ndarray | None]:
-    """(N, 3) float64 world points and (N, 3) uint8 colours (None without `rgb`) of every
-    `stride`-th pixel with a valid depth up to `max_depth_m` (`depth` (H, W) metres NaN invalid,
-    `rgb` (H, W, 3) the same size)."""
-    v, u = np.mgrid[0:depth.shape[0]:stride, 0:depth.shape[1]:stride]
-    z = depth[v, u]
-    valid = np.isfinite(z) & (z > 0) & (z <= max_depth_m)
-    u, v, z = u[valid], v[valid], z[valid].astype(np.float64)
-    camera = np.stack([(u - K[0, 2]) / K[0, 0] * z, (v - K[1, 2]) / K[1, 1] * z, z], 1)
-    return camera @ T_world_cam[:3, :3].T + T_world_cam[:3, 3], None if rgb is None else rgb[v, u]
 
 
 class PointCloudFusion:

@@ -50,7 +50,7 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
     """(2, 3) world [min, max] corners of what the frames see: the camera centres and their
     depth points (every `stride_px`-th pixel; rays longer than `max_range_m` end there, as the
     map integrates them)."""
-    from .outputs import back_projected_points
+    from ..geometry import back_projected_points
 
     points = [np.asarray(poses)[:, :3, 3]]
     for frame, T, path in zip(sequence, poses, cache_paths):
