@@ -184,3 +184,37 @@ def test_the_oracle_leaves_its_start_without_a_start_turn(tmp_path, shared_data)
     assert _longest_turn_back_and_forth(trajectory["T_world_cam"]) <= 2
     positions = np.asarray(trajectory["T_world_cam"])[:, :2, 3]
     assert np.linalg.norm(positions[-1] - positions[0]) > 1.0
+
+
+def map_free_explorer(frames: int) -> Explorer:
+    """A map-free classic explorer at ROBOT that has looked west, at the pillar 0.25 m away."""
+    from omegaconf import OmegaConf
+
+    scene = room_scene(True)
+    conf = OmegaConf.merge(load_config("explore"), {"planner": {"mode": "map_free", "obstacle_memory_frames": frames}})
+    sim = load_config("sim")
+    voxels = voxelize_scene(scene, sim.voxels)
+    context = MethodContext(conf, sim, scene=scene, voxels=voxels)
+    explorer = Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic", context),
+                        make_depth_source("ground_truth", load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi))
+    explorer.sense()
+    return explorer
+
+
+@pytest.mark.parametrize("frames", [0, 10])
+def test_map_free_moves_stop_short_of_obstacles_the_robot_has_seen_only_with_a_memory(frames):
+    explorer = map_free_explorer(frames)
+    x, y, z = explorer.agent.position
+    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)  # 0.14 m from its face: inside the body
+    away = pose_from_heading(x + 0.11, y, z, yaw=np.pi)
+    assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == ("fail" if frames else "ok")
+    assert explorer.move_check(explorer.agent.pose, away)[0] == "ok"
+
+
+def test_the_map_free_memory_forgets_after_its_frames():
+    explorer = map_free_explorer(2)
+    x, y, z = explorer.agent.position
+    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)
+    for yaw_deg in (90, 0):  # two frames that do not see the pillar push the one that did out
+        turn(explorer, np.radians(yaw_deg))
+    assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == "ok"

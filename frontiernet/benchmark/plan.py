@@ -50,6 +50,7 @@ KEYS_ADDED_AFTER_PLANS = {
     "map.monocular_free_fraction": None,
     "map.monocular_far_hit_max": None,
     "map.monocular_log_odds_miss": None,
+    "planner.obstacle_memory_frames": 0,  # map-free mode's obstacle memory, off as before the key
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config

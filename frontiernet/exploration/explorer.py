@@ -148,6 +148,7 @@ class Explorer:
     def _integrate(self, depth, frame, T) -> None:
         self.map.integrate(depth, frame.K, T, monocular=self.depth_source.flying_pixels)
         self.map.clear_sphere(T[:3, 3], self.agent.radius)  # the robot stands in free space
+        self.move_check.remember(depth, frame.K, T)  # map-free mode's recent obstacles (when asked for)
 
     def _track(self, observations, T) -> None:
         self.poses.append(T)

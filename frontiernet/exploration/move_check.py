@@ -4,15 +4,21 @@ The planner keeps routes ``planner.clearance_m`` from occupied cells; the move c
 increment against the map the robot has now, with the largest body those routes keep clear
 (:func:`body_radius`), so that a fresh route passes it and a route that newer frames contradict
 does not. It reads the robot's map only, never the scene: with ``planner.mode: map_free`` there
-is no map to read and every increment passes (the simulator's collision check is what stops
-the robot then).
+is no map to read. There every increment passes (the simulator's collision check is what stops
+the robot), unless ``planner.obstacle_memory_frames`` > 0: then the check's only obstacles are
+the robot's own depth points of that many recent frames within the planning band and within
+reach of the body before they are forgotten (:meth:`MoveCheck.remember`), and an increment that
+brings the body closer to one than its radius, and closer than it stands now, fails.
 """
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, whole_number
+from ..geometry import back_projected_points
 from ..mapping import FREE, UNKNOWN
 from .motion import Motion, wrap_angle, yaw_of
 
@@ -72,7 +78,7 @@ class MoveCheck:
     Args:
         robot_map: the robot's :class:`~frontiernet.mapping.OccupancyMap`.
         motion: the run's :class:`~frontiernet.exploration.motion.Motion` (camera height, turns).
-        planner_conf: the ``planner`` section (``height_band_m``, ``mode``).
+        planner_conf: the ``planner`` section (``height_band_m``, ``mode``, ``obstacle_memory_frames``).
         radius: the body's radius, metres (:func:`body_radius`).
     """
 
@@ -82,10 +88,39 @@ class MoveCheck:
         self.band = (motion.z - half_band, motion.z + half_band)  # the planning grid's height band, metres
         self.map_free = str(planner_conf.mode) == "map_free"
         self.faced_unknown: list[np.ndarray] = []  # (2,) xy of camera-layer voxels faced and still unknown
+        frames = whole_number(planner_conf.obstacle_memory_frames, "planner.obstacle_memory_frames")
+        self.memory = deque(maxlen=frames) if self.map_free and frames > 0 else None  # (N, 2) xy per frame
+        # a point farther than this from the camera cannot reach the body before it is forgotten
+        self.memory_reach_m = self.radius + frames * motion.max_translation
+
+    def remember(self, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> None:
+        """Map-free mode with ``obstacle_memory_frames``: keep the frame's depth points ((H, W)
+        float32 metres, NaN invalid; (3, 3) K; (4, 4) pose) in the planning band within
+        :attr:`memory_reach_m` of the camera, as (N, 2) xy, for the next frames' checks. Pixels
+        are taken at the stride that leaves samples at that reach one map voxel apart at most
+        (nearer ones closer), far finer than the body."""
+        if self.memory is None:
+            return
+        stride = max(1, int(self.map.voxel_size * float(K[0, 0]) / self.memory_reach_m))
+        points = back_projected_points(depth, None, K, T_world_cam, self.memory_reach_m, stride)[0]
+        in_band = (points[:, 2] >= self.band[0]) & (points[:, 2] <= self.band[1])
+        near = np.hypot(*(points[:, :2] - T_world_cam[:2, 3]).T) <= self.memory_reach_m
+        self.memory.append(points[in_band & near, :2])
+
+    def _remembered_obstacle(self, T: np.ndarray, target: np.ndarray) -> bool:
+        """Whether the target's body (`radius` around its xy) holds a remembered point, closer than
+        the body at `T` is to its nearest one (moving away from an obstacle is allowed)."""
+        points = np.concatenate(list(self.memory)) if self.memory else np.empty((0, 2))
+        if not len(points):
+            return False
+        to_target = float(np.min(np.hypot(*(points - target[:2, 3]).T)))
+        return to_target < self.radius and to_target < float(np.min(np.hypot(*(points - T[:2, 3]).T)))
 
     def __call__(self, T: np.ndarray, target: np.ndarray) -> tuple[str, np.ndarray | None]:
-        if self.map_free or np.allclose(T[:2, 3], target[:2, 3]):
+        if np.allclose(T[:2, 3], target[:2, 3]):
             return "ok", None
+        if self.map_free:
+            return ("fail", None) if self.memory is not None and self._remembered_obstacle(T, target) else ("ok", None)
         xy = target[:2, 3]
         if self.map.cylinder_touches_occupied(xy, self.radius, *self.band):
             return "fail", None
