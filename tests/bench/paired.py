@@ -2,8 +2,10 @@
 issue 27 steps 4 and 5): each variant's Vox@25 / @50 / @100 and its ratio to two references, with the
 report's bootstrap interval over (scene, start) clusters (``frontiernet.benchmark.report.paired_ratio_cell``).
 
-A run is named ``FOLDER_OR_CSV:METHOD[=LABEL]``; runs pair by (scene, start, repeat). The first two
-are the references (e.g. classic and the default oracle), every one is compared with both:
+A run is named ``FOLDER_OR_CSV:METHOD[=LABEL]``; runs pair by (scene, start, repeat). Folders joined
+by ``+`` pool their runs (``runs/procedural+runs/house:classic``, e.g. one scene set run in two
+folders). The first two are the references (e.g. classic and the default oracle), every one is
+compared with both:
 
     .venv/bin/python tests/bench/paired.py runs/base:classic runs/base:oracle=default \\
         runs/none:oracle=gain_reduction-none
@@ -24,15 +26,23 @@ FIELDS = ("vox25", "vox50", "vox100")
 
 
 def load(spec: str) -> tuple[str, dict]:
-    """``FOLDER_OR_CSV:METHOD[=LABEL]`` -> (label, {(scene, start, repeat): row}) of its finished runs."""
+    """``FOLDER_OR_CSV[+FOLDER_OR_CSV...]:METHOD[=LABEL]`` -> (label, {(scene, start, repeat): row})
+    of its finished runs, pooled over the folders (a run found in two of them is refused)."""
     where, _, method = spec.rpartition(":")
     method, _, label = method.partition("=")
-    path = Path(where)
-    path = path / "results.csv" if path.is_dir() else path
-    with open(path) as handle:
-        rows = {(r["scene"], r["start"], r["repeat"]): r for r in csv.DictReader(handle)
-                if r["method"] == method and r["status"] == "done"}
-    return label or f"{path.parent.name}:{method}", rows
+    rows, names = {}, []
+    for part in where.split("+"):
+        path = Path(part)
+        path = path / "results.csv" if path.is_dir() else path
+        names.append(path.parent.name)
+        with open(path) as handle:
+            for r in csv.DictReader(handle):
+                if r["method"] == method and r["status"] == "done":
+                    key = (r["scene"], r["start"], r["repeat"])
+                    if key in rows:
+                        sys.exit(f"{path}: run {key} of {method} is also in another folder of {spec}")
+                    rows[key] = r
+    return label or f"{'+'.join(names)}:{method}", rows
 
 
 def main(specs: list[str]) -> None:
