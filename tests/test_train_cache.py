@@ -70,6 +70,26 @@ def test_augmentation_on_the_device_changes_the_input_not_the_labels(dataset_cop
     assert (augmented["image"][:, 3][~valid] == 0).all()  # invalid depth stays 0 under jitter
 
 
+def test_views_without_depth_get_an_empty_prior_and_keep_their_rgb_and_labels(dataset_copy):
+    cache = ensure_cache(dataset_copy, "auto", 64, LABELS)
+    samples = CachedSamples(cache, range(len(cache)), {**AUGMENT, "crop_size": 48}, seed=3)
+    raw = next(iter(DataLoader(samples, batch_size=8)))
+    has_depth = (raw["depth"] > 0).flatten(1).any(1)
+    assert has_depth.all()
+    torch.manual_seed(0)
+    kept = network_batch(raw, MODEL, {**AUGMENT, "no_depth_fraction": 0.0})
+    torch.manual_seed(0)
+    none = network_batch(raw, MODEL, {**AUGMENT, "no_depth_fraction": 1.0})
+    assert (none["image"][:, 3] == 0).all() and (kept["image"][:, 3] != 0).flatten(1).any(1).all()
+    assert torch.allclose(none["image"][:, :3], kept["image"][:, :3])
+    for key in ("distance", "gain_class", "frontier", "discontinuity", "depth"):
+        assert torch.equal(none[key], kept[key]), key
+    torch.manual_seed(1)
+    half = network_batch(raw, MODEL, {**AUGMENT, "no_depth_fraction": 0.5})
+    empty = (half["image"][:, 3] == 0).flatten(1).all(1)
+    assert 0 < empty.sum() < len(empty)  # some views without depth, the others with theirs
+
+
 def test_interrupted_build_resumes_without_redoing_views(dataset_copy, monkeypatch):
     path = dataset_copy / "cache" / "mine"
     reference = build_cache(dataset_copy, dataset_copy / "cache" / "reference", 64, LABELS)

@@ -150,8 +150,9 @@ def network_batch(batch: dict, model_conf, augment_conf=None) -> dict:
     Augmentation (with `augment_conf`): each view's brightness, contrast, saturation and gamma
     factors on its RGB in [0, 1] (clipped before the gamma), its depth-prior scale, and
     multiplicative per-pixel depth noise ``N(0, augment_conf.depth_noise_sigma)`` drawn from torch's
-    generator (seeded by ``seed_everything``). Then the network's normalisation
-    (``frontiernet.model.normalise_images``).
+    generator (seeded by ``seed_everything``); a share ``augment_conf.no_depth_fraction`` of the
+    views gets no depth prior at all (every pixel 0, as a camera without depth gives). Then the
+    network's normalisation (``frontiernet.model.normalise_images``).
 
     Returns ``image`` (B, C, h, w) float32, ``distance`` (B, h, w) float32 px, ``gain_class``
     (B, h, w) int64, ``frontier`` and ``discontinuity`` (B, h, w) bool, ``depth`` (B, h, w) float32
@@ -180,6 +181,9 @@ def network_batch(batch: dict, model_conf, augment_conf=None) -> dict:
         if sigma > 0:
             prior.mul_(torch.randn_like(prior).mul_(sigma).add_(1.0))
         prior.masked_fill_(depth <= 0, 0.0)
+        withheld = float(augment_conf.get("no_depth_fraction", 0.0))
+        if withheld > 0:  # these views' prior is all "no return": the network learns to read RGB alone
+            prior.mul_((torch.rand(len(prior), device=prior.device) >= withheld)[:, None, None])
     masks = batch["masks"]
     return {"image": normalise_images(rgb, prior, inputs, model_conf["input"]),
             "distance": unpack_distance(batch["distance_sq"], float(model_conf["labels"]["truncation_px"])),
