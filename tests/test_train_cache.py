@@ -180,3 +180,28 @@ def test_bench_train_reports_loader_and_model_rates(dataset_copy, capsys):
     layouts = result["model_layouts"]
     assert [layout["channels_last"] for layout in layouts] == [False, True] and layouts[0]["ratio_to_nchw"] == 1.0
     assert result["model"] == layouts[0]
+
+
+def _build_in_a_process(dataset, queue):
+    cache = ensure_cache(dataset, "auto", 64, LABELS)
+    queue.put((str(cache.path), int(len(cache))))
+
+
+def test_two_processes_building_one_cache_at_once_both_get_it(dataset_copy):
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    processes = [context.Process(target=_build_in_a_process, args=(dataset_copy, queue)) for _ in range(2)]
+    for process in processes:
+        process.start()
+    for process in processes:
+        process.join(timeout=300)
+    assert [process.exitcode for process in processes] == [0, 0]
+    results = [queue.get(timeout=5) for _ in processes]
+    assert results[0] == results[1] and results[0][1] == len(open_dataset(dataset_copy))
+    cache = open_cache(default_cache_dir(dataset_copy, 64, LABELS), dataset_copy, 64, LABELS)
+    reference = build_cache(dataset_copy, dataset_copy / "cache" / "reference", 64, LABELS)
+    for name, array in reference.arrays.items():
+        assert np.array_equal(array, cache.arrays[name]), name
+    assert not any(path.name.endswith(".partial") for path in (dataset_copy / "cache").iterdir())

@@ -24,7 +24,8 @@ Layout of a cache folder (``S`` = training size, ``N`` = views of the dataset, i
 
 A cache is built in ``<folder>.partial/`` (resumable: views done so far are recorded in
 ``progress.npy`` every few seconds) and renamed into place when complete, so a finished folder
-is always whole. Opening checks it against its dataset (``dataset.json`` and the shards' names,
+is always whole; one process builds at a time (``<folder>.lock``: a second one waits and opens the
+first's cache). Opening checks it against its dataset (``dataset.json`` and the shards' names,
 sizes and view counts) and the training config (size, label encoding): a mismatch, or a
 truncated array, is an :class:`InputError` naming the file; nothing is rebuilt over it.
 """
@@ -300,5 +301,13 @@ def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, worker
     except OSError as error:
         raise InputError(f"{path.parent}: cannot create the training cache folder ({error.strerror}); "
                          f"set data.cache=FOLDER to put it elsewhere") from None
-    log.info("building the training cache %s (%d px)", path, size)
-    return build_cache(dataset_root, path, size, labels_conf, workers, progress)
+    from filelock import FileLock
+
+    # two runs on one dataset (e.g. two trainings started together) would share <path>.partial:
+    # the second waits for the first's build and opens its cache
+    with FileLock(str(path.with_name(path.name + ".lock"))):
+        if path.exists():
+            log.info("the training cache %s was built by another process meanwhile", path)
+            return open_cache(path, dataset_root, size, labels_conf)
+        log.info("building the training cache %s (%d px)", path, size)
+        return build_cache(dataset_root, path, size, labels_conf, workers, progress)
