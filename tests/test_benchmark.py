@@ -420,6 +420,17 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     (tmp_path / "plan.json").write_text(json.dumps(emulated))
     with pytest.raises(InputError, match=r"\(conf.map.depth_edge_rtol: absent in the plan, 0.1 now\)"):
         resumable_plan(tmp_path, {**protocol(), "depth": "emulated"})
+    # planner.obstacle_memory_frames (10 since 2026-11-27; before the key map-free mode had none)
+    # changes no map-mode run: the published plan resumes with any value; the same plan in map-free
+    # mode ran without the memory, so it resumes only with 0
+    assert "obstacle_memory_frames" not in stored["settings"]["conf"]["planner"]
+    assert resumable_plan(published, protocol("planner.obstacle_memory_frames=3"))["start_poses"] == stored["start_poses"]
+    map_free = json.loads(json.dumps(stored))
+    map_free["settings"]["conf"]["planner"]["mode"] = "map_free"
+    (tmp_path / "plan.json").write_text(json.dumps(map_free))
+    with pytest.raises(InputError, match=r"\(conf.planner.obstacle_memory_frames: 0 in the plan, 10 now\)"):
+        resumable_plan(tmp_path, protocol("planner.mode=map_free"))
+    assert resumable_plan(tmp_path, protocol("planner.mode=map_free", "planner.obstacle_memory_frames=0"))
     del stored["settings"]["conf"]["planner"]["clearance_m"]
     (tmp_path / "plan.json").write_text(json.dumps(stored))
     with pytest.raises(InputError, match=r"\(conf.planner.clearance_m: absent in the plan, 0.3 now\)"):

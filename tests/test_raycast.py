@@ -67,9 +67,10 @@ def test_embree_answers_every_ray_as_open3d_does():
         assert np.abs(answer[key][same & hit] - reference[key][same & hit]).max() < 1e-5, key
         assert not answer[key][~hit].any(), key
     # another triangle only where two lie in one plane (a furniture face on a wall: z-fighting,
-    # either answer is right): the hit point lies on both
+    # either answer is right): the hit point lies on both. Which one wins varies with the engines'
+    # versions (4 of 3,000 hits with one pair, 7 with embreex 4.4.0.post1 and open3d 0.19.0)
     other = ~same & hit
-    assert other.sum() <= 0.002 * hit.sum()
+    assert other.sum() <= 0.01 * hit.sum()
     points = rays[..., :3][other] + reference["t_hit"][other][:, None] * rays[..., 3:][other]
     for ids in (answer["primitive_ids"][other], reference["primitive_ids"][other]):
         corners = scene.vertices[scene.triangles[ids]]

@@ -14,8 +14,8 @@ from ..exploration.run import RUN_SECTIONS, load_run_config
 from ..io import ensure_dir, write_json
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
-from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_keys_added_after,
-                   with_keys_idle_on_ground_truth)
+from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
+                   with_keys_added_after)
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, read_plan
@@ -91,15 +91,16 @@ def resumable_plan(out: Path, settings: dict) -> dict:
     :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
     ``scenes``) used the shipped file;
     one made before a key of :data:`~frontiernet.benchmark.plan.KEYS_ADDED_AFTER_PLANS` existed
-    ran as that key's listed value does; a ground-truth plan made before a key of
-    :data:`~frontiernet.benchmark.plan.KEYS_IDLE_ON_GROUND_TRUTH` existed takes this run's value.
+    ran as that key's listed value does; a plan made before a key of
+    :data:`~frontiernet.benchmark.plan.KEYS_IDLE_WHEN` existed, whose runs that key does not change
+    (ground-truth depth, map mode), takes this run's value.
     Anything else that differs is a change of settings."""
     previous = read_plan(out)
     shipped = OmegaConf.to_container(load_run_config(), resolve=True)
     for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
         previous["settings"]["conf"].setdefault(section, shipped[section])
+    with_idle_keys(previous["settings"], settings)
     with_keys_added_after(previous["settings"]["conf"])
-    with_keys_idle_on_ground_truth(previous["settings"], settings)
     if previous["settings"] != settings:
         raise InputError(f"{out} holds a benchmark with other settings "
                          f"({first_difference(previous['settings'], settings)}); use another --out or remove it")

@@ -125,27 +125,37 @@ def depth_sources(depth: str | None, conf) -> list[str]:
     return names
 
 
-KEYS_IDLE_ON_GROUND_TRUTH = ("map.depth_edge_rtol",)
-"""Keys added to ``configs/explore.yaml`` after benchmarks had been planned that change no run on
-ground-truth depth (the map leaves out depth edges only for sources with flying pixels, 94cd18a). A
-plan of ground-truth runs only that lacks one resumes with the value this run's config has
-(:func:`with_keys_idle_on_ground_truth`); a plan with another depth source that lacks one is
-refused, as its runs would change."""
-
-
-def with_keys_idle_on_ground_truth(stored: dict, settings: dict) -> dict:
-    """A stored plan's settings (a dict, changed in place and returned) with each key of
-    :data:`KEYS_IDLE_ON_GROUND_TRUTH` its config lacks taken from this run's `settings`, when every
-    run of the plan is on ground-truth depth (see there)."""
+def _on_ground_truth_only(stored: dict) -> bool:
     from omegaconf import OmegaConf
 
-    if depth_sources(stored["depth"], OmegaConf.create(stored["conf"])) != ["ground_truth"]:
-        return stored
-    for dotted in KEYS_IDLE_ON_GROUND_TRUTH:
+    return depth_sources(stored["depth"], OmegaConf.create(stored["conf"])) == ["ground_truth"]
+
+
+def _in_map_mode(stored: dict) -> bool:
+    return str(stored["conf"].get("planner", {}).get("mode", "map")) == "map"
+
+
+KEYS_IDLE_WHEN = {
+    "map.depth_edge_rtol": _on_ground_truth_only,  # the map leaves out depth edges only for sources
+                                                   # with flying pixels (94cd18a)
+    "planner.obstacle_memory_frames": _in_map_mode,  # the map-free move check's memory (7d7d5e4)
+}
+"""Keys added to ``configs/explore.yaml`` after benchmarks had been planned that change no run of
+a plan meeting the key's condition (a function of the stored settings). Such a plan that lacks the
+key resumes with the value this run's config has (:func:`with_idle_keys`), whatever its default;
+a plan that does not meet the condition reads the key as :data:`KEYS_ADDED_AFTER_PLANS` says, or
+is refused, as its runs would change."""
+
+
+def with_idle_keys(stored: dict, settings: dict) -> dict:
+    """A stored plan's settings (a dict, changed in place and returned) with each key of
+    :data:`KEYS_IDLE_WHEN` its config lacks taken from this run's `settings`, where the plan meets
+    the key's condition (see there). Call it before :func:`with_keys_added_after`."""
+    for dotted, idle in KEYS_IDLE_WHEN.items():
         section, key = dotted_parent(stored["conf"], dotted)
         now, now_key = dotted_parent(settings["conf"], dotted)
-        if section is not None and now is not None and now_key in now:
-            section.setdefault(key, now[now_key])
+        if section is not None and key not in section and now is not None and now_key in now and idle(stored):
+            section[key] = now[now_key]
     return stored
 
 
