@@ -181,7 +181,7 @@ def network_batch(batch: dict, model_conf, augment_conf=None) -> dict:
         if sigma > 0:
             prior.mul_(torch.randn_like(prior).mul_(sigma).add_(1.0))
         prior.masked_fill_(depth <= 0, 0.0)
-        withheld = float(augment_conf.get("no_depth_fraction", 0.0))
+        withheld = float(augment_conf["no_depth_fraction"])
         if withheld > 0:  # these views' prior is all "no return": the network learns to read RGB alone
             prior.mul_((torch.rand(len(prior), device=prior.device) >= withheld)[:, None, None])
     masks = batch["masks"]

@@ -132,7 +132,7 @@ def _on_ground_truth_only(stored: dict) -> bool:
 
 
 def _in_map_mode(stored: dict) -> bool:
-    return str(stored["conf"].get("planner", {}).get("mode", "map")) == "map"
+    return str(stored["conf"]["planner"]["mode"]) == "map"
 
 
 KEYS_IDLE_WHEN = {

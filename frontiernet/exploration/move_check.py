@@ -5,7 +5,7 @@ increment against the map the robot has now, with the largest body those routes 
 (:func:`body_radius`), so that a fresh route passes it and a route that newer frames contradict
 does not. It reads the robot's map only, never the scene: with ``planner.mode: map_free`` there
 is no map to read. There every increment passes (the simulator's collision check is what stops
-the robot), unless ``planner.obstacle_memory_frames`` > 0 (10 in configs/explore.yaml): then the check's only obstacles are
+the robot), unless ``planner.obstacle_memory_frames`` > 0: then the check's only obstacles are
 the robot's own depth points of that many recent frames within the planning band and within
 reach of the body before they are forgotten (:meth:`MoveCheck.remember`), and an increment that
 brings the body closer to one than its radius, and closer than it stands now, fails.
