@@ -2,9 +2,10 @@
 issue 27 steps 4 and 5): each variant's Vox@25 / @50 / @100 and its ratio to two references, with the
 report's bootstrap interval over (scene, start) clusters (``frontiernet.benchmark.report.paired_ratio_cell``).
 
-A run is named ``FOLDER_OR_CSV:METHOD[=LABEL]``; runs pair by (scene, start, repeat). Folders joined
-by ``+`` pool their runs (``runs/procedural+runs/house:classic``, e.g. one scene set run in two
-folders). The first two are the references (e.g. classic and the default oracle), every one is
+A run is named ``FOLDER_OR_CSV:METHOD[@SOURCE][=LABEL]``; runs pair by (scene, start, repeat). Folders
+joined by ``+`` pool their runs (``runs/procedural+runs/house:classic``, e.g. one scene set run in two
+folders). A folder run with several depth sources (``--depth gt,emulated``) needs the source
+(``classic@emulated``; ``gt`` stands for ``ground_truth``). The first two are the references (e.g. classic and the default oracle), every one is
 compared with both:
 
     .venv/bin/python tests/bench/paired.py runs/base:classic runs/base:oracle=default \\
@@ -26,10 +27,12 @@ FIELDS = ("vox25", "vox50", "vox100")
 
 
 def load(spec: str) -> tuple[str, dict]:
-    """``FOLDER_OR_CSV[+FOLDER_OR_CSV...]:METHOD[=LABEL]`` -> (label, {(scene, start, repeat): row})
-    of its finished runs, pooled over the folders (a run found in two of them is refused)."""
+    """``FOLDER_OR_CSV[+FOLDER_OR_CSV...]:METHOD[@SOURCE][=LABEL]`` -> (label, {(scene, start, repeat):
+    row}) of its finished runs, pooled over the folders (a run found in two of them is refused)."""
     where, _, method = spec.rpartition(":")
     method, _, label = method.partition("=")
+    method, _, source = method.partition("@")
+    source = {"gt": "ground_truth"}.get(source, source)
     rows, names = {}, []
     for part in where.split("+"):
         path = Path(part)
@@ -37,12 +40,15 @@ def load(spec: str) -> tuple[str, dict]:
         names.append(path.parent.name)
         with open(path) as handle:
             for r in csv.DictReader(handle):
-                if r["method"] == method and r["status"] == "done":
+                depth = r.get("depth") or ""
+                if depth and not source:
+                    sys.exit(f"{path}: its runs name their depth source; give one: {method}@{depth}")
+                if r["method"] == method and r["status"] == "done" and depth == source:
                     key = (r["scene"], r["start"], r["repeat"])
                     if key in rows:
                         sys.exit(f"{path}: run {key} of {method} is also in another folder of {spec}")
                     rows[key] = r
-    return label or f"{'+'.join(names)}:{method}", rows
+    return label or f"{'+'.join(names)}:{method}" + (f"@{source}" if source else ""), rows
 
 
 def main(specs: list[str]) -> None:
