@@ -6,8 +6,8 @@ virtual camera sees and 2D planning slices. Its numbers come from the ``map`` se
 of ``configs/explore.yaml`` (:class:`MapSettings`).
 """
 
-from .checks import MapSettings
-from .occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyMap, depth_edges
+from .checks import MapSettings, depth_edges
+from .occupancy import FREE, OCCUPIED, UNKNOWN, OccupancyMap
 from .traversal import frustum_volume, mark_depth_rays, mark_traversed
 
 __all__ = ["FREE", "OCCUPIED", "UNKNOWN", "MapSettings", "OccupancyMap", "depth_edges", "frustum_volume",

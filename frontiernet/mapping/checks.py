@@ -1,4 +1,5 @@
-"""Checked inputs of the occupancy map: its settings and the frames it integrates.
+"""Checked inputs of the occupancy map: its settings, the sensor model a depth source's rays
+get, the frames it integrates and the pixels of a frame it leaves out.
 
 Every check raises :class:`~frontiernet.errors.InputError` naming the bad value.
 """
@@ -7,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from ..config import ConfigSection, setting
@@ -59,6 +61,23 @@ def _monocular_fraction(value, name: str) -> float | None:
 
 
 @dataclass(frozen=True)
+class RayModel:
+    """How the rays of one depth source's frames update the map (:meth:`MapSettings.ray_model`).
+
+    ``hit_range_m``: a ray's end within this z-depth (metres) is a hit; ``free_fraction``: a
+    ray is free up to this fraction of its depth; ``log_odds_miss``: a passed voxel's update;
+    ``far_hit_max``: ends beyond ``hit_range_m`` are weak hits raised to at most this log-odds
+    (None: no hit); ``depth_edge_rtol``: pixels at depth edges are left out (:func:`depth_edges`;
+    None: none)."""
+
+    hit_range_m: float
+    free_fraction: float
+    log_odds_miss: float
+    far_hit_max: float | None
+    depth_edge_rtol: float | None
+
+
+@dataclass(frozen=True)
 class MapSettings(ConfigSection):
     """The ``map`` section of ``configs/explore.yaml``, checked (see the file for meanings)."""
 
@@ -90,6 +109,23 @@ class MapSettings(ConfigSection):
         if far_max is not None and not 0.0 < far_max <= self.log_odds_max:
             raise InputError(f"map.monocular_far_hit_max must be in (0, log_odds_max] (or null), got {far_max}")
 
+    def ray_model(self, monocular: bool) -> RayModel:
+        """The sensor model of a depth source: OctoMap's rule up to ``max_range_m``, and for a
+        monocular network's depth (``monocular``) the ``depth_edge_rtol`` filter and each
+        ``monocular_*`` key that is set (all null: the same rule)."""
+        if not monocular:
+            return RayModel(self.max_range_m, 1.0, self.log_odds_miss, None, None)
+        hit_range = min(self.max_range_m, _unless_null(self.monocular_hit_range_m, self.max_range_m))
+        weak = self.monocular_far_hit_max is not None and hit_range < self.max_range_m
+        return RayModel(hit_range, _unless_null(self.monocular_free_fraction, 1.0),
+                        _unless_null(self.monocular_log_odds_miss, self.log_odds_miss),
+                        self.monocular_far_hit_max if weak else None, self.depth_edge_rtol)
+
+
+def _unless_null(value, default):
+    """`value`, or `default` where the key is null (off)."""
+    return default if value is None else value
+
 
 def depth_image(depth) -> np.ndarray:
     """(H, W) float32 C-contiguous depth, or InputError naming `depth`."""
@@ -100,3 +136,28 @@ def depth_image(depth) -> np.ndarray:
         raise InputError(f"depth must be a float image of metres (convert integer millimetres first), "
                          f"got dtype {depth.dtype}")
     return np.ascontiguousarray(depth, np.float32)
+
+
+def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarray:
+    """Pixels at depth discontinuities: (H, W) bool, True where the depths of the pixel's
+    `kernel_px` x `kernel_px` neighbourhood span more than `rtol` times its own depth.
+
+    The edge test of utils3d's ``depth_edge`` (max - min over the window, relative to the
+    pixel's depth), which MoGe applies to its own monocular output before building a point
+    cloud or mesh ("remove edge", rtol 0.04 in its demo): at a discontinuity an upsampling
+    decoder gives intermediate depths, points in the free space between the two surfaces.
+
+    Args:
+        depth: (H, W) float z-depth in metres, NaN (or <= 0) where invalid; invalid
+            neighbours are ignored, invalid pixels are never edges.
+        rtol: relative depth span, > 0.
+        kernel_px: odd window side, pixels.
+    """
+    depth = np.asarray(depth, np.float32)
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(depth) & (depth > 0)
+    window = np.ones((kernel_px, kernel_px), np.uint8)  # grey dilation / erosion = max / min filters
+    highest = cv2.dilate(np.where(valid, depth, -np.inf), window, borderType=cv2.BORDER_REPLICATE)
+    lowest = cv2.erode(np.where(valid, depth, np.inf), window, borderType=cv2.BORDER_REPLICATE)
+    with np.errstate(invalid="ignore"):
+        return valid & (highest - lowest > rtol * depth)  # NaN (invalid) pixels compare False

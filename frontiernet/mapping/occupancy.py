@@ -23,16 +23,14 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
-import cv2
-import numba
 import numpy as np
 
 from ..errors import InputError, positive_number
 from ..io import atomic_write
 from ..simulator.voxels import VoxelGrid
 from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
-from .checks import MapSettings, depth_image, finite_number, scalar
-from .traversal import frustum_volume, mark_depth_rays
+from .checks import MapSettings, depth_edges, depth_image, finite_number, scalar
+from .traversal import apply_marks, frustum_volume, mark_depth_rays
 
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
 """Voxel states returned by :meth:`OccupancyMap.state_at` (int8)."""
@@ -236,28 +234,19 @@ class OccupancyMap:
             return  # the frustum misses the grid
         passed = np.zeros(tuple(hi - lo), bool)
         hit = np.zeros_like(passed)
-        skip = (depth_edges(depth, s.depth_edge_rtol) if monocular and s.depth_edge_rtol is not None
-                else np.zeros((0, 0), bool))
-        hit_range, miss, free_fraction = s.max_range_m, s.log_odds_miss, 1.0
-        if monocular:
-            if s.monocular_free_fraction is not None:
-                free_fraction = s.monocular_free_fraction
-            if s.monocular_hit_range_m is not None:
-                hit_range = min(hit_range, s.monocular_hit_range_m)
-            if s.monocular_log_odds_miss is not None:
-                miss = s.monocular_log_odds_miss
-        weak = monocular and s.monocular_far_hit_max is not None and hit_range < s.max_range_m
+        rays = s.ray_model(monocular)
+        skip = depth_edges(depth, rays.depth_edge_rtol) if rays.depth_edge_rtol is not None else np.zeros((0, 0), bool)
+        weak = rays.far_hit_max is not None
         far = np.zeros_like(passed) if weak else np.zeros((0, 0, 0), bool)
-        far_max = s.monocular_far_hit_max if weak else s.log_odds_max
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
-                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip, hit_range,
-                        free_fraction, far)
+                        self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip, rays.hit_range_m,
+                        rays.free_fraction, far)
         self._latest_frame, self._slices = (lo, passed | hit | far if weak else passed | hit), {}
-        self._known_voxels += _apply_marks(self._log_odds, self._observed, lo, passed, hit,
-                                           np.float32(s.log_odds_hit), np.float32(miss),
-                                           np.float32(s.log_odds_min), np.float32(s.log_odds_max), far,
-                                           np.float32(far_max))
+        self._known_voxels += apply_marks(self._log_odds, self._observed, lo, passed, hit,
+                                          np.float32(s.log_odds_hit), np.float32(rays.log_odds_miss),
+                                          np.float32(s.log_odds_min), np.float32(s.log_odds_max), far,
+                                          np.float32(rays.far_hit_max if weak else s.log_odds_max))
 
     def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
@@ -442,31 +431,6 @@ class OccupancyMap:
         return self._view_directions[key]
 
 
-def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarray:
-    """Pixels at depth discontinuities: (H, W) bool, True where the depths of the pixel's
-    `kernel_px` x `kernel_px` neighbourhood span more than `rtol` times its own depth.
-
-    The edge test of utils3d's ``depth_edge`` (max - min over the window, relative to the
-    pixel's depth), which MoGe applies to its own monocular output before building a point
-    cloud or mesh ("remove edge", rtol 0.04 in its demo): at a discontinuity an upsampling
-    decoder gives intermediate depths, points in the free space between the two surfaces.
-
-    Args:
-        depth: (H, W) float z-depth in metres, NaN (or <= 0) where invalid; invalid
-            neighbours are ignored, invalid pixels are never edges.
-        rtol: relative depth span, > 0.
-        kernel_px: odd window side, pixels.
-    """
-    depth = np.asarray(depth, np.float32)
-    with np.errstate(invalid="ignore"):
-        valid = np.isfinite(depth) & (depth > 0)
-    window = np.ones((kernel_px, kernel_px), np.uint8)  # grey dilation / erosion = max / min filters
-    highest = cv2.dilate(np.where(valid, depth, -np.inf), window, borderType=cv2.BORDER_REPLICATE)
-    lowest = cv2.erode(np.where(valid, depth, np.inf), window, borderType=cv2.BORDER_REPLICATE)
-    with np.errstate(invalid="ignore"):
-        return valid & (highest - lowest > rtol * depth)  # NaN (invalid) pixels compare False
-
-
 def _read_only(array: np.ndarray) -> np.ndarray:
     view = array.view()
     view.flags.writeable = False
@@ -479,39 +443,3 @@ def _image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarra
     u = np.array([0.0, W - 1, 0.0, W - 1])
     v = np.array([0.0, 0.0, H - 1, H - 1])
     return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1)
-
-
-@numba.njit(cache=True, parallel=True)
-def _apply_marks(log_odds, observed, lo, passed, hit, l_hit, l_miss, l_min, l_max, far, l_far_max):  # pragma: no cover
-    """One frame's update over a box at offset `lo` (3,) int64 of the (X, Y, Z) map arrays:
-    `hit` voxels get `l_hit`, other `passed` ones `l_miss`, clamped to [l_min, l_max]
-    (float32 log-odds); other `far` voxels (a (0, 0, 0) array: none) get `l_hit` but rise no
-    higher than `l_far_max` (weak hits), and passed wins over them. Returns the number of voxels
-    observed for the first time."""
-    newly = 0
-    any_far = far.shape[0] > 0
-    for i in numba.prange(passed.shape[0]):
-        gi = lo[0] + i
-        for j in range(passed.shape[1]):
-            gj = lo[1] + j
-            for k in range(passed.shape[2]):
-                gk = lo[2] + k
-                if hit[i, j, k]:
-                    delta = l_hit
-                elif passed[i, j, k]:
-                    delta = l_miss
-                elif any_far and far[i, j, k]:
-                    value = log_odds[gi, gj, gk]
-                    if value < l_far_max:
-                        log_odds[gi, gj, gk] = min(value + l_hit, l_far_max)
-                    if not observed[gi, gj, gk]:
-                        observed[gi, gj, gk] = True
-                        newly += 1
-                    continue
-                else:
-                    continue
-                log_odds[gi, gj, gk] = min(max(log_odds[gi, gj, gk] + delta, l_min), l_max)
-                if not observed[gi, gj, gk]:
-                    observed[gi, gj, gk] = True
-                    newly += 1
-    return newly

@@ -1,13 +1,15 @@
 """Voxel traversal along camera rays (Amanatides & Woo), compiled with numba.
 
-One traversal, three kernels:
+One traversal, three kernels, and the update that applies a frame's marks:
 
 * :func:`mark_traversed`: mark the voxels rays pass through (the observed voxels V_in
   of a view, in ``datagen``);
 * :func:`mark_depth_rays`: walk the rays of a depth image and mark the voxels passed
   and the voxels holding the end points (the per-frame update of the occupancy map);
 * :func:`frustum_volume`: integrate the volume of selected voxels inside virtual
-  cameras' frusta up to occlusion (a frontier's gain, the known volume seen from it).
+  cameras' frusta up to occlusion (a frontier's gain, the known volume seen from it);
+* :func:`apply_marks`: one frame's log-odds update of the occupancy map from the voxels
+  :func:`mark_depth_rays` marked.
 
 Conventions: a *box* is a sub-grid of a voxel grid given by the world position of its
 corner, ``box_origin`` (3,) float64 metres, and the voxel size in metres; box arrays are
@@ -238,3 +240,39 @@ def frustum_volume(origins, rotations, camera_directions, max_depth, focal_px, b
                 t = t_next
                 ix, iy, iz, tx, ty, tz = _advance(ix, iy, iz, sx, sy, sz, tx, ty, tz, ddx, ddy, ddz)
         volumes[v] = total * scale
+
+
+@numba.njit(cache=True, parallel=True)
+def apply_marks(log_odds, observed, lo, passed, hit, l_hit, l_miss, l_min, l_max, far, l_far_max):  # pragma: no cover
+    """One frame's update over a box at offset `lo` (3,) int64 of the (X, Y, Z) map arrays:
+    `hit` voxels get `l_hit`, other `passed` ones `l_miss`, clamped to [l_min, l_max]
+    (float32 log-odds); other `far` voxels (a (0, 0, 0) array: none) get `l_hit` but rise no
+    higher than `l_far_max` (weak hits), and passed wins over them. Returns the number of voxels
+    observed for the first time."""
+    newly = 0
+    any_far = far.shape[0] > 0
+    for i in numba.prange(passed.shape[0]):
+        gi = lo[0] + i
+        for j in range(passed.shape[1]):
+            gj = lo[1] + j
+            for k in range(passed.shape[2]):
+                gk = lo[2] + k
+                if hit[i, j, k]:
+                    delta = l_hit
+                elif passed[i, j, k]:
+                    delta = l_miss
+                elif any_far and far[i, j, k]:
+                    value = log_odds[gi, gj, gk]
+                    if value < l_far_max:
+                        log_odds[gi, gj, gk] = min(value + l_hit, l_far_max)
+                    if not observed[gi, gj, gk]:
+                        observed[gi, gj, gk] = True
+                        newly += 1
+                    continue
+                else:
+                    continue
+                log_odds[gi, gj, gk] = min(max(log_odds[gi, gj, gk] + delta, l_min), l_max)
+                if not observed[gi, gj, gk]:
+                    observed[gi, gj, gk] = True
+                    newly += 1
+    return newly
