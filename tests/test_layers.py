@@ -1,5 +1,6 @@
 """The module map of docs/design.md holds: no import runs up a layer, no import circle between
-the library's files, and the library never imports the packages built on it.
+the library's files, the library never imports the packages built on it, and no module of it or
+of the packages built on it passes MAX_MODULE_LINES.
 
 Read from the source (every ``import`` and ``from ... import``, at module level or inside a
 function), nothing is imported.
@@ -25,6 +26,8 @@ LAYERS = {
     "cli": 8,
 }
 ABOVE_THE_LIBRARY = ("datagen", "train", "deploy")
+MAX_MODULE_LINES = 450
+"""docs/design.md, "Module map": a module longer than this holds more than one job (issue 29)."""
 
 
 def _module_name(path: Path) -> str:
@@ -108,3 +111,9 @@ def test_no_import_circle_between_library_files():
         if module not in state:
             visit(module, [module])
     assert circles == []
+
+
+def test_no_module_is_longer_than_the_limit():
+    long = [f"{path.relative_to(ROOT)}: {lines} lines" for folder in (LIBRARY, *(ROOT / name for name in ABOVE_THE_LIBRARY))
+            for path in sorted(folder.rglob("*.py")) if (lines := len(path.read_text().splitlines())) > MAX_MODULE_LINES]
+    assert long == []
