@@ -9,18 +9,19 @@
 # .venv/bin/frontiernet bench --pack --out docs/benchmark/published
 # The same protocol into another folder (docs/benchmark/regimes/resume.sh): OUT_DIR, DEPTH (a
 # --depth list; unset: the published folder's run.depth), METHODS (some methods first: the plan
-# pins the settings, not the method list), WORKERS, BIN (the folder holding `frontiernet`).
+# pins the settings, not the method list), WORKERS, FRONTIERNET (the command; e.g.
+# FRONTIERNET="scripts/pinned.sh COMMIT ../pinned" runs one commit's code while the checkout is edited).
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-BIN=${BIN:-.venv/bin}
+FRONTIERNET=${FRONTIERNET:-.venv/bin/frontiernet}
 OUT_DIR=${OUT_DIR:-docs/benchmark/published}
 mkdir -p runs
-[ -f runs/shipped.onnx ] || "$BIN/frontiernet" export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
+[ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
     --format onnx --out runs/shipped.onnx
 KTH=../shared/data/floorplans/kth
-"$BIN/frontiernet" bench --scenes ../shared/data/scenes/aws_small_house.glb procedural:1000-1009 \
+$FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural:1000-1009 \
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods "${METHODS:-frontiernet,oracle,classic,gain-distance,df-uniform,discontinuity-gain,discontinuity-uniform,random-frontier,vacuum}" \
     --starts 3 --repeats "${REPEATS:-3}" --max-steps 500 --scene-starts --model runs/shipped.onnx \
     ${DEPTH:+--depth "$DEPTH"} --workers "${WORKERS:-2}" --out "$OUT_DIR"
-exec "$BIN/frontiernet" bench --pack --out "$OUT_DIR"
+exec $FRONTIERNET bench --pack --out "$OUT_DIR"
