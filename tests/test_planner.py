@@ -110,17 +110,18 @@ def test_utility_is_gain_over_distance_with_a_floor_on_the_distance():
     assert FrontierPlanner(planner_conf(gain_exponent=2.0)).utility(3.0, 3.0) == pytest.approx(3.0)
 
 
-@pytest.mark.parametrize("far_gain, chosen", [(9.0, 1), (5.0, 0)])
-def test_best_route_maximises_gain_over_path_distance(far_gain, chosen):
-    """Near: 1 m away, gain 2 (u = 2). Far: 3 m away, gain 9 (u = 3) or 5 (u = 1.67)."""
+@pytest.mark.parametrize("exponent, far_gain, chosen", [(1.0, 9.0, 1), (1.0, 5.0, 0), (2.0, 5.0, 1), (2.0, 3.0, 0)])
+def test_best_route_maximises_gain_over_path_distance(exponent, far_gain, chosen):
+    """Near: 1 m away, gain 2. Far: 3 m away. Exponent 1 (the paper's): u = 2 near, 3 (gain 9) or 1.67
+    (gain 5) far. Exponent 2 (the default): u = 4 near, 8.33 (gain 5) or 3 (gain 3) far."""
     robot = np.array([1.05, 3.05])  # a cell centre of the open grid
     frontiers = [frontier(0, robot + [0.0, 1.0], 2.0, 0), frontier(1, robot + [3.0, 0.0], far_gain, 0)]
-    planner = FrontierPlanner(planner_conf())
+    planner = FrontierPlanner(planner_conf(gain_exponent=exponent))
     route = planner.best_route(frontiers, robot, parents(robot), grid=open_grid())
     assert route.frontier_id == chosen
     expected_distance = [1.0, 3.0][chosen]
     assert route.distance_m == pytest.approx(expected_distance, abs=1e-9)
-    assert route.utility == pytest.approx([2.0, far_gain][chosen] / expected_distance)
+    assert route.utility == pytest.approx([2.0, far_gain][chosen] ** exponent / expected_distance)
     np.testing.assert_allclose(route.waypoints[-1], frontiers[chosen].position[:2], atol=0.051)
     assert not planner.failures and not planner.blacklist
 
@@ -135,10 +136,11 @@ def test_blacklisted_or_missing_frontiers_give_no_route():
 
 @pytest.mark.parametrize("other_gain, switch", [(4.9, False), (5.2, True)])
 def test_the_current_goal_is_kept_unless_another_is_better_by_the_margin(other_gain, switch):
-    """Both 2 m away: the goal's utility is 2.0; the other's is 2.45 (22.5 % better) or 2.6 (30 %)."""
+    """Both 2 m away, gain exponent 1: the goal's utility is 2.0; the other's is 2.45 (22.5 % better)
+    or 2.6 (30 %)."""
     robot = np.array([3.05, 3.05])
     frontiers = [frontier(7, robot + [2.0, 0.0], 4.0, 0), frontier(8, robot - [2.0, 0.0], other_gain, 0)]
-    planner = FrontierPlanner(planner_conf(goal_switch_margin=0.25))
+    planner = FrontierPlanner(planner_conf(goal_switch_margin=0.25, gain_exponent=1.0))
     route = planner.best_route(frontiers, robot, parents(robot), grid=open_grid(), keep=7, keep_margin=0.25)
     assert route.frontier_id == (8 if switch else 7)
     # without a current goal the better one always wins
@@ -360,7 +362,7 @@ def test_route_behind_the_door_goes_through_it_and_keeps_the_clearance(two_room_
     assert np.all((mapped[:, 0] > 0.2) & (mapped[:, 1] > 0.2) & (mapped[:, 1] < 3.8))
     # the distance used in the utility is at least the route's length
     assert route.distance_m >= arc_lengths(np.vstack([robot, waypoints]))[-1] - 0.2
-    assert route.utility == pytest.approx(10.0 / route.distance_m)
+    assert route.utility == pytest.approx(10.0 ** conf["gain_exponent"] / route.distance_m)  # Eq. 8, gain^e
 
 
 def test_planning_grid_blocks_unknown_and_obstacles_and_keeps_the_robot_cell_open(two_room_map):
@@ -442,7 +444,7 @@ def test_map_free_route_follows_the_trajectory_back_to_the_parent_then_the_edge(
     planner = FrontierPlanner(planner_conf(edge_spacing_m=0.1))
     route = planner.best_route([target], xy[robot], lambda i: xy[i], graph=graph, robot_index=robot)
     assert route.distance_m == pytest.approx(2.0 + 1.0 + 1.0, abs=1e-3)  # back up, back along, then the edge
-    assert route.utility == pytest.approx(8.0 / 4.0, rel=1e-3)
+    assert route.utility == pytest.approx(8.0 ** planner.conf["gain_exponent"] / 4.0, rel=1e-3)
     back = route.waypoints[:route.mapped_until]
     np.testing.assert_allclose(back, xy[robot - 1:9:-1])  # the poses visited, in reverse, to the parent
     np.testing.assert_allclose(route.waypoints[-1], [1.0, -1.0])

@@ -10,8 +10,11 @@
 # The same protocol into another folder (docs/benchmark/regimes/resume.sh): OUT_DIR, DEPTH (a
 # --depth list; unset: the published folder's run.depth), METHODS (some methods first: the plan
 # pins the settings, not the method list), WORKERS, FRONTIERNET (the command; e.g.
-# FRONTIERNET="scripts/pinned.sh COMMIT ../pinned" runs one commit's code while the checkout is edited).
+# FRONTIERNET="scripts/pinned.sh COMMIT ../pinned" runs one commit's code while the checkout is edited),
+# SETTINGS (`--set` KEY=VALUE pairs; unset: planner.gain_exponent=1, the exponent this folder's plan
+# ran with before 2 became the default on 2026-11-27; a new folder sets it empty: today's defaults).
 set -euo pipefail
+SETTINGS=${SETTINGS-planner.gain_exponent=1}
 cd "$(dirname "$0")/../../.."
 FRONTIERNET=${FRONTIERNET:-.venv/bin/frontiernet}
 OUT_DIR=${OUT_DIR:-docs/benchmark/published}
@@ -23,5 +26,5 @@ $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods "${METHODS:-frontiernet,oracle,classic,gain-distance,df-uniform,discontinuity-gain,discontinuity-uniform,random-frontier,vacuum}" \
     --starts 3 --repeats "${REPEATS:-3}" --max-steps 500 --scene-starts --model runs/shipped.onnx \
-    ${DEPTH:+--depth "$DEPTH"} --workers "${WORKERS:-2}" --out "$OUT_DIR"
+    ${DEPTH:+--depth "$DEPTH"} ${SETTINGS:+--set $SETTINGS} --workers "${WORKERS:-2}" --out "$OUT_DIR"
 exec $FRONTIERNET bench --pack --out "$OUT_DIR"

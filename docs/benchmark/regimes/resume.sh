@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# Resume the published protocol in both depth regimes (docs/benchmark.md, "Both depth regimes";
-# issue 27, steps 2 and 7): the published run's script with `--depth gt,emulated` into this
-# folder. REPEATS=1 (the default here) is pass 1, REPEATS=3 pass 2 and the full protocol;
-# METHODS=frontiernet,oracle,classic runs those first (the full list afterwards adds the other
-# methods' runs to the same folder). Before committing while it runs:
+# Resume the published protocol in both depth regimes under today's defaults (docs/benchmark.md,
+# "Both depth regimes"; issue 27, steps 2 and 7): the published run's script with
+# `--depth gt,emulated` into this folder and no `--set` (the published folder's script adds
+# planner.gain_exponent=1 for its own plan). REPEATS=1 (the default here) is pass 1, REPEATS=3
+# pass 2 and the full protocol; METHODS=frontiernet,oracle,classic runs those first (the full list
+# afterwards adds the other methods' runs to the same folder). Before committing while it runs:
 # .venv/bin/frontiernet bench --pack --out docs/benchmark/regimes
 set -euo pipefail
 cd "$(dirname "$0")"
-OUT_DIR=${OUT_DIR:-docs/benchmark/regimes} DEPTH=gt,emulated REPEATS=${REPEATS:-1} exec ../published/resume.sh
+OUT_DIR=${OUT_DIR:-docs/benchmark/regimes} DEPTH=gt,emulated REPEATS=${REPEATS:-1} SETTINGS= \
+    exec ../published/resume.sh
