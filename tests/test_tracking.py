@@ -88,6 +88,32 @@ def test_an_observation_merges_into_the_closest_matching_frontier():
     assert tracker.get(0).observations == 1 and tracker.get(1).observations == 2
 
 
+def test_cluster_merge_joins_chains_by_the_public_codes_distance_and_keeps_the_oldest_id():
+    """merge: clusters (cvg/FrontierNet merge_frontiers): d = L1 position + 2 (1 - cos), eps 1.8,
+    single linkage. #0 and #1 1.0 m apart, same direction (d = 1.0); #2 1.5 m from #1 along y and
+    60 degrees off (d = 1.5 + 2 * 0.5 = 2.5: apart); #3 1.5 m beyond #1 along x (d = 1.5: chained
+    to #0 through #1, 2.5 m from it); #4 far away."""
+    tracker = FrontierTracker(tracking_conf(merge="clusters"))
+    tracker.add([observation((1.0, 1.0, 1.2), 0.0, gain=6.0), observation((2.0, 1.0, 1.2), 0.0, gain=2.0),
+                 observation((2.0, 2.5, 1.2), 60.0, gain=3.0), observation((3.5, 1.0, 1.2), 0.0, gain=4.0),
+                 observation((9.0, 9.0, 1.2), 0.0, gain=5.0)], parent_pose=0, step=0)
+    tracker.add([observation((3.5, 1.0, 1.2), 0.0, gain=4.0)], parent_pose=3, step=2)  # #3 seen again
+    assert sorted(tracker.merge_clusters()) == [1, 3]
+    assert sorted(f.id for f in tracker) == [0, 2, 4]
+    merged = tracker.get(0)
+    np.testing.assert_allclose(merged.position, [(6 * 1.0 + 2 * 2.0 + 4 * 3.5) / 12, 1.0, 1.2])  # gain-weighted
+    assert merged.gain_m3 == pytest.approx(4.0) and merged.predicted_gain_m3 == pytest.approx(4.0)  # plain means
+    assert merged.observations == 4 and merged.parent_pose == 3 and (merged.first_step, merged.last_step) == (0, 2)
+    assert tracker.removed["merged"] == 2 and tracker.get(2).observations == 1
+    assert tracker.merge_clusters() == []  # nothing left to merge
+    # the default (nearest) merges nothing here; a misspelt rule is refused
+    default = FrontierTracker(tracking_conf())
+    default.add([observation((1.0, 1.0, 1.2)), observation((2.0, 1.0, 1.2))], 0, 0)
+    assert default.merge_clusters() == [] and len(default) == 2
+    with pytest.raises(InputError, match="tracking.merge must be nearest or clusters, got 'dbscan'"):
+        FrontierTracker(tracking_conf(merge="dbscan")).merge_clusters()
+
+
 def test_ids_are_never_reused_after_removal():
     tracker = FrontierTracker(tracking_conf())
     assert tracker.add([observation((x, 1.0, 1.2)) for x in (0.0, 2.0, 4.0)], 0, 0) == [0, 1, 2]

@@ -162,6 +162,8 @@ class Explorer:
         elif not self.map_free:
             self.tracker.update_gains(self.map)
         self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
+        if not fresh and self.tracker.merge_clusters():  # (merge: clusters) the public code filters again
+            self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
 
     # -- planning and motion --------------------------------------------------------------------
 

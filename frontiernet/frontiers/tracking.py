@@ -6,6 +6,8 @@ list is folded into a :class:`FrontierTracker`, whose frontiers keep stable inte
 * **Merge.** An observation closer than ``merge_distance_m`` to an existing frontier whose
   view direction differs by less than ``merge_angle_deg`` updates that frontier (running
   means of position, direction and predicted gain); otherwise it becomes a new frontier.
+  With ``merge: clusters`` (the public code's rule), after the gains are reduced and the set
+  pruned, frontiers are also merged in clusters (:meth:`FrontierTracker.merge_clusters`).
 * **Gain.** A frontier's gain is its predicted gain minus the known free volume a virtual
   camera at the frontier, looking along its direction, sees in the occupancy map (the
   public code's map-based gain reduction), by default less the part that the frame which
@@ -189,6 +191,52 @@ class FrontierTracker:
             if distance < best_distance and float(frontier.direction @ direction) > min_cos:
                 best, best_distance = frontier, distance
         return best
+
+    def merge_clusters(self) -> list[int]:
+        """With ``merge: clusters``: merge every cluster of frontiers into one; returns the ids
+        merged away (none with ``merge: nearest``). The public code's rule (cvg/FrontierNet,
+        ``FrontierManager.merge_frontiers``, run after its gain adjustment and filter): DBSCAN
+        with one sample per core over d = ||p_i - p_j||_1 + w (1 - cos(v_i, v_j)), eps
+        ``merge_clusters.eps`` (1.8), w ``merge_clusters.direction_weight`` (2), i.e. the
+        connected components of the graph d <= eps (single linkage). A cluster becomes one
+        frontier with the oldest member's id: position the gain-weighted mean (weights gain, at
+        least 1e-4 m^3), direction the normalised sum, predicted gain, gain and known baseline
+        the plain means, the parent pose of its most recently observed member."""
+        mode = str(self.conf.get("merge", "nearest"))
+        if mode not in ("nearest", "clusters"):
+            raise InputError(f"tracking.merge must be nearest or clusters, got {mode!r}")
+        if mode == "nearest" or len(self.frontiers) < 2:
+            return []
+        from scipy.sparse.csgraph import connected_components
+
+        conf = self.conf["merge_clusters"]
+        frontiers = sorted(self.frontiers.values(), key=lambda f: f.id)
+        positions = np.stack([f.position for f in frontiers])
+        directions = _unit(np.stack([f.direction for f in frontiers]))
+        distance = (np.abs(positions[:, None] - positions[None]).sum(-1)
+                    + float(conf["direction_weight"]) * (1.0 - directions @ directions.T))
+        count, labels = connected_components(distance <= float(conf["eps"]), directed=False)
+        merged = []
+        for label in range(count):
+            members = [f for f, mine in zip(frontiers, labels == label) if mine]
+            if len(members) < 2:
+                continue
+            keep, gains = members[0], np.array([max(f.gain_m3, 1e-4) for f in members])
+            latest = max(members, key=lambda f: f.last_step)
+            keep.position = np.average([f.position for f in members], axis=0, weights=gains)
+            keep.direction = _unit(np.sum([f.direction for f in members], axis=0))
+            keep.predicted_gain_m3 = float(np.mean([f.predicted_gain_m3 for f in members]))
+            keep.gain_m3 = float(np.mean([f.gain_m3 for f in members]))
+            baselines = [f.known_baseline_m3 for f in members]
+            keep.known_baseline_m3 = None if None in baselines else float(np.mean(baselines))
+            keep.parent_pose, keep.last_step = latest.parent_pose, latest.last_step
+            keep.first_step = min(f.first_step for f in members)
+            keep.observations = sum(f.observations for f in members)
+            for frontier in members[1:]:
+                self.frontiers.pop(frontier.id)
+                self.removed["merged"] = self.removed.get("merged", 0) + 1
+                merged.append(frontier.id)
+        return merged
 
     def update_gains(self, occupancy) -> None:
         """Reduce gains by the known free volume a virtual camera at each frontier sees in
