@@ -51,6 +51,10 @@ KEYS_ADDED_AFTER_PLANS = {
     "map.monocular_far_hit_max": None,
     "map.monocular_log_odds_miss": None,
     "planner.obstacle_memory_frames": 0,  # map-free mode's obstacle memory, off as before the key
+    # 1d0b1c0: the public code's cluster merge, off (nearest) as before the key; its settings do
+    # nothing under nearest (listed with their defaults)
+    "tracking.merge": "nearest",
+    "tracking.merge_clusters": {"eps": 1.8, "direction_weight": 2.0},
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config
