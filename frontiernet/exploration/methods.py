@@ -9,15 +9,15 @@ in a benchmark therefore come from the goal choice alone.
 =======================  ====================================  ======================  ====================
 method                   frontiers                             gain                    goal rule
 =======================  ====================================  ======================  ====================
-frontiernet              the model on the image, anchored      predicted (class)       gain / distance (Eq. 8)
-oracle                   datagen's ground truth on the image   ground truth            gain / distance
-df-uniform               the model's distance field            uniform                 gain / distance
-discontinuity-gain       depth discontinuities F_d             the model's             gain / distance
-discontinuity-uniform    depth discontinuities F_d             uniform                 gain / distance
-oracle-uniform           datagen's ground truth on the image   uniform                 gain / distance
-frontiernet-oracle-gain  the model on the image, anchored      ground truth            gain / distance
+frontiernet              the model on the image, anchored      predicted (class)       gain^e / dist. (Eq. 8)
+oracle                   datagen's ground truth on the image   ground truth            gain^e / distance
+df-uniform               the model's distance field            uniform                 gain^e / distance
+discontinuity-gain       depth discontinuities F_d             the model's             gain^e / distance
+discontinuity-uniform    depth discontinuities F_d             uniform                 gain^e / distance
+oracle-uniform           datagen's ground truth on the image   uniform                 gain^e / distance
+frontiernet-oracle-gain  the model on the image, anchored      ground truth            gain^e / distance
 classic                  the map: free cells beside unknown    --                      nearest (Yamauchi 1997)
-gain-distance            the map's frontiers                   visible unknown volume  gain / distance (NBVP, SEER, MapEx)
+gain-distance            the map's frontiers                   visible unknown volume  gain^e / dist. (NBVP, SEER, MapEx)
 random-frontier          the map's frontiers                   --                      random, fixed per frontier
 vacuum                   none                                  --                      straight on until blocked, then a
                                                                                        random turn (GLEAM's "vacuum")

@@ -1,4 +1,4 @@
-"""Goal selection and paths: utility u = gain / distance (paper Eq. 8) over the frontier tree.
+"""Goal selection and paths: utility u = gain^e / distance (paper Eq. 8) over the frontier tree.
 
 docs/design.md item 6, paper III-F. Each planning round:
 
@@ -8,7 +8,8 @@ docs/design.md item 6, paper III-F. Each planning round:
    by the rest of the edge; without a map (``map_free``) the route runs back along the
    trajectory (:class:`~frontiernet.planning.tree.PoseGraph`) to the frontier's parent pose
    and then along the edge;
-2. its utility is ``gain^e / max(distance, min_distance_m)`` with the route's length;
+2. its utility is ``gain^e / max(distance, min_distance_m)`` with the route's length (e:
+   ``planner.gain_exponent``, 2; the paper's Eq. 8 has 1);
 3. the best frontier that is not blacklisted is the goal.
 
 A frontier whose route fails (no reachable ``c*``, or the motion along it is blocked) gets a
