@@ -445,6 +445,32 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         resumable_plan(tmp_path, protocol())
 
 
+def test_the_two_regime_plan_resumes_with_todays_defaults():
+    """docs/benchmark/regimes runs the published protocol in both depth regimes across sessions
+    under today's defaults (its resume.sh sets nothing): a default that changes what its runs do
+    must refuse it (then the folder is kept as a record and the protocol starts again, as
+    regimes_exponent1 was); the exponent-1 record resumes only with its exponent."""
+    from omegaconf import OmegaConf
+
+    from conftest import REPO_ROOT
+    from frontiernet.benchmark.main import resumable_plan
+    from frontiernet.errors import InputError
+    from frontiernet.exploration.run import load_run_config
+
+    def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
+        return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
+                "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
+
+    folders = REPO_ROOT / "docs" / "benchmark"
+    regimes, record = folders / "regimes", folders / "regimes_exponent1"
+    assert resumable_plan(regimes, protocol())["start_poses"] == resumable_plan(
+        record, protocol("planner.gain_exponent=1.0"))["start_poses"]  # the same starts: they pair run by run
+    with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
+        resumable_plan(record, protocol())
+    assert "SETTINGS= " in (regimes / "resume.sh").read_text()
+    assert "SETTINGS=planner.gain_exponent=1" in (record / "resume.sh").read_text()
+
+
 def test_report_of_a_folder_without_a_benchmark_says_so(tmp_path, one_line_error):
     assert main(["bench", "--report", "--out", str(tmp_path)]) == 2
     assert "no benchmark here" in one_line_error()
