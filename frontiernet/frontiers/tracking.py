@@ -233,8 +233,7 @@ class FrontierTracker:
             keep.first_step = min(f.first_step for f in members)
             keep.observations = sum(f.observations for f in members)
             for frontier in members[1:]:
-                self.frontiers.pop(frontier.id)
-                self.removed["merged"] = self.removed.get("merged", 0) + 1
+                self.remove(frontier.id, "merged")
                 merged.append(frontier.id)
         return merged
 
@@ -381,7 +380,8 @@ class FrontierTracker:
             self.remove(frontier.id, "low_gain")
 
     def remove(self, frontier_id: int, reason: str) -> None:
-        """Remove one frontier and count why (``low_gain``, ``visited``, ``occupied``, ``blacklisted``).
+        """Remove one frontier and count why (``low_gain``, ``visited``, ``occupied``, ``blacklisted``,
+        ``merged``, ``stale``).
 
         A blacklisted frontier leaves a tombstone: observations matching it later are discarded,
         so a goal given up on (e.g. a window onto the outside) does not come back under a new id."""
