@@ -147,6 +147,27 @@ def test_an_image_method_observes_every_n_frames_a_map_method_every_frame(plan_s
     assert len(calls) == expected and metrics["collisions"] == 0
 
 
+@pytest.mark.parametrize("method, merges", [("discontinuity-uniform", True), ("classic", False)])
+def test_the_cluster_merge_runs_in_the_loop_on_image_frontiers_only(plan_spec, tmp_path, monkeypatch, method,
+                                                                    merges):
+    """tracking.merge=clusters (the public code's merge, FrontierTracker.merge_clusters, tested in
+    test_tracking) runs on an image method's frontiers every frame; a map method's frontiers are
+    recomputed from the map each frame and never merged."""
+    from frontiernet.frontiers import FrontierTracker
+
+    modes = []
+    merge = FrontierTracker.merge_clusters
+
+    def recorded(self):
+        modes.append(self.conf["merge"])
+        return merge(self)
+
+    monkeypatch.setattr(FrontierTracker, "merge_clusters", recorded)
+    metrics = run_method(plan_spec, tmp_path / "run", method, 20, "tracking.merge=clusters")
+    frames = len(metrics["coverage_per_step"])
+    assert modes == (["clusters"] * frames if merges else []) and metrics["collisions"] == 0
+
+
 def test_observe_every_steps_below_one_is_refused(plan_spec, tmp_path):
     stream = io.StringIO()
     with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
