@@ -55,6 +55,7 @@ KEYS_ADDED_AFTER_PLANS = {
     # nothing under nearest (listed with their defaults)
     "tracking.merge": "nearest",
     "tracking.merge_clusters": {"eps": 1.8, "direction_weight": 2.0},
+    "planner.traversed_is_free": False,  # the map alone decides what is traversable, as before the key
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config

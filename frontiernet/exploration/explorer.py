@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import InputError, whole_number
 from ..frontiers import FrontierTracker
 from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
+from ..planning.traversed import TraversedCells
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
 from .methods import Method
@@ -100,7 +101,10 @@ class Explorer:
         self.body_radius = body_radius(conf.planner, float(conf.map.voxel_size), self.agent.radius)
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = context.map
-        self.move_check = MoveCheck(self.map, self.motion, conf.planner, self.body_radius)
+        # where the robot has been, open to the planner and the move check (planner.traversed_is_free)
+        self.traversed = TraversedCells.like(self.map) \
+            if bool(conf.planner.traversed_is_free) and not self.map_free else None
+        self.move_check = MoveCheck(self.map, self.motion, conf.planner, self.body_radius, self.traversed)
         self.score = GroundTruthScore(scene, voxels, conf)  # the metrics; the robot never reads them
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
         self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed),
@@ -153,6 +157,8 @@ class Explorer:
     def _track(self, observations, T) -> None:
         self.poses.append(T)
         index = self.graph.add(T[:2, 3])
+        if self.traversed is not None:
+            self.traversed.add(T[:2, 3])
         fresh = self.method.fresh_frontiers
         ids = self.tracker.add(observations, index, self.agent.steps, average=not fresh)
         if fresh:  # the proposals are the whole current set (map frontiers): the others are gone
@@ -179,7 +185,8 @@ class Explorer:
                                             robot_index=len(self.graph) - 1, keep=keep,
                                             keep_margin=float(self.conf.planner.goal_switch_margin))
         else:
-            grid = PlanningGrid.from_map(self.map, self.motion.z, self.conf.planner, xy)
+            grid = PlanningGrid.from_map(self.map, self.motion.z, self.conf.planner, xy,
+                                         None if self.traversed is None else self.traversed.mask)
             if grid.boxed_in(xy, float(self.conf.planner.clearance_m)):  # no goal is to blame: step back first
                 self.route, self.backoff = None, self._retreat_point(xy)
                 return

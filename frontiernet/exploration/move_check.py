@@ -80,10 +80,13 @@ class MoveCheck:
         motion: the run's :class:`~frontiernet.exploration.motion.Motion` (camera height, turns).
         planner_conf: the ``planner`` section (``height_band_m``, ``mode``, ``obstacle_memory_frames``).
         radius: the body's radius, metres (:func:`body_radius`).
+        traversed: where the robot has been (:class:`~frontiernet.planning.traversed.TraversedCells`,
+            with ``planner.traversed_is_free``; None: off): a move whose target lies in such a cell
+            passes (``ok``) whatever the map says there now, as the planner plans through them.
     """
 
-    def __init__(self, robot_map, motion: Motion, planner_conf, radius: float) -> None:
-        self.map, self.motion, self.radius = robot_map, motion, float(radius)
+    def __init__(self, robot_map, motion: Motion, planner_conf, radius: float, traversed=None) -> None:
+        self.map, self.motion, self.radius, self.traversed = robot_map, motion, float(radius), traversed
         half_band = float(planner_conf.height_band_m)
         self.band = (motion.z - half_band, motion.z + half_band)  # the planning grid's height band, metres
         self.map_free = str(planner_conf.mode) == "map_free"
@@ -122,6 +125,8 @@ class MoveCheck:
         if self.map_free:
             return ("fail", None) if self.memory is not None and self._remembered_obstacle(T, target) else ("ok", None)
         xy = target[:2, 3]
+        if self.traversed is not None and self.traversed.contains(xy):
+            return "ok", None
         if self.map.cylinder_touches_occupied(xy, self.radius, *self.band):
             return "fail", None
         if self.map.state_at(target[None, :3, 3])[0] != FREE:
@@ -140,7 +145,10 @@ class MoveCheck:
     def blocked(self, xy: np.ndarray) -> bool:
         """Whether the map has an occupied voxel in the planning band over world point `xy` (2,):
         the planning grid's obstacle test, so the robot never walks (along a tree edge) onto cells
-        it cannot plan from, such as a counter top below its body."""
+        it cannot plan from, such as a counter top below its body). Never where the robot has been
+        (`traversed`)."""
+        if self.traversed is not None and self.traversed.contains(xy):
+            return False
         return self.map.cylinder_touches_occupied(xy, 1e-6, *self.band)
 
     def unknown(self, xy: np.ndarray) -> bool:

@@ -56,7 +56,8 @@ class PlanningGrid:
     occupied: np.ndarray | None = None
 
     @classmethod
-    def from_map(cls, occupancy, z: float, conf, start_xy: np.ndarray | None = None) -> "PlanningGrid":
+    def from_map(cls, occupancy, z: float, conf, start_xy: np.ndarray | None = None,
+                 traversed: np.ndarray | None = None) -> "PlanningGrid":
         """Grid over the band ``z +- planner.height_band_m`` of an OccupancyMap.
 
         A cell is traversable when it is free over the band and at least ``clearance_m``
@@ -66,7 +67,10 @@ class PlanningGrid:
         it would touch it. (The layer at the camera's height is what the camera sees at every
         range; the band's top and bottom are unseen within ~0.45 m of it, so counting those
         would wall the robot in wherever it turned.) The cell under `start_xy` (the robot,
-        which stands in free space whatever the map says) is kept open.
+        which stands in free space whatever the map says) is kept open, and so are the cells of
+        `traversed` ((X, Y) bool on the map's XY grid: where the robot has been,
+        :class:`~frontiernet.planning.traversed.TraversedCells`, with ``planner.traversed_is_free``),
+        at the cost of a cell at the clearance limit.
         """
         band = float(conf["height_band_m"])
         free, occupied = occupancy.slice_2d(z - band, z + band)
@@ -78,6 +82,8 @@ class PlanningGrid:
             to_obstacle = np.minimum(clearance, ndimage.distance_transform_edt(layer_free | layer_occupied) * cell)
         cost = clearance_cost(to_obstacle, float(conf["clearance_m"]), float(conf["centre_weight"]))
         cost[~free] = np.inf
+        if traversed is not None:
+            cost[traversed & ~np.isfinite(cost)] = 1.0 + float(conf["centre_weight"]) / float(conf["clearance_m"])
         grid = cls(np.asarray(occupancy.origin[:2], np.float64), cell, cost, clearance, occupied)
         if start_xy is not None:
             i, j = grid.cell(start_xy)
