@@ -218,3 +218,38 @@ def test_the_map_free_memory_forgets_after_its_frames():
     for yaw_deg in (90, 0):  # two frames that do not see the pillar push the one that did out
         turn(explorer, np.radians(yaw_deg))
     assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == "ok"
+
+
+def explorer_facing_the_pillar(**planner) -> Explorer:
+    """A classic explorer at ROBOT that has looked west, at the pillar 0.25 m away, with `planner` keys set."""
+    from omegaconf import OmegaConf
+
+    scene = room_scene(True)
+    conf = OmegaConf.merge(load_config("explore"), {"planner": planner})
+    sim = load_config("sim")
+    voxels = voxelize_scene(scene, sim.voxels)
+    context = MethodContext(conf, sim, scene=scene, voxels=voxels)
+    explorer = Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic", context),
+                        make_depth_source("ground_truth", load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi))
+    explorer.sense()
+    return explorer
+
+
+def test_a_move_into_a_cell_the_robot_has_passed_through_passes_whatever_the_map_says():
+    """``planner.traversed_is_free``: where the robot has been is open to the move check, as to the
+    planner. Here the mapped pillar plays a doorway a noisy depth source has sealed behind the robot."""
+    assert explorer_facing_the_pillar().traversed is None  # off by default
+    assert explorer_facing_the_pillar(mode="map_free", traversed_is_free=True).traversed is None  # map mode only
+    explorer = explorer_facing_the_pillar(traversed_is_free=True)
+    x, y, z = explorer.agent.position
+    assert explorer.traversed.contains((x, y)) and explorer.traversed.mask.sum() == 1
+    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)  # 0.14 m from its face: inside the body
+    pillar_xy = np.array([1.72, 1.5])  # in the voxel layer of its face (x = 1.75)
+    assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == "fail"
+    assert explorer.move_check.blocked(pillar_xy)
+    explorer.traversed.add(pillar_xy)  # as if the robot had walked through it (the pillar a mapping error)
+    assert explorer.move_check(explorer.agent.pose, towards_pillar) == ("ok", None)
+    assert not explorer.move_check.blocked(pillar_xy)
+    # the explorer adds each pose it senses from
+    turn(explorer, 0.0)
+    assert explorer.traversed.contains((x, y))

@@ -15,6 +15,7 @@ from frontiernet.frontiers.tracking import Frontier
 from frontiernet.geometry import arc_lengths, pose_from_heading
 from frontiernet.mapping import OccupancyMap
 from frontiernet.planning.planner import FrontierPlanner, PlanningGrid, Route, approach_edge, resample_route
+from frontiernet.planning.traversed import TraversedCells
 from frontiernet.planning.tree import PoseGraph, edge_points, walk_back
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 
@@ -428,6 +429,53 @@ def test_boxed_in_only_beside_obstacles_with_no_way_out():
     start = np.array([1.45, 1.45])
     empty = SimpleNamespace(slice_2d=lambda z0, z1: (unknown, unknown), voxel_size=0.1, origin=np.zeros(3))
     assert not PlanningGrid.from_map(empty, Z, conf, start).boxed_in(start, conf["clearance_m"])
+
+
+def test_traversed_cells_are_the_cells_the_path_passed_through():
+    record = TraversedCells(np.zeros(2), 0.1, np.zeros((40, 40), bool))
+    record.add((0.55, 0.55))
+    assert record.mask.sum() == 1 and record.mask[5, 5]  # the first point: its own cell
+    record.add((1.55, 0.55))  # along x: cells 5..15 of row j = 5
+    record.add((1.55, 2.05))  # then along y: 6..20 of column i = 15
+    assert record.mask.sum() == 11 + 15 and record.mask[5:16, 5].all() and record.mask[15, 5:21].all()
+    assert record.contains((1.02, 0.51)) and not record.contains((1.02, 0.75)) and not record.contains((-1.0, 0.5))
+    record.add((1.55, -0.95))  # off the grid: the cells inside are marked, nothing fails
+    assert record.mask[15, 0] and record.mask.sum() == 26 + 5
+
+
+def sealed_corridor_map():
+    """A 4 m corridor along x (free cells y in [0.2, 1.2)) that the robot walked from x = 3.55 to
+    x = 0.55, and whose map then sealed it at x = 2.0-2.2 (a monocular depth's smeared walls)."""
+    free = np.zeros((40, 14), bool)
+    free[:, 2:12] = True
+    occupied = np.zeros_like(free)
+    occupied[:, 1] = occupied[:, 12] = True  # both walls mapped
+    occupied[20:23, 2:12] = True  # the phantom wall across
+    free[occupied] = False
+    return SimpleNamespace(slice_2d=lambda z0, z1: (free, occupied), voxel_size=0.1, origin=np.zeros(3))
+
+
+def test_cells_the_robot_passed_through_stay_open_when_the_map_seals_them():
+    """With ``planner.traversed_is_free`` the way back through a doorway the map has since sealed
+    stays open: the frontier seen from the far side is reached, not blacklisted."""
+    conf = planner_conf(max_failures=1)
+    occupancy = sealed_corridor_map()
+    came_from, robot = np.array([3.55, 0.75]), np.array([0.55, 0.75])
+    goal = frontier(0, (3.95, 0.75), 10.0, 0)  # seen from where the robot came from
+    sealed = PlanningGrid.from_map(occupancy, Z, conf, robot)
+    assert FrontierPlanner(conf).best_route([goal], robot, parents(came_from), grid=sealed) is None
+    traversed = TraversedCells.like(SimpleNamespace(origin=np.zeros(3), voxel_size=0.1, shape=(40, 14, 1)))
+    for x in np.arange(3.55, 0.5, -0.11):  # the walk, in increments
+        traversed.add((x, 0.75))
+    open_grid_ = PlanningGrid.from_map(occupancy, Z, conf, robot, traversed.mask)
+    route = FrontierPlanner(conf).best_route([goal], robot, parents(came_from), grid=open_grid_)
+    assert route is not None and route.frontier_id == 0
+    assert np.allclose(route.waypoints[:, 1], 0.75)  # back along the cells it walked, through the phantom wall
+    # the cells it walked that were open anyway keep their cost; the sealed ones cost a cell at the clearance limit
+    walked = traversed.mask & np.isfinite(sealed.cost)
+    np.testing.assert_array_equal(open_grid_.cost[walked], sealed.cost[walked])
+    assert np.allclose(open_grid_.cost[20:23, 7], 1.0 + conf["centre_weight"] / conf["clearance_m"])
+    assert not np.isfinite(open_grid_.cost[20:23, 3]).any()  # the rest of the phantom wall stays shut
 
 
 # -- map-free mode: the tree and the trajectory -----------------------------------------------------
