@@ -188,17 +188,7 @@ def test_the_oracle_leaves_its_start_without_a_start_turn(tmp_path, shared_data)
 
 def map_free_explorer(frames: int) -> Explorer:
     """A map-free classic explorer at ROBOT that has looked west, at the pillar 0.25 m away."""
-    from omegaconf import OmegaConf
-
-    scene = room_scene(True)
-    conf = OmegaConf.merge(load_config("explore"), {"planner": {"mode": "map_free", "obstacle_memory_frames": frames}})
-    sim = load_config("sim")
-    voxels = voxelize_scene(scene, sim.voxels)
-    context = MethodContext(conf, sim, scene=scene, voxels=voxels)
-    explorer = Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic", context),
-                        make_depth_source("ground_truth", load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi))
-    explorer.sense()
-    return explorer
+    return explorer_facing_the_pillar(mode="map_free", obstacle_memory_frames=frames)
 
 
 @pytest.mark.parametrize("frames", [0, 10])
