@@ -25,6 +25,7 @@ class TraversedCells:
         cell_m: cell size, metres (the map's voxel size).
         mask: (X, Y) bool, indexed [i, j] for ``x = origin_x + (i + 0.5) * cell_m`` (the
             planning grid's cells).
+        last_xy: (2,) float64 the path's last point, metres (None before the first).
     """
 
     origin_xy: np.ndarray
