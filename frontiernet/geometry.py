@@ -161,6 +161,27 @@ def rigid_pose(T_world_cam) -> np.ndarray:
     return T
 
 
+def grid_cells(xy: np.ndarray, origin_xy: np.ndarray, cell_m: float) -> np.ndarray:
+    """(N, 2) int64 indices of the 2D grid cells under (N, 2) (or (2,)) world points `xy`, metres
+    (cell ``[i, j]`` spans ``origin + [i, i + 1) x [j, j + 1)`` cells; indices may lie off the grid)."""
+    return np.floor((np.asarray(xy, np.float64).reshape(-1, 2) - origin_xy) / cell_m).astype(np.int64)
+
+
+def cells_inside(cells: np.ndarray, shape: tuple) -> np.ndarray:
+    """(...,) bool: whether each cell index (..., 2) lies on a grid of `shape` (X, Y, ...)."""
+    return (cells >= 0).all(-1) & (cells[..., 0] < shape[0]) & (cells[..., 1] < shape[1])
+
+
+def grid_values(field: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy: np.ndarray,
+                outside: float = np.inf) -> np.ndarray:
+    """(N,) float64 values of an (X, Y) `field` at (N, 2) world points (`outside` off the grid)."""
+    cells = grid_cells(xy, origin_xy, cell_m)
+    ok = cells_inside(cells, field.shape)
+    values = np.full(len(cells), outside, np.float64)
+    values[ok] = field[cells[ok, 0], cells[ok, 1]]
+    return values
+
+
 def disks_touch_cells(mask: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy: np.ndarray,
                       radius_m: float) -> np.ndarray:
     """Whether a disk of `radius_m` around each world point overlaps a set cell of a 2D grid.
@@ -178,8 +199,8 @@ def disks_touch_cells(mask: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy
     reach = int(np.ceil(radius_m / cell_m))
     steps = np.arange(-reach, reach + 1)
     offsets = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)
-    cells = np.floor((xy - origin_xy) / cell_m).astype(np.int64)[:, None, :] + offsets[None]  # (N, K, 2)
-    inside = (cells >= 0).all(-1) & (cells[..., 0] < mask.shape[0]) & (cells[..., 1] < mask.shape[1])
+    cells = grid_cells(xy, origin_xy, cell_m)[:, None, :] + offsets[None]  # (N, K, 2)
+    inside = cells_inside(cells, mask.shape)
     hit = np.zeros(inside.shape, bool)
     hit[inside] = mask[cells[inside][:, 0], cells[inside][:, 1]]
     return (hit & (squared_distance_to_cells(cells, origin_xy, cell_m, xy[:, None, :]) < radius_m ** 2)).any(axis=1)

@@ -444,15 +444,13 @@ def test_traversed_cells_are_the_cells_the_path_passed_through():
 
 
 def sealed_corridor_map():
-    """A 4 m corridor along x (free cells y in [0.2, 1.2)) that the robot walked from x = 3.55 to
-    x = 0.55, and whose map then sealed it at x = 2.0-2.2 (a monocular depth's smeared walls)."""
-    free = np.zeros((40, 14), bool)
-    free[:, 2:12] = True
-    occupied = np.zeros_like(free)
-    occupied[:, 1] = occupied[:, 12] = True  # both walls mapped
+    """:func:`corridor_stub_map` after the robot walked it from x = 3.55 to x = 0.55, its map then
+    sealed at x = 2.0-2.2 (a monocular depth's smeared walls)."""
+    occupancy = corridor_stub_map()
+    free, occupied = occupancy.slice_2d(0, 0)
     occupied[20:23, 2:12] = True  # the phantom wall across
     free[occupied] = False
-    return SimpleNamespace(slice_2d=lambda z0, z1: (free, occupied), voxel_size=0.1, origin=np.zeros(3))
+    return occupancy
 
 
 def test_cells_the_robot_passed_through_stay_open_when_the_map_seals_them():

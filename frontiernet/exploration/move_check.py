@@ -125,7 +125,7 @@ class MoveCheck:
         if self.map_free:
             return ("fail", None) if self.memory is not None and self._remembered_obstacle(T, target) else ("ok", None)
         xy = target[:2, 3]
-        if self.traversed is not None and self.traversed.contains(xy):
+        if self._traversed(xy):
             return "ok", None
         if self.map.cylinder_touches_occupied(xy, self.radius, *self.band):
             return "fail", None
@@ -147,9 +147,12 @@ class MoveCheck:
         the planning grid's obstacle test, so the robot never walks (along a tree edge) onto cells
         it cannot plan from, such as a counter top below its body). Never where the robot has been
         (`traversed`)."""
-        if self.traversed is not None and self.traversed.contains(xy):
-            return False
-        return self.map.cylinder_touches_occupied(xy, 1e-6, *self.band)
+        return not self._traversed(xy) and self.map.cylinder_touches_occupied(xy, 1e-6, *self.band)
+
+    def _traversed(self, xy: np.ndarray) -> bool:
+        """Whether the robot has passed through the cell under world point `xy` (2,) (False when
+        ``planner.traversed_is_free`` is off)."""
+        return self.traversed is not None and self.traversed.contains(xy)
 
     def unknown(self, xy: np.ndarray) -> bool:
         """Whether the map's voxel at world point `xy` ((2,) metres) at the camera's height is unknown."""

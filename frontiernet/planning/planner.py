@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import ndimage
 
-from ..geometry import arc_lengths, disks_touch_cells, points_at_arc
+from ..geometry import arc_lengths, disks_touch_cells, grid_cells, grid_values, points_at_arc
 from .grid import clearance_cost, geodesic_paths
 from .tree import PoseGraph, edge_points, walk_back
 
@@ -112,7 +112,7 @@ class PlanningGrid:
 
     def cells(self, xy: np.ndarray) -> np.ndarray:
         """(N, 2) world points -> (N, 2) int64 cell indices (may lie outside the grid)."""
-        return np.floor((np.asarray(xy, np.float64).reshape(-1, 2) - self.origin_xy) / self.cell_m).astype(np.int64)
+        return grid_cells(xy, self.origin_xy, self.cell_m)
 
     def cell(self, xy: np.ndarray) -> tuple[int, int]:
         i, j = self.cells(xy)[0]
@@ -127,11 +127,7 @@ class PlanningGrid:
 
     def lookup(self, field: np.ndarray, xy: np.ndarray, outside=np.inf) -> np.ndarray:
         """Values of an (X, Y) `field` at (N, 2) world points (`outside` off the grid)."""
-        cells = self.cells(xy)
-        ok = (cells >= 0).all(1) & (cells[:, 0] < field.shape[0]) & (cells[:, 1] < field.shape[1])
-        values = np.full(len(cells), outside, np.float64)
-        values[ok] = field[cells[ok, 0], cells[ok, 1]]
-        return values
+        return grid_values(field, self.origin_xy, self.cell_m, xy, outside)
 
 
 @dataclass

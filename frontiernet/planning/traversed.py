@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..geometry import cells_inside, grid_cells, grid_values
+
 
 @dataclass
 class TraversedCells:
@@ -47,15 +49,14 @@ class TraversedCells:
         start = xy if self.last_xy is None else self.last_xy
         count = int(np.ceil(np.linalg.norm(xy - start) / (0.25 * self.cell_m))) + 1
         points = start + np.linspace(0.0, 1.0, count)[:, None] * (xy - start)
-        cells = np.floor((points - self.origin_xy) / self.cell_m).astype(np.int64)
-        inside = (cells >= 0).all(1) & (cells < np.asarray(self.mask.shape)).all(1)
-        self.mask[cells[inside, 0], cells[inside, 1]] = True
+        cells = grid_cells(points, self.origin_xy, self.cell_m)
+        cells = cells[cells_inside(cells, self.mask.shape)]
+        self.mask[cells[:, 0], cells[:, 1]] = True
         self.last_xy = xy.copy()
 
     def contains(self, xy: np.ndarray) -> bool:
         """Whether the cell under world point `xy` ((2,) metres) was passed through."""
-        i, j = np.floor((np.asarray(xy, np.float64)[:2] - self.origin_xy) / self.cell_m).astype(np.int64)
-        return bool(0 <= i < self.mask.shape[0] and 0 <= j < self.mask.shape[1] and self.mask[i, j])
+        return bool(grid_values(self.mask, self.origin_xy, self.cell_m, np.asarray(xy)[:2], outside=0.0)[0])
 
 
 __all__ = ["TraversedCells"]
