@@ -41,7 +41,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from frontiernet.errors import InputError, positive_number
-from frontiernet.geometry import rotation_from_yaw_pitch
+from frontiernet.geometry import atan2, rotation_from_yaw_pitch
 from frontiernet.mapping.traversal import frustum_volume, mark_traversed
 from frontiernet.simulator.camera import Frame, PinholeCamera, Renderer
 from frontiernet.simulator.voxels import VoxelGrid
@@ -329,9 +329,9 @@ class GroundTruthGenerator:
         sampled[pick] = True
         directions = self._view_directions(frontier_index[pick], frontier_world[pick], camera_origin,
                                            free, observed)
-        yaw = np.arctan2(directions[:, 1], directions[:, 0])
+        yaw = atan2(directions[:, 1], directions[:, 0])
         limit = np.deg2rad(float(conf.max_pitch_deg))
-        pitch = np.clip(np.arctan2(directions[:, 2], np.hypot(directions[:, 0], directions[:, 1])), -limit, limit)
+        pitch = np.clip(atan2(directions[:, 2], np.hypot(directions[:, 0], directions[:, 1])), -limit, limit)
         yaws = (yaw[:, None] + self.yaw_offsets[None, :]).reshape(-1)
         pitches = np.repeat(pitch, len(self.yaw_offsets))
         rotations = np.ascontiguousarray(rotation_from_yaw_pitch(yaws, pitches))

@@ -31,7 +31,7 @@ import numpy as np
 from scipy import ndimage
 
 from frontiernet.errors import InputError, number_range, positive_number
-from frontiernet.geometry import arc_lengths, points_at_arc, poses_from_headings
+from frontiernet.geometry import arc_lengths, atan2, points_at_arc, poses_from_headings
 from frontiernet.planning.grid import clearance_cost, geodesic_distance, shortest_path
 from frontiernet.simulator.poses import as_generator, height_above_surface
 from frontiernet.simulator.raycast import distance_to_surface
@@ -104,7 +104,7 @@ def path_headings(xy: np.ndarray, spacing: float, lookahead: float) -> tuple[np.
     if short.any():  # lookahead reaches the end: look along the path's last stretch
         tangent = xy[-1] - points_at_arc(xy, arc, np.array([max(length - max(spacing, lookahead), 0.0)]))[0]
         heading[short] = tangent
-    return positions, np.arctan2(heading[:, 1], heading[:, 0]), length
+    return positions, atan2(heading[:, 1], heading[:, 0]), length
 
 
 def _draw_path(scene: Scene, voxels: VoxelGrid, rng: np.random.Generator, s: dict, free_index: np.ndarray,

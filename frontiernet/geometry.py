@@ -11,6 +11,8 @@ looks up), with no roll.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import InputError
@@ -39,6 +41,24 @@ def rotation_from_yaw_pitch(yaw: float | np.ndarray, pitch: float | np.ndarray =
     right = np.stack([sy, -cy, np.zeros_like(yaw)], axis=-1)
     down = np.cross(forward, right)
     return np.stack([right, down, forward], axis=-1)
+
+
+_MATH_ATAN2 = np.frompyfunc(math.atan2, 2, 1)
+
+
+def atan2(y, x):
+    """arctan2(y, x) in radians, rounded the same on every CPU: a float for scalars, else a float64
+    array (broadcast).
+
+    numpy runs its float64 arctan2 in SIMD loops chosen for the CPU when it is imported, and its
+    AVX-512 loops round otherwise than the others in the last bit. A heading read from a pose so
+    differed between machines, and an image method's run from the same start drifted apart
+    (docs/benchmark.md, "Both depth regimes"). The C library's atan2 (Python's ``math.atan2``)
+    does not depend on the SIMD level; elementwise it costs ~0.1 us a value.
+    """
+    if np.ndim(y) == 0 and np.ndim(x) == 0:
+        return math.atan2(float(y), float(x))
+    return _MATH_ATAN2(np.asarray(y, np.float64), np.asarray(x, np.float64)).astype(np.float64)
 
 
 def pose_from_heading(x: float, y: float, z: float, yaw: float, pitch: float = 0.0) -> np.ndarray:

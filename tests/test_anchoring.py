@@ -16,8 +16,8 @@ from datagen.config import load_datagen_config
 from datagen.ground_truth import GroundTruthGenerator
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
-from frontiernet.frontiers import (FrontierObservation, anchor_frontiers, anchor_prediction, class_lower_bounds,
-                                   decode_gain, gain_classes)
+from frontiernet.frontiers import (AnchoringSettings, FrontierObservation, anchor_frontiers, anchor_prediction,
+                                   class_lower_bounds, decode_gain, gain_classes)
 from frontiernet.geometry import pose_from_heading
 from frontiernet.simulator.raycast import cast_rays
 from frontiernet.simulator.voxels import voxelize_scene
@@ -157,6 +157,46 @@ def test_subsampling_keeps_one_frontier_and_counts_image_pixels():
     depth, mask, gain = edge_view([(0, 100)])
     frontiers = anchor_frontiers(mask, gain, depth, K, POSE, _conf(max_pixels=300), np.random.default_rng(3))
     assert len(frontiers) == 1 and frontiers[0].num_pixels == mask.sum()
+
+
+# Two blocks of grid points: many equal mutual-reachability weights, and the order hdbscan takes them in
+# decides whether point 10 joins the second cluster (found by a search over random blocks).
+TIED_FEATURES = np.array([[4, 2], [4, 3], [4, 4], [4, 5], [5, 2], [5, 3], [5, 4], [5, 5], [10, 7], [10, 8], [10, 9],
+                          [11, 1], [11, 2], [11, 3], [11, 4], [12, 1], [12, 2], [12, 3], [12, 4], [13, 1], [13, 2],
+                          [13, 3], [13, 4]], np.float64)
+
+
+def _argsort_reversing_ties(monkeypatch):
+    """Stand in for a CPU whose numpy sorts equal keys in another order: the default (unstable)
+    argsort puts ties last index first; the stable kind stays stable."""
+    argsort = np.argsort
+
+    def reversing(a, axis=-1, kind=None, order=None, **kwargs):
+        if kind is not None or np.ndim(a) != 1:
+            return argsort(a, axis=axis, kind=kind, order=order, **kwargs)
+        return len(a) - 1 - argsort(np.asarray(a)[::-1], kind="stable")
+    monkeypatch.setattr(np, "argsort", reversing)
+
+
+def test_clusters_do_not_depend_on_how_the_cpu_sorts_equal_weights(monkeypatch):
+    import hdbscan
+    from hdbscan import hdbscan_
+
+    from frontiernet.frontiers import anchoring
+
+    settings = AnchoringSettings.from_config(_conf(**{"hdbscan.min_cluster_size": 5, "hdbscan.min_samples": 4,
+                                                      "hdbscan.cluster_selection_epsilon": 0.0}))
+    here = anchoring.cluster_labels(TIED_FEATURES, settings)
+    with monkeypatch.context() as installed:  # hdbscan as installed, sorting with numpy's default argsort ...
+        installed.setattr(anchoring, "_hdbscan", lambda: hdbscan)
+        installed.setattr(hdbscan_, "np", np)
+        as_installed = anchoring.cluster_labels(TIED_FEATURES, settings)
+        _argsort_reversing_ties(installed)
+        assert not np.array_equal(as_installed, anchoring.cluster_labels(TIED_FEATURES, settings))  # ... moves a point
+    _argsort_reversing_ties(monkeypatch)
+    elsewhere = anchoring.cluster_labels(TIED_FEATURES, settings)
+    np.testing.assert_array_equal(here, elsewhere)
+    assert set(here) == {0, 1}
 
 
 @pytest.mark.parametrize("mode, value", [("lower_bound", 4.5), ("midpoint", 6.0)])

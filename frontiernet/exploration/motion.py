@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import positive_number
-from ..geometry import pose_from_heading
+from ..geometry import atan2, pose_from_heading
 
 
 def wrap_angle(angle: float) -> float:
@@ -23,7 +23,7 @@ def wrap_angle(angle: float) -> float:
 def yaw_of(T_world_cam: np.ndarray) -> float:
     """Heading (radians about world z, 0 = +x) of a (4, 4) camera pose's optical axis."""
     forward = T_world_cam[:3, 2]
-    return float(np.arctan2(forward[1], forward[0]))
+    return atan2(forward[1], forward[0])
 
 
 class Motion:
@@ -58,7 +58,7 @@ class Motion:
         distance = float(np.linalg.norm(offset))
         if distance <= 1e-9:
             return self.pose(xy, yaw)
-        error = wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw)
+        error = wrap_angle(atan2(offset[1], offset[0]) - yaw)
         new_yaw = yaw + float(np.clip(error, -self.max_rotation, self.max_rotation))
         if abs(error) > self.turn_in_place:
             return self.pose(xy, new_yaw)

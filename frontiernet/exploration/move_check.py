@@ -18,7 +18,7 @@ from collections import deque
 import numpy as np
 
 from ..errors import InputError, whole_number
-from ..geometry import back_projected_points
+from ..geometry import atan2, back_projected_points
 from ..mapping import FREE, UNKNOWN
 from .motion import Motion, wrap_angle, yaw_of
 
@@ -48,7 +48,7 @@ def looked_at(T_world_cam: np.ndarray, xy: np.ndarray) -> bool:
     """Whether the camera at the (4, 4) pose `T_world_cam` faces world point `xy` ((2,) metres;
     within :data:`LOOKED_AT_DEG` of its heading)."""
     offset = np.asarray(xy, np.float64) - T_world_cam[:2, 3]
-    return abs(wrap_angle(float(np.arctan2(offset[1], offset[0])) - yaw_of(T_world_cam))) < np.radians(LOOKED_AT_DEG)
+    return abs(wrap_angle(atan2(offset[1], offset[0]) - yaw_of(T_world_cam))) < np.radians(LOOKED_AT_DEG)
 
 
 class MoveCheck:
@@ -161,7 +161,7 @@ class MoveCheck:
     def face(self, T: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """The next pose turning on the spot from `T` towards world point `xy` (2,)."""
         offset = np.asarray(xy, np.float64) - T[:2, 3]
-        return self.motion.turn_to(T, float(np.arctan2(offset[1], offset[0])))[0]
+        return self.motion.turn_to(T, atan2(offset[1], offset[0]))[0]
 
 
 __all__ = ["MoveCheck", "body_radius", "looked_at", "ROUTE_SLACK_M"]

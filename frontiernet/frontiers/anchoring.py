@@ -17,6 +17,7 @@ Conventions: world Z-up, metres; camera OpenCV (x right, y down, z forward);
 
 from __future__ import annotations
 
+import types
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,13 +109,43 @@ def cluster_labels(features: np.ndarray, settings: AnchoringSettings, fraction: 
     min_samples = max(1, round(settings.min_samples * fraction))
     if len(features) < max(min_cluster_size, min_samples):
         return np.full(len(features), -1, np.intp)
-    import hdbscan  # here, not at the top: training imports this package (gain classes) without hdbscan
-
-    clusterer = hdbscan.HDBSCAN(min_cluster_size=min_cluster_size, min_samples=min_samples,
+    clusterer = _hdbscan().HDBSCAN(min_cluster_size=min_cluster_size, min_samples=min_samples,
                                 cluster_selection_epsilon=settings.cluster_selection_epsilon,
                                 allow_single_cluster=settings.allow_single_cluster, metric="euclidean",
                                 core_dist_n_jobs=1)
     return clusterer.fit_predict(features)
+
+
+class _NumpyWithStableArgsort(types.ModuleType):
+    """numpy, but ``argsort`` is stable unless told otherwise (see :func:`_hdbscan`)."""
+
+    def __getattr__(self, name):
+        return getattr(np, name)
+
+    @staticmethod
+    def argsort(a, axis=-1, kind=None, order=None, **kwargs):
+        return np.argsort(a, axis=axis, kind=kind or "stable", order=order, **kwargs)
+
+
+def _hdbscan():
+    """The hdbscan package, its minimum spanning tree's edges put in the same order on every CPU.
+
+    hdbscan sorts the tree's edges by weight with numpy's default argsort, which is not stable,
+    and mutual reachability makes equal weights common (an edge weighs the larger core distance
+    of its two ends). numpy's sort kernels are chosen for the CPU (AVX-512 ones on some machines):
+    they leave equal weights in different orders, the single-linkage tree is built in a different
+    order, and some pixels change cluster (530 vs 528 of the first frame of procedural:2000 from
+    its first development start). A run of an image method from the same start then drifted apart
+    between machines (docs/benchmark.md, "Both depth regimes"). The module that sorts gets a numpy
+    whose argsort is stable: equal weights keep the tree's own order, which does not depend on the
+    CPU. Imported here, not at the top: training imports this package (gain classes) without hdbscan.
+    """
+    import hdbscan
+    from hdbscan import hdbscan_
+
+    if not isinstance(hdbscan_.np, _NumpyWithStableArgsort):
+        hdbscan_.np = _NumpyWithStableArgsort("numpy")
+    return hdbscan
 
 
 # -- one cluster -> one frontier ------------------------------------------------------------------

@@ -22,7 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
-from ..geometry import rigid_pose, rotation_from_yaw_pitch
+from ..geometry import atan2, rigid_pose, rotation_from_yaw_pitch
 from ..mapping.checks import finite_number, scalar
 from .anchoring import FrontierObservation
 
@@ -82,7 +82,7 @@ def map_frontiers(occupancy, z: float, conf, T_world_cam: np.ndarray,
         gains = np.full(len(sizes), settings["uniform_gain_m3"])
     else:
         poses = np.tile(np.eye(4), (len(sizes), 1, 1))
-        poses[:, :3, :3] = rotation_from_yaw_pitch(np.arctan2(directions[:, 1], directions[:, 0]))
+        poses[:, :3, :3] = rotation_from_yaw_pitch(atan2(directions[:, 1], directions[:, 0]))
         poses[:, :3, 3] = positions
         gains = occupancy.visible_unknown_volume(poses, settings["width_px"], settings["focal_px"],
                                                  settings["max_depth_m"])
@@ -163,7 +163,7 @@ def principal_frame(cells: np.ndarray, region: np.ndarray) -> tuple[np.ndarray, 
     sizes = np.bincount(region)
     centred = cells - np.column_stack([np.bincount(region, cells[:, a]) / sizes for a in (0, 1)])[region]
     cii, cjj, cij = (np.bincount(region, centred[:, a] * centred[:, b]) for a, b in ((0, 0), (1, 1), (0, 1)))
-    angle = 0.5 * np.arctan2(2 * cij, cii - cjj)[region]
+    angle = 0.5 * atan2(2 * cij, cii - cjj)[region]
     along = centred[:, 0] * np.cos(angle) + centred[:, 1] * np.sin(angle)
     across = centred[:, 1] * np.cos(angle) - centred[:, 0] * np.sin(angle)
     spans = []

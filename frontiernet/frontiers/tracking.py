@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import pose_from_heading, poses_from_headings
+from ..geometry import atan2, pose_from_heading, poses_from_headings
 
 
 @dataclass
@@ -64,7 +64,7 @@ class Frontier:
     @property
     def yaw(self) -> float:
         """Heading of the view direction in the world xy-plane (radians)."""
-        return float(np.arctan2(self.direction[1], self.direction[0]))
+        return atan2(self.direction[1], self.direction[0])
 
     def camera_pose(self, pitch: float = 0.0, yaw_offset: float = 0.0) -> np.ndarray:
         """(4, 4) ``T_world_cam`` of a level camera at the frontier looking along its heading

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import atan2
 from ..io import ensure_dir, write_json
 from .gravity import gravity_alignment
 from .outputs import PointCloudFusion, camera_picture, write_arrows, write_frontiers
@@ -109,7 +110,7 @@ class _Pictures:
         T = tracked.poses[index]
         forward = T[:3, 2]
         top = self.topdown.draw(self.topdown.background(free, occupied), tracked.poses[:index + 1, :2, 3], T[:2, 3],
-                                float(np.arctan2(forward[1], forward[0])), frontiers, None, self.colour)
+                                atan2(forward[1], forward[0]), frontiers, None, self.colour)
         name = self.sequence.frames[index].name
         camera = label(camera, f"{name}: {len(frontiers)} frontiers")
         return cv2.hconcat([camera, top])
