@@ -110,9 +110,9 @@ def cluster_labels(features: np.ndarray, settings: AnchoringSettings, fraction: 
     if len(features) < max(min_cluster_size, min_samples):
         return np.full(len(features), -1, np.intp)
     clusterer = _hdbscan().HDBSCAN(min_cluster_size=min_cluster_size, min_samples=min_samples,
-                                cluster_selection_epsilon=settings.cluster_selection_epsilon,
-                                allow_single_cluster=settings.allow_single_cluster, metric="euclidean",
-                                core_dist_n_jobs=1)
+                                   cluster_selection_epsilon=settings.cluster_selection_epsilon,
+                                   allow_single_cluster=settings.allow_single_cluster, metric="euclidean",
+                                   core_dist_n_jobs=1)
     return clusterer.fit_predict(features)
 
 
