@@ -21,14 +21,17 @@ REPORT = ("results.csv", "table.md")
 
 
 def metrics_record(rng: np.random.Generator, steps: int) -> dict:
-    """A run's metrics.json record with the fields the report reads; full-precision floats."""
-    curve = np.maximum.accumulate(rng.uniform(0.0, 1.0, steps + 1)).tolist()
+    """A run's metrics.json record with the fields the report reads: full-precision floats, the
+    coverage curve rounded to 5 decimals as a run writes it, the surface curve not (a pack stores
+    the first as integer steps and keeps the second a list)."""
+    curve = np.round(np.maximum.accumulate(rng.uniform(0.0, 1.0, steps + 1)), 5).tolist()
     return {"steps": steps, "max_steps": 40, "coverage": curve[-1], "success": curve[-1] > 0.4,
             "vox_at": {"25": curve[steps // 4], "50": curve[steps // 2], "100": curve[-1]},
             "surface_coverage": rng.uniform(), "surface_auc": rng.uniform(), "chamfer_m": float("nan"),
             "completeness": rng.uniform(), "path_length_m": rng.uniform(0, 20), "collisions": 0,
             "timing": {"step_ms_without_motion": rng.uniform(10, 100)}, "wall_s": rng.uniform(10, 100),
-            "stop_reason": "step budget spent", "coverage_per_step": curve}
+            "stop_reason": "step budget spent", "coverage_per_step": curve,
+            "surface_coverage_per_step": np.maximum.accumulate(rng.uniform(0.0, 1.0, steps + 1)).tolist()}
 
 
 def fake_benchmark(out) -> list[dict]:
@@ -121,6 +124,30 @@ def test_a_resumed_benchmark_skips_packed_runs_and_runs_the_rest(plan_spec, tmp_
     assert (out / "runs" / unfinished / "metrics.json").is_file()  # nothing written is lost
 
 
+def test_packs_store_rounded_curves_as_integer_steps_and_read_every_form_back(tmp_path):
+    runs = fake_benchmark(tmp_path)
+    records = {run["key"]: json.loads((tmp_path / "runs" / run["key"] / "metrics.json").read_text())
+               for run in runs if not run["copy_of"]}
+    assert bench("--pack", "--out", tmp_path)[0] == 0
+    lines = [json.loads(line) for path in sorted((tmp_path / "runs").rglob("*.jsonl.gz"))
+             for line in gzip.decompress(path.read_bytes()).decode().splitlines()]
+    assert all(set(line["metrics"]["coverage_per_step"]) == {"steps_1e5"} for line in lines)
+    assert all(isinstance(line["metrics"]["surface_coverage_per_step"], list) for line in lines)  # not 5 decimals
+    first = lines[0]
+    steps = first["metrics"]["coverage_per_step"]["steps_1e5"]
+    assert all(isinstance(k, int) for k in steps) and np.cumsum(steps)[-1] == round(records[first["key"]]["coverage"] * 1e5)
+    packed = {key: record for path in (tmp_path / "runs").rglob("*.jsonl.gz") for key, record in read_pack(path).items()}
+    for key, record in records.items():  # the very floats of the run's file, NaN aside
+        assert packed[key]["coverage_per_step"] == record["coverage_per_step"]
+        assert packed[key]["surface_coverage_per_step"] == record["surface_coverage_per_step"]
+    old = tmp_path / "old" / "procedural_1-x"  # a pack written before: curves as lists
+    old.mkdir(parents=True)
+    (old / "ours.jsonl.gz").write_bytes(gzip_lines(json.dumps({"key": "procedural_1-x/ours/start0_repeat0",
+                                                               "metrics": records[first["key"]]})))
+    assert read_pack(old / "ours.jsonl.gz")["procedural_1-x/ours/start0_repeat0"]["coverage_per_step"] == \
+        records[first["key"]]["coverage_per_step"]
+
+
 def gzip_lines(*lines: str) -> bytes:
     return gzip.compress("\n".join(lines).encode())
 
@@ -140,6 +167,18 @@ def test_a_corrupt_pack_is_one_line_naming_it_and_exit_2(tmp_path, one_line_erro
         assert main(["bench", command, "--out", str(tmp_path)]) == 2
         error = one_line_error()
         assert error.startswith(f"frontiernet bench: error: {pack_file}: not a packed benchmark file") and reason in error
+
+
+def test_a_pack_with_a_curve_that_is_not_integer_steps_is_one_line_naming_it(tmp_path, one_line_error):
+    fake_benchmark(tmp_path)
+    assert bench("--pack", "--out", tmp_path)[0] == 0
+    pack_file = sorted((tmp_path / "runs").rglob("*.jsonl.gz"))[0]
+    key = f"{pack_file.parent.name}/{pack_file.name[:-len('.jsonl.gz')]}/start0_repeat0"
+    pack_file.write_bytes(gzip_lines(json.dumps({"key": key, "metrics": {"coverage_per_step": {"steps_1e5": [0.5]}}})))
+    assert main(["bench", "--report", "--out", str(tmp_path)]) == 2
+    assert one_line_error() == (f"frontiernet bench: error: {pack_file}: not a packed benchmark file (line 1: "
+                                'coverage_per_step is neither a list nor {"steps_1e5": [integers]}); restore it '
+                                "(git checkout, a copy) or remove it to run its runs again")
 
 
 def test_a_corrupt_metrics_file_is_one_line_and_nothing_is_packed(tmp_path, one_line_error):

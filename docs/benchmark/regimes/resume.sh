@@ -4,8 +4,10 @@
 # `--depth gt,emulated` into this folder and no `--set` (the published folder's script adds
 # planner.gain_exponent=1 for its own plan). REPEATS=1 (the default here) is pass 1, REPEATS=3
 # pass 2 and the full protocol; METHODS=frontiernet,oracle,classic runs those first (the full list
-# afterwards adds the other methods' runs to the same folder). Before committing while it runs:
-# .venv/bin/frontiernet bench --pack --out docs/benchmark/regimes
+# afterwards adds the other methods' runs to the same folder). Before committing while it runs, pack
+# with the code that runs it: scripts/pinned.sh 7ef1fb1 ../pinned bench --pack --out docs/benchmark/regimes
+# (packs written since 2026-11-28 store the per-step curves as integer steps, which 7ef1fb1's report,
+# run at the end of each invocation, cannot read; today's code reads both forms)
 set -euo pipefail
 cd "$(dirname "$0")"
 OUT_DIR=${OUT_DIR:-docs/benchmark/regimes} DEPTH=gt,emulated REPEATS=${REPEATS:-1} SETTINGS= \
