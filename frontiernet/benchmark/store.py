@@ -31,6 +31,7 @@ per-run file, which the next pack moves in.
 from __future__ import annotations
 
 import gzip
+import itertools
 import json
 import os
 import re
@@ -77,11 +78,7 @@ def decode_curves(record: dict) -> dict:
             if set(value) != {CURVE_STEPS} or not isinstance(steps, list) or \
                     not all(isinstance(k, int) and not isinstance(k, bool) for k in steps):
                 raise ValueError(f'{name} is neither a list nor {{"{CURVE_STEPS}": [integers]}}')
-            total, values = 0, []
-            for step in steps:
-                total += step
-                values.append(total / CURVE_SCALE)
-            decoded[name] = values
+            decoded[name] = [k / CURVE_SCALE for k in itertools.accumulate(steps)]
     return decoded
 
 

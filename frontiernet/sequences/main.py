@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import atan2
 from ..io import ensure_dir, write_json
 from .gravity import gravity_alignment
 from .outputs import PointCloudFusion, camera_picture, write_arrows, write_frontiers
@@ -93,6 +92,7 @@ class _Pictures:
         import cv2
 
         from ..exploration.drawing import TopDown, label
+        from ..exploration.motion import yaw_of
 
         frontiers = list(tracked.tracker)
         camera = camera_picture(arrays, frontiers, tracked.poses[index], self.labels, self.threshold, self.colour)
@@ -108,9 +108,8 @@ class _Pictures:
         low, high = (tracked.view_z + float(offset) for offset in self.conf.outputs.map_band_m)
         free, occupied = (cells[self.cells] for cells in occupancy.slice_2d(low, high))
         T = tracked.poses[index]
-        forward = T[:3, 2]
         top = self.topdown.draw(self.topdown.background(free, occupied), tracked.poses[:index + 1, :2, 3], T[:2, 3],
-                                atan2(forward[1], forward[0]), frontiers, None, self.colour)
+                                yaw_of(T), frontiers, None, self.colour)
         name = self.sequence.frames[index].name
         camera = label(camera, f"{name}: {len(frontiers)} frontiers")
         return cv2.hconcat([camera, top])
