@@ -3,8 +3,9 @@
 ``frontiernet.bench``).
 
   frontiernet export MODEL --format onnx|torchscript|safetensors --out FILE [--half] [--frontier-threshold PX]
-  frontiernet predict --image RGB [--depth D] [--model M] --out DIR [--size PX] [--depth-scale S]
-                     [--depth-encoding scale|sun|nyu] [--intrinsics FX,FY,CX,CY]
+  frontiernet predict --image RGB [--depth D|depth_anything_v2|metric3d_v2] [--model M] --out DIR [--size PX]
+                     [--depth-scale S] [--depth-encoding scale|sun|nyu] [--intrinsics FX,FY,CX,CY]
+                     [--config FILE] [KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -32,7 +33,10 @@ def add_parser(subparsers) -> None:
                     "input.png and outputs.npz.")
     predict.add_argument("--image", metavar="RGB", help="RGB image (8-bit, 3 channels)")
     predict.add_argument("--depth", metavar="D", help="depth map: .npy metres, or an image (integer images "
-                                                      "are divided by --depth-scale)")
+                                                      "are divided by --depth-scale); or a monocular depth model "
+                                                      "that estimates it from --image: depth_anything_v2, "
+                                                      "metric3d_v2 (local weights: depth.<model>.path=..., "
+                                                      "configs/depth.yaml; metric3d_v2 needs --intrinsics)")
     predict.add_argument("--model", metavar="M", help="model file, checkpoint, .onnx or TorchScript .pt "
                                                       "(default: the shipped model for the inputs given: RGB + depth, or RGB "
                                                       "only for --image alone)")
@@ -52,6 +56,9 @@ def add_parser(subparsers) -> None:
                          help="pinhole intrinsics of the image in pixels: also write 3D frontiers (frontiers.json, "
                               "in a level camera frame and the camera frame; needs --depth)")
     predict.add_argument("--threads", type=int, help="CPU threads for the network (>= 1; default: torch's)")
+    options.config_file(predict, "configs/depth.yaml under section depth: (the monocular models), and "
+                                 "configs/explore.yaml's anchoring: (the 3D frontiers)")
+    options.config_overrides(predict, "depth.depth_anything_v2.path=weights/da2 anchoring.hdbscan.min_cluster_size=30")
     predict.set_defaults(func=run_predict)
 
 
@@ -70,13 +77,14 @@ def run_export(args) -> int:
 def run_predict(args) -> int:
     from frontiernet.errors import InputError, positive_number, whole_number
 
-    from .predict import predict_files
+    from .predict import load_predict_config, predict_files
 
     if args.size is not None and args.size < 0:
         raise InputError(f"--size must be >= 0, got {args.size}")
     positive_number(args.depth_scale, "--depth-scale")
     if args.threads is not None:
         whole_number(args.threads, "--threads", 1)
+    conf = load_predict_config(args.config, args.overrides)
     intrinsics = None
     if args.intrinsics:
         from frontiernet.geometry import parse_intrinsics_text
@@ -84,7 +92,7 @@ def run_predict(args) -> int:
         intrinsics = parse_intrinsics_text(args.intrinsics)
     result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
                            depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
-                           depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth)
+                           depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth, conf=conf)
     frontier = result["frontier_mask"]
     frontiers = result.get("frontiers")
     print(f"{int(frontier.sum())} frontier pixels ({100 * frontier.mean():.2f} % of the image)"

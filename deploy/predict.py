@@ -4,6 +4,11 @@ Writes to the output folder: ``overlay.png`` (frontier pixels D < l coloured by 
 the image), ``distance.png`` (the distance field), ``input.png`` (the network's input after
 resizing) and ``outputs.npz`` (``distance_field`` (H, W) float32 px, ``gain_logits`` (K, H, W)
 float16, ``gain_class`` (H, W) uint8, ``frontier_mask`` (H, W) bool, ``depth`` (H, W) float32 m).
+
+The depth is a file, or a monocular depth model's estimate from the image (``--depth
+depth_anything_v2`` or ``metric3d_v2``, local weights, ``configs/depth.yaml``): a plain photo then
+runs through the RGB + depth model as the explorer runs it on monocular depth (the paper's
+filled-dot rows of Table I).
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frontiernet.config import load_config
+from frontiernet.config import load_config, merge_user
 from frontiernet.errors import InputError
 from frontiernet.geometry import intrinsics_matrix
 from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
@@ -25,12 +30,68 @@ from frontiernet.sequences.single import LEVEL_FRAME, frame_frontiers
 from .runtime import load_runtime
 
 
+def load_predict_config(user_file=None, overrides=()):
+    """What ``predict`` reads besides its flags: section ``depth`` (``configs/depth.yaml`` less its
+    ``source``, which is ``--depth``: the monocular models' weights and settings) and section
+    ``anchoring`` (``configs/explore.yaml``'s, for the 3D frontiers of ``--intrinsics``), then a
+    user YAML file and ``key=value`` overrides (``depth.depth_anything_v2.path=DIR``).
+
+    Raises:
+        InputError: an unreadable file, an unknown key or a value of the wrong kind.
+    """
+    from omegaconf import OmegaConf
+
+    depth = load_config("depth")
+    depth.pop("source")
+    conf = OmegaConf.create({"depth": depth, "anchoring": load_config("explore").anchoring})
+    return merge_user(conf, user_file, overrides)
+
+
+def depth_model_name(depth: str | Path | None) -> str | None:
+    """The depth source that `depth` names (``depth_anything_v2``, ``metric3d_v2``, an alias such as
+    ``gt``) when no file of that name exists; None for a file (or nothing)."""
+    from frontiernet.depth import DEPTH_SOURCES, depth_source_name
+
+    if depth is None or Path(depth).exists():
+        return None
+    name = depth_source_name(str(depth))
+    return name if name in DEPTH_SOURCES else None
+
+
+def estimate_depth(name: str, rgb: np.ndarray, K_image: np.ndarray | None, depth_conf) -> np.ndarray:
+    """(H, W) float32 metres, NaN invalid: monocular depth source `name`'s estimate for `rgb` (H, W, 3)
+    uint8, built from `depth_conf` (the command's ``depth`` section). `K_image` (3, 3) are the image's
+    intrinsics; without them a source that reads no focal length gets a nominal one (focal length the
+    image's longer side, principal point at its centre), one that does is refused.
+
+    Raises:
+        InputError: a source that needs ground truth (none here), absent intrinsics for a source
+            that reads them, absent or corrupt weights.
+    """
+    from frontiernet.depth import DEPTH_SOURCES, make_depth_source
+
+    source_class = DEPTH_SOURCES.get(name)
+    if source_class.requires_ground_truth:
+        monocular = [key for key in DEPTH_SOURCES.names() if not DEPTH_SOURCES.get(key).requires_ground_truth]
+        raise InputError(f"--depth {name}: that source reads a sensor's depth (the simulator's), and predict has none; give a depth "
+                         f"map file, or a monocular model: {', '.join(monocular)}")
+    if K_image is None and source_class.uses_intrinsics:
+        raise InputError(f"--depth {name}: the model reads the camera's focal length; give --intrinsics FX,FY,CX,CY")
+    if K_image is None:
+        h, w = rgb.shape[:2]
+        K_image = intrinsics_matrix(float(max(h, w)), float(max(h, w)), (w - 1) / 2, (h - 1) / 2)
+    return make_depth_source(name, depth_conf).estimate(rgb, K_image)
+
+
 def predict_files(image: str | Path | None, depth: str | Path | None, model: str | Path | None, out: str | Path,
                   size: int | None = None, depth_scale: float = 1000.0, threads: int | None = None,
-                  intrinsics: tuple | None = None, depth_encoding: str = "scale", fill_invalid: bool = False) -> dict:
+                  intrinsics: tuple | None = None, depth_encoding: str = "scale", fill_invalid: bool = False,
+                  conf=None) -> dict:
     """Run the model on image/depth files and write the pictures and arrays to `out`.
 
     Args:
+        depth: a depth map file, or the name of a monocular depth model that estimates the depth
+            from `image` (:func:`depth_model_name`, :func:`estimate_depth`).
         size: network input size (None: the model's inference size, 320; 0: the image's own size).
         depth_scale, depth_encoding: how the depth file is decoded
             (:func:`frontiernet.sequences.read_depth`).
@@ -39,6 +100,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
             means beyond range.
         intrinsics: (fx, fy, cx, cy) pixels of the image: also anchor the frontier pixels to 3D
             frontiers and write ``frontiers.json`` (:mod:`frontiernet.sequences.single`; needs depth).
+        conf: the command's config (:func:`load_predict_config`; None: the shipped one).
     Returns:
         The arrays (see :meth:`frontiernet.model.Runtime.predict_frame`), with ``frontiers``
         when `intrinsics` were given.
@@ -53,17 +115,24 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         raise InputError(f"this model takes {runtime.inputs} input: give --image")
     if needs_depth and depth is None:
         raise InputError(f"this model takes {runtime.inputs} input: give --depth (a depth map in metres "
-                         f"or millimetres; see --depth-scale)")
+                         f"or millimetres, see --depth-scale; or a monocular model: depth_anything_v2, metric3d_v2)")
     if intrinsics is not None and depth is None:
         raise InputError("--intrinsics anchors frontiers in 3D, which needs --depth")
+    conf = load_predict_config() if conf is None else conf
+    depth_model = depth_model_name(depth)
+    if depth_model is not None and image is None:
+        raise InputError(f"--depth {depth_model} estimates the depth from the image: give --image")
     rgb = read_rgb(image) if image is not None else None
-    depth_m = read_depth(depth, depth_scale, depth_encoding) if depth is not None else None
-    if depth_m is not None and not depth_m.any():
+    K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
+    if depth_model is not None:
+        depth_m = estimate_depth(depth_model, rgb, K_image, conf.depth)
+    else:
+        depth_m = read_depth(depth, depth_scale, depth_encoding) if depth is not None else None
+    if depth_m is not None and not np.any(depth_m > 0):
         raise InputError(f"{depth}: no valid depth (every pixel is 0, negative or NaN)")
     if depth_m is not None:  # as the simulated sensor the network learnt from: nothing beyond its range
         depth_m = fill_invalid_nearest(depth_m) if fill_invalid else depth_m
         depth_m = np.nan_to_num(beyond_range_invalid(depth_m, runtime.conf["input"]["max_depth_m"]), nan=0.0)
-    K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
     if rgb is not None and depth_m is not None and rgb.shape[:2] != depth_m.shape:
         raise InputError(f"{depth}: depth map is {depth_m.shape[1]} x {depth_m.shape[0]} but the image is "
                          f"{rgb.shape[1]} x {rgb.shape[0]}; they must be the same size")
@@ -86,7 +155,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         depth_in = result["depth"]  # at the working size, 0 invalid
         result["frontiers"] = frame_frontiers(result["distance_field"], result["gain_class"],
                                               np.where(depth_in > 0, depth_in, np.nan).astype(np.float32), K, K_image,
-                                              labels, load_config("explore").anchoring,
+                                              labels, conf.anchoring,
                                               gain_logits=result["gain_logits"])
         write_json(out / "frontiers.json", {"frame": LEVEL_FRAME, "image": str(image), "depth": str(depth),
                                             "intrinsics": list(intrinsics), "frontiers": result["frontiers"]})

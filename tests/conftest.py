@@ -222,3 +222,28 @@ def check_sigterm_ends_workers(args: list[str], workers: int = 2, *, command: li
             process.kill()
         for pid in _alive(found):
             os.kill(pid, signal.SIGKILL)
+
+
+@pytest.fixture(scope="session")
+def tiny_depth_anything(tmp_path_factory):
+    """A tiny random metric DepthAnything + DPT processor saved as a local weights folder: the real
+    loading and inference code of ``depth_anything_v2`` without the real weights (not downloadable here).
+    Its depth range is 0-6 m (the indoor models' is 0-20 m): its random outputs, about 3 m, fall inside
+    the 3.5 m the network reads."""
+    transformers = pytest.importorskip("transformers")
+    backbone = transformers.Dinov2Config(
+        image_size=56, patch_size=14, hidden_size=32, num_hidden_layers=4, num_attention_heads=2,
+        intermediate_size=64, out_indices=[1, 2, 3, 4], reshape_hidden_states=False,
+    )
+    config = transformers.DepthAnythingConfig(
+        backbone_config=backbone, reassemble_hidden_size=32, neck_hidden_sizes=[8, 16, 32, 32],
+        fusion_hidden_size=16, head_hidden_size=8, depth_estimation_type="metric", max_depth=6,
+    )
+    processor = transformers.DPTImageProcessor(
+        do_resize=True, size={"height": 56, "width": 56}, keep_aspect_ratio=True, ensure_multiple_of=14,
+        do_pad=False, image_mean=[0.485, 0.456, 0.406], image_std=[0.229, 0.224, 0.225],
+    )
+    folder = tmp_path_factory.mktemp("da_v2")
+    transformers.DepthAnythingForDepthEstimation(config).save_pretrained(folder)
+    processor.save_pretrained(folder)
+    return folder

@@ -124,6 +124,34 @@ def test_predict_command_writes_overlay_and_arrays(model_file, tmp_path, capsys)
     assert cv2.imread(str(tmp_path / "native" / "overlay.png")).shape == (120, 160, 3)
 
 
+def test_predict_estimates_the_depth_of_a_plain_photo_with_a_monocular_model(model_file, tiny_depth_anything,
+                                                                            tmp_path, capsys):
+    """`--depth depth_anything_v2`: the RGB + depth model runs on a photo alone, its depth channel the
+    monocular model's estimate made invalid beyond the sensor's range, as the explorer hands it
+    monocular depth (weights from a local folder set by an override)."""
+    from frontiernet.depth import make_depth_source
+    from frontiernet.model.predictor import beyond_range_invalid, invalid_to_zero
+
+    rgb = np.random.default_rng(0).integers(0, 256, (90, 120, 3), dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "photo.png"), rgb[..., ::-1])
+    weights = [f"depth.depth_anything_v2.path={tiny_depth_anything}", "depth.depth_anything_v2.device=cpu"]
+    out = tmp_path / "out"
+    assert main(["predict", "--image", str(tmp_path / "photo.png"), "--depth", "depth_anything_v2", "--model",
+                 str(model_file), "--out", str(out), "--intrinsics", "100,100,59.5,44.5", *weights]) == 0
+    assert "frontier pixels" in capsys.readouterr().out
+    options = OmegaConf.to_container(load_config("depth").depth_anything_v2, resolve=True)
+    estimate = make_depth_source("depth_anything_v2", {**options, "path": str(tiny_depth_anything),
+                                                       "device": "cpu"}).estimate(rgb, np.eye(3))
+    runtime = load_runtime(model_file)
+    _, expected, _ = resize_and_crop(rgb, beyond_range_invalid(estimate, runtime.conf["input"]["max_depth_m"]),
+                                     None, 320)
+    seen = np.load(out / "outputs.npz")["depth"]
+    assert seen.shape == (320, 320) and np.allclose(seen, invalid_to_zero(expected), atol=1e-5)
+    assert (seen > 0).all()  # the tiny model's estimate lies inside the range everywhere
+    record = json.loads((out / "frontiers.json").read_text())
+    assert record["depth"] == "depth_anything_v2" and isinstance(record["frontiers"], list)
+
+
 def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, capsys, one_line_error):
     grey = tmp_path / "grey.png"
     cv2.imwrite(str(grey), np.zeros((40, 50), np.uint8))
@@ -152,6 +180,16 @@ def test_bad_predict_and_export_input_is_one_line_exit_2(model_file, tmp_path, c
           "--out", out], "x.bin: model file not found"),
         (["export", str(model_file), "--format", "onnx", "--out", str(tmp_path / "no" / "m.onnx")],
          "output folder does not exist"),
+        (["predict", "--image", str(rgb), "--depth", "emulated", "--model", str(model_file), "--out", out],
+         "--depth emulated: that source reads a sensor's depth (the simulator's), and predict has none"),
+        (["predict", "--image", str(rgb), "--depth", "metric3d_v2", "--model", str(model_file), "--out", out],
+         "--depth metric3d_v2: the model reads the camera's focal length; give --intrinsics"),
+        (["predict", "--depth", "depth_anything_v2", "--model", str(model_file), "--out", out],
+         "give --image"),
+        (["predict", "--image", str(rgb), "--depth", "depth_anything_v2", "--model", str(model_file), "--out", out,
+          f"depth.depth_anything_v2.path={tmp_path / 'no_weights'}"], "no_weights (missing config.json"),
+        (["predict", "--image", str(rgb), "--depth", str(good_depth), "--model", str(model_file), "--out", out,
+          "depth.depth_anything_v2.pth=x"], "depth_anything_v2.pth"),
     ]
     for argv, expected in cases:
         assert main(argv) == 2, argv
@@ -196,14 +234,16 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
     small = dict(decoder_channels=(32, 16, 16, 8, 8), head_channels=8)
     save_model(weights / network.SHIPPED_MODELS["rgbd"], FrontierNet(NetworkConfig(**small)).eval(), MODEL_CONF)
 
+    files = network.resources.files
+
     class Files:  # importlib.resources.files("frontiernet") with the weights folder in tmp_path
-        def __init__(self, root):
-            self.root = root
+        def __init__(self, package):
+            self.package = package
 
         def joinpath(self, *parts):
-            return self.root.joinpath(*parts[1:]) if parts[0] == "weights" else self.root.joinpath(*parts)
+            return weights.joinpath(*parts[1:]) if parts[0] == "weights" else files(self.package).joinpath(*parts)
 
-    monkeypatch.setattr(network.resources, "files", lambda package: Files(weights))
+    monkeypatch.setattr(network.resources, "files", Files)
     rgb = tmp_path / "photo.png"
     cv2.imwrite(str(rgb), np.full((60, 80, 3), 128, np.uint8))
     depth = tmp_path / "depth.npy"

@@ -241,28 +241,6 @@ def test_emulated_bad_config_value_names_key():
 # ---------------------------------------------------------------- Depth Anything V2
 
 
-@pytest.fixture(scope="module")
-def tiny_depth_anything(tmp_path_factory):
-    """A tiny random metric DepthAnything + DPT processor saved as a local weights folder."""
-    transformers = pytest.importorskip("transformers")
-    backbone = transformers.Dinov2Config(
-        image_size=56, patch_size=14, hidden_size=32, num_hidden_layers=4, num_attention_heads=2,
-        intermediate_size=64, out_indices=[1, 2, 3, 4], reshape_hidden_states=False,
-    )
-    config = transformers.DepthAnythingConfig(
-        backbone_config=backbone, reassemble_hidden_size=32, neck_hidden_sizes=[8, 16, 32, 32],
-        fusion_hidden_size=16, head_hidden_size=8, depth_estimation_type="metric", max_depth=20,
-    )
-    processor = transformers.DPTImageProcessor(
-        do_resize=True, size={"height": 56, "width": 56}, keep_aspect_ratio=True, ensure_multiple_of=14,
-        do_pad=False, image_mean=[0.485, 0.456, 0.406], image_std=[0.229, 0.224, 0.225],
-    )
-    folder = tmp_path_factory.mktemp("da_v2")
-    transformers.DepthAnythingForDepthEstimation(config).save_pretrained(folder)
-    processor.save_pretrained(folder)
-    return folder
-
-
 def test_depth_anything_loads_local_weights_and_predicts_input_size(tiny_depth_anything):
     source = make_depth_source("depth_anything_v2", options("depth_anything_v2", path=str(tiny_depth_anything), device="cpu"))
     assert not source.requires_ground_truth

@@ -45,6 +45,10 @@ class DepthSource(ABC):
     #: True when the output depends on the seed given to :meth:`reset` (emulated noise): runs
     #: that differ only in their seed differ.
     seeded: bool = False
+    #: True when :meth:`estimate` reads the focal length of ``K`` (Metric3D's canonical camera
+    #: sets its metric scale); False: ``K`` is only checked, and a command without the camera's
+    #: intrinsics may hand it a nominal one (``frontiernet predict --depth depth_anything_v2``).
+    uses_intrinsics: bool = False
 
     @classmethod
     def options(cls) -> tuple[str, ...]:

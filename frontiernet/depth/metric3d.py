@@ -103,6 +103,7 @@ class Metric3DV2(DepthSource):
 
     name = "metric3d_v2"
     flying_pixels = True
+    uses_intrinsics = True
 
     def __init__(self, conf: Mapping[str, Any]) -> None:
         c = self.section(conf)

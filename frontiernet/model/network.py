@@ -299,7 +299,9 @@ def shipped_model_path(inputs: str = "rgbd") -> Path:
     if not path.is_file():
         given = "an RGB image alone" if inputs == "rgb" else f"{inputs} input"
         raise InputError(f"{path.name}: no shipped model takes {given} in this installation "
-                         f"(frontiernet/weights/README.md); give --depth for the RGB + depth model, or --model FILE")
+                         f"(frontiernet/weights/README.md); give --depth for the RGB + depth model (a depth map, or "
+                         f"a monocular model that estimates it from the image: depth_anything_v2, metric3d_v2), "
+                         f"or --model FILE")
     return path
 
 
