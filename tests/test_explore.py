@@ -431,3 +431,15 @@ def test_sampled_start_is_seeded_and_clear_of_obstacles(plan_spec):
         assert T[2, 3] == pytest.approx(scene.bounds[0, 2] + CAMERA_HEIGHT)
         # clearance to the walls (voxel-centre sampling: up to half a voxel diagonal less than configured)
         assert distance_to_surface(scene, T[None, :3, 3])[0] >= float(conf.run.start_clearance_m) - 0.08
+
+
+def test_bench_explore_times_the_monocular_emulation_as_a_stage_of_the_step(plan_spec, capsys):
+    """`bench explore --depth emulated`: the depth source's cost is the step's ``depth`` stage,
+    reported beside the render of the same run (ratios only; no timing is asserted)."""
+    assert main(["bench", "explore", "--scene", plan_spec, "--method", "classic", "--depth", "emulated",
+                 "--steps", "4", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["depth"] == "emulated" and result["method"] == "classic" and result["steps"] == 4
+    assert result["mean_ms"]["depth"] > 0 and result["over_render"]["render"] == 1.0
+    assert main(["bench", "explore", "--scene", plan_spec, "--method", "classic", "--steps", "2", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["depth"] == "ground_truth"  # run.depth of explore.yaml

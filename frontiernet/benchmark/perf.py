@@ -170,13 +170,14 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
     return result
 
 
-def bench_explore(spec: str | None, method: str, steps: int) -> dict:
-    """Explore `steps` steps with `method` (no video) and give each stage's mean time per step as
-    a ratio to the render of the same run; goal: perception + anchoring >= 5 Hz at 320 px on 2
-    cores, map update below one render.
+def bench_explore(spec: str | None, method: str, steps: int, depth: str | None = None) -> dict:
+    """Explore `steps` steps with `method` (no video) on depth source `depth` (None: ``run.depth``
+    of configs/explore.yaml, ground truth; ``emulated``: the monocular emulation, whose cost is the
+    ``depth`` stage) and give each stage's mean time per step as a ratio to the render of the same
+    run; goal: perception + anchoring >= 5 Hz at 320 px on 2 cores, map update below one render.
 
-    Returns ``scene``, ``method``, ``steps`` (taken), ``mean_ms`` and ``over_render`` per stage,
-    ``step_ms_without_motion``, ``image_to_frontiers_hz``.
+    Returns ``scene``, ``method``, ``depth``, ``steps`` (taken), ``mean_ms`` and ``over_render`` per
+    stage, ``step_ms_without_motion``, ``image_to_frontiers_hz``.
     """
     import tempfile
 
@@ -184,11 +185,11 @@ def bench_explore(spec: str | None, method: str, steps: int) -> dict:
 
     spec = default_bench_scene(spec)
     with tempfile.TemporaryDirectory() as out:
-        record = main(load_config("explore"), spec, out, method=method, max_steps=steps, video=False,
+        record = main(load_config("explore"), spec, out, method=method, depth=depth, max_steps=steps, video=False,
                       progress=False)
     timing = record["timing"]
     mean = timing["mean_ms"]
-    return {"scene": spec, "method": method, "steps": record["steps"], "mean_ms": mean,
+    return {"scene": spec, "method": method, "depth": record["depth"], "steps": record["steps"], "mean_ms": mean,
             "over_render": {k: round(v / max(mean["render"], 1e-9), 3) for k, v in mean.items()},
             "step_ms_without_motion": timing["step_ms_without_motion"],
             "image_to_frontiers_hz": timing["image_to_frontiers_hz"]}

@@ -38,6 +38,8 @@ def add_parser(subparsers) -> None:
     explore = scene_benchmark(actions, "explore", "cost of one exploration step by stage vs a render", run_explore)
     explore.add_argument("--method", default="frontiernet", help="exploration method (see `frontiernet explore -h`)")
     explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
+    explore.add_argument("--depth", help="depth source: gt (default: run.depth of configs/explore.yaml) or emulated "
+                                         "(the monocular emulation's cost is the depth stage)")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)
 
@@ -183,11 +185,12 @@ def run_explore(args) -> int:
     from ..benchmark.perf import bench_explore
 
     counts(steps=args.steps)
-    result = bench_explore(args.scene, args.method, args.steps)
+    result = bench_explore(args.scene, args.method, args.steps, args.depth)
     if args.json:
         print(json.dumps(result))
         return 0
-    print(f"bench explore: {result['scene']}, {args.method}, {result['steps']} steps, mean per step")
+    print(f"bench explore: {result['scene']}, {args.method}, {result['depth']} depth, {result['steps']} steps, "
+          f"mean per step")
     for stage, ms in result["mean_ms"].items():
         print(f"  {stage:<12} {ms:8.2f} ms   {result['over_render'][stage]:6.2f}x of a render")
     print(f"  step without motion {result['step_ms_without_motion']:.1f} ms; image to 3D frontiers "
