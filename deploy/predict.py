@@ -73,8 +73,8 @@ def estimate_depth(name: str, rgb: np.ndarray, K_image: np.ndarray | None, depth
     source_class = DEPTH_SOURCES.get(name)
     if source_class.requires_ground_truth:
         monocular = [key for key in DEPTH_SOURCES.names() if not DEPTH_SOURCES.get(key).requires_ground_truth]
-        raise InputError(f"--depth {name}: that source reads a sensor's depth (the simulator's), and predict has none; give a depth "
-                         f"map file, or a monocular model: {', '.join(monocular)}")
+        raise InputError(f"--depth {name}: that source reads a sensor's depth (the simulator's), and predict has "
+                         f"none; give a depth map file, or a monocular model: {', '.join(monocular)}")
     if K_image is None and source_class.uses_intrinsics:
         raise InputError(f"--depth {name}: the model reads the camera's focal length; give --intrinsics FX,FY,CX,CY")
     if K_image is None:
