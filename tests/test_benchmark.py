@@ -385,11 +385,12 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
 
     from conftest import REPO_ROOT
     from frontiernet.benchmark.main import resumable_plan
+    from frontiernet.benchmark.store import read_plan
     from frontiernet.errors import InputError
     from frontiernet.exploration.run import load_run_config
 
     published = REPO_ROOT / "docs" / "benchmark" / "published"
-    stored = json.loads((published / "plan.json").read_text())
+    stored = read_plan(published)  # packed (plan.json.gz)
     assert "approach_radius_m" not in stored["settings"]["conf"]["planner"]
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command

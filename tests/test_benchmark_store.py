@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from frontiernet.benchmark.plan import RunSpec
-from frontiernet.benchmark.store import read_pack, write_pack
+from frontiernet.benchmark.store import read_pack, read_plan, write_pack
 from frontiernet.cli.main import main
 from test_benchmark import bench
 
@@ -84,14 +84,18 @@ def test_packing_leaves_the_report_byte_identical_and_one_file_per_scene_and_met
     assert code == 0 and "report of 16 finished runs (0 not yet)" in stdout
     assert report_files(packed) == expected
 
+    plan = (per_run / "plan.json").read_bytes()
+    assert not (packed / "plan.json").exists() and gzip.decompress((packed / "plan.json.gz").read_bytes()) == plan
     packs = {path: path.read_bytes() for path in (packed / "runs").rglob("*.jsonl.gz")}
     code, stdout, _ = bench("--pack", "--report", "--out", packed)  # the late runs join their packs
     assert code == 0 and "packed 4 run(s) into 4 file(s); 12 runs packed" in stdout
     assert not list(packed.rglob("metrics.json")) and report_files(packed) == expected
     assert all(path.read_bytes() != data for path, data in packs.items())
     again = {path: path.read_bytes() for path in packs}
+    packed_plan = (packed / "plan.json.gz").read_bytes()
     assert bench("--pack", "--out", packed)[1].startswith("bench: packed 0 run(s)")
     assert {path: path.read_bytes() for path in packs} == again  # nothing to pack: nothing rewritten
+    assert (packed / "plan.json.gz").read_bytes() == packed_plan
     # the records are the per-run files' values, NaN included
     pack = read_pack(packed / "runs" / (runs[1]["key"].rsplit("/", 1)[0] + ".jsonl.gz"))
     original = json.loads((per_run / "runs" / runs[1]["key"] / "metrics.json").read_text())
@@ -112,8 +116,10 @@ def test_a_resumed_benchmark_skips_packed_runs_and_runs_the_rest(plan_spec, tmp_
     unfinished = next(key for key in records if key.endswith("start1_repeat0"))
     write_pack(pack_file, {key: value for key, value in records.items() if key != unfinished})
 
+    assert not (out / "plan.json").exists()  # the plan is packed too, and read from there on resuming
     code, stdout, stderr = bench(*args)  # the packed run is kept, the other is run
     assert code == 0 and "2 runs (0 failed)" in stdout, stderr
+    assert not (out / "plan.json").exists() and read_plan(out)["settings"]["budget"] == 8  # kept packed
     assert [line.split(":")[0] for line in stderr.splitlines() if line.startswith("bench ")] == ["bench 1/1"]
     assert f"{unfinished} vacuum done" in stderr and (out / "runs" / unfinished / "metrics.json").is_file()
     assert list(csv.DictReader(open(out / "results.csv")))[0] == rows[0]  # read from the pack
@@ -189,3 +195,11 @@ def test_a_corrupt_metrics_file_is_one_line_and_nothing_is_packed(tmp_path, one_
     assert len(list(tmp_path.rglob("metrics.json"))) == 12 and not list(tmp_path.rglob("*.jsonl.gz"))
     assert main(["bench", "--pack", "--out", str(tmp_path / "elsewhere")]) == 2
     assert "no benchmark here" in one_line_error()
+
+
+def test_a_corrupt_packed_plan_is_one_line_naming_it(tmp_path, one_line_error):
+    fake_benchmark(tmp_path)
+    (tmp_path / "plan.json").unlink()
+    (tmp_path / "plan.json.gz").write_bytes(b"not gzip")
+    assert main(["bench", "--report", "--out", str(tmp_path)]) == 2
+    assert f"{tmp_path / 'plan.json.gz'}: not a benchmark plan" in one_line_error()

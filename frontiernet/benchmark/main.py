@@ -11,14 +11,14 @@ from ..config import load_config
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import RUN_SECTIONS, load_run_config
-from ..io import ensure_dir, write_json
+from ..io import ensure_dir
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
                    with_keys_added_after)
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
-from .store import FinishedRuns, read_plan
+from .store import FinishedRuns, plan_file, read_plan, write_plan
 
 
 def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
@@ -66,16 +66,15 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     settings = {"budget": budget, "seed": seed, "model": str(model) if model else None, "depth": depth,
                 "scene_starts": bool(scene_starts),
                 "conf": OmegaConf.to_container(conf, resolve=True)}
-    plan_path = out / "plan.json"
     poses = None
-    if plan_path.is_file():  # resuming: the same settings, the same start poses
+    if plan_file(out) is not None:  # resuming: the same settings, the same start poses
         poses = resumable_plan(out, settings)["start_poses"]
     clock = time.perf_counter()
     runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
                                   depths)
     ensure_dir(out)
-    write_json(plan_path, {"settings": settings, "start_poses": start_poses,
-                           "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
+    write_plan(out, {"settings": settings, "start_poses": start_poses,
+                     "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
     rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],
                           "depth": depth}, workers, backend, progress)
     report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None,

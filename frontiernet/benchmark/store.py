@@ -26,6 +26,11 @@ both are read everywhere (report, resume):
 
 A run in both layouts (a pack made, then the per-run file written again) is read from its
 per-run file, which the next pack moves in.
+
+The plan (settings, start poses and every planned run) is ``plan.json`` as a benchmark writes it
+and ``plan.json.gz`` (the same bytes, gzip without a timestamp) once packed: a plan's rows repeat
+scene paths, poses and keys, so the 1,215 rows of the published run take 403 kB as JSON and 13 kB
+packed. Both are read everywhere; a benchmark resumed in a packed folder keeps its plan packed.
 """
 
 from __future__ import annotations
@@ -43,6 +48,8 @@ from ..errors import InputError
 from ..io import atomic_write
 
 PACK_SUFFIX = ".jsonl.gz"
+PLAN = "plan.json"
+PACKED_PLAN = "plan.json.gz"
 COMPRESS_LEVEL = 9  # gzip's smallest; a format choice, not a tunable: packs are small and written rarely
 CURVES = ("coverage_per_step", "surface_coverage_per_step")
 """The per-step curves of a run's record, stored as integer steps in a pack (module docstring)."""
@@ -82,19 +89,59 @@ def decode_curves(record: dict) -> dict:
     return decoded
 
 
+def plan_file(out: str | Path) -> Path | None:
+    """The plan of benchmark folder `out`: ``plan.json`` (as a benchmark writes it; it wins where
+    both are, being what a run wrote since), else ``plan.json.gz`` (as a pack leaves it), else None."""
+    for name in (PLAN, PACKED_PLAN):
+        if (Path(out) / name).is_file():
+            return Path(out) / name
+    return None
+
+
 def read_plan(out: str | Path) -> dict:
-    """The ``plan.json`` of benchmark folder `out` (settings, start poses, runs with their keys).
+    """The plan of benchmark folder `out` (settings, start poses, runs with their keys), from
+    ``plan.json`` or ``plan.json.gz`` (:func:`plan_file`).
 
     Raises:
-        InputError: `out` holds no benchmark, or its plan.json is not JSON.
+        InputError: `out` holds no benchmark, or its plan is not JSON (or not gzip).
     """
-    path = Path(out) / "plan.json"
-    if not path.is_file():
+    path = plan_file(out)
+    if path is None:
         raise InputError(f"{out}: no benchmark here (no plan.json); run frontiernet bench --scenes ... --out {out}")
     try:
-        return json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError) as error:
+        data = path.read_bytes()
+        return json.loads(gzip.decompress(data) if path.name == PACKED_PLAN else data)
+    except (ValueError, UnicodeDecodeError, OSError, EOFError, zlib.error) as error:
         raise InputError(f"{path}: not a benchmark plan ({error})") from None
+
+
+def _plan_bytes(plan: dict) -> bytes:
+    return (json.dumps(plan, indent=2) + "\n").encode("utf-8")
+
+
+def write_plan(out: str | Path, plan: dict) -> Path:
+    """Write `plan` into benchmark folder `out`, atomically, in the form the folder keeps it:
+    ``plan.json.gz`` where a pack left one (and no ``plan.json``), else ``plan.json``."""
+    out = Path(out)
+    if plan_file(out) == out / PACKED_PLAN:
+        data = gzip.compress(_plan_bytes(plan), COMPRESS_LEVEL, mtime=0)
+        return atomic_write(out / PACKED_PLAN, lambda tmp: tmp.write_bytes(data))
+    return atomic_write(out / PLAN, lambda tmp: tmp.write_bytes(_plan_bytes(plan)))
+
+
+def _pack_plan(out: Path) -> Path:
+    """``plan.json`` of `out` packed into ``plan.json.gz`` (its bytes, read back before the JSON
+    file is removed); the packed plan when there is no JSON one."""
+    path = out / PLAN
+    if not path.is_file():
+        return out / PACKED_PLAN
+    data = path.read_bytes()
+    packed = gzip.compress(data, COMPRESS_LEVEL, mtime=0)
+    atomic_write(out / PACKED_PLAN, lambda tmp: tmp.write_bytes(packed))
+    if gzip.decompress((out / PACKED_PLAN).read_bytes()) != data:
+        raise InputError(f"{out / PACKED_PLAN}: the packed plan does not read back; {path} kept")
+    path.unlink()
+    return out / PACKED_PLAN
 
 
 def pack_path(out: str | Path, key: str) -> Path:
@@ -194,11 +241,15 @@ class FinishedRuns:
 def pack(out: str | Path) -> dict:
     """Move the ``metrics.json`` of every finished run of the plan in benchmark folder `out` into
     its (scene, method) pack (module docstring), then remove those files; a run's other outputs
-    (trajectory.json, frontiers.json, coverage.png, config.yaml) stay. Runs nothing; safe beside a
-    running benchmark (it packs the runs finished when it starts), not beside another pack.
+    (trajectory.json, frontiers.json, coverage.png, config.yaml) stay. The plan is packed too
+    (``plan.json`` -> ``plan.json.gz``). Runs nothing; safe beside a running benchmark of this
+    code (it packs the runs finished when it starts; the benchmark's next resume reads the packed
+    plan), not beside another pack, nor beside a benchmark of code from before packed plans (which
+    finds no plan.json: pack such a folder with that code, ``scripts/pinned.sh``).
 
     Returns:
-        ``{"runs": runs packed now, "packs": [pack paths written], "packed": runs in packs in all}``.
+        ``{"runs": runs packed now, "packs": [pack paths written], "packed": runs in packs in all,
+        "plan": the packed plan}``.
     Raises:
         InputError: no benchmark in `out`, or a corrupt metrics.json or pack (nothing removed then).
     """
@@ -225,8 +276,9 @@ def pack(out: str | Path) -> dict:
                 except OSError:
                     break
     total = sum(len(read_pack(path)) for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")))
-    return {"runs": sum(len(records) for records in fresh.values()), "packs": written, "packed": total}
+    return {"runs": sum(len(records) for records in fresh.values()), "packs": written, "packed": total,
+            "plan": _pack_plan(out)}
 
 
-__all__ = ["FinishedRuns", "pack", "read_plan", "read_pack", "write_pack", "read_metrics", "pack_path", "PACK_SUFFIX",
-           "encode_curves", "decode_curves"]
+__all__ = ["FinishedRuns", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",
+           "pack_path", "PACK_SUFFIX", "encode_curves", "decode_curves"]

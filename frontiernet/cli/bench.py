@@ -83,7 +83,7 @@ def run_exploration_benchmark(args) -> int:
             raise InputError("--pack needs --out DIR, the benchmark folder")
         packed = pack(args.out)
         print(f"bench: packed {packed['runs']} run(s) into {len(packed['packs'])} file(s); "
-              f"{packed['packed']} runs packed in {args.out}/runs")
+              f"{packed['packed']} runs packed in {args.out}/runs; the plan in {packed['plan']}")
         if not args.report:
             return 0
     if args.report:

@@ -51,7 +51,9 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--budget", type=int, default=300)
     args = parser.parse_args()
-    plan = json.loads((Path(args.plan_folder) / "plan.json").read_text())
+    from frontiernet.benchmark.store import read_plan
+
+    plan = read_plan(args.plan_folder)
     tasks = [{"scene": scene, "index": index, "start": ",".join(str(v) for v in pose), "method": args.method,
               "model": args.model, "budget": args.budget, "out": args.out,
               "key": f"{scene_key(scene)}_start{index}"}

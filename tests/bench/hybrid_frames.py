@@ -22,8 +22,9 @@ import numpy as np
 
 
 def main(plan_path: str, scenes: int) -> None:
-    import json
+    from pathlib import Path
 
+    from frontiernet.benchmark.store import read_plan
     from frontiernet.config import load_config
     from frontiernet.exploration.methods import MethodContext, make_method
     from frontiernet.exploration.run import run_section
@@ -33,7 +34,7 @@ def main(plan_path: str, scenes: int) -> None:
 
     conf = load_config("explore")
     sim = run_section(conf, "sim")
-    plan = json.loads(open(plan_path).read())
+    plan = read_plan(Path(plan_path).parent if Path(plan_path).name.startswith("plan.json") else plan_path)
     pitch = np.radians(float(conf.motion.pitch_deg))
     for spec, poses in list(plan["start_poses"].items())[:scenes]:
         world = build_world(spec, sim, run_section(conf, "scenes"))

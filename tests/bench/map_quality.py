@@ -126,7 +126,9 @@ def main() -> None:
     parser.add_argument("--checkpoints", type=int, nargs="+", default=[100, 200, 300])
     args = parser.parse_args()
     variants = dict([("base", {})] + [parse_variant(v) for v in args.variants])
-    plan = json.loads((Path(args.plan_folder) / "plan.json").read_text())
+    from frontiernet.benchmark.store import read_plan
+
+    plan = read_plan(args.plan_folder)
     out = Path(args.out)
     cache = out.parent / (out.stem + "_trajectories")
     results = json.loads(out.read_text()) if out.exists() else {}
