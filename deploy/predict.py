@@ -41,9 +41,9 @@ def load_predict_config(user_file=None, overrides=()):
     """
     from omegaconf import OmegaConf
 
-    depth = load_config("depth")
-    depth.pop("source")
-    conf = OmegaConf.create({"depth": depth, "anchoring": load_config("explore").anchoring})
+    from frontiernet.depth import source_options
+
+    conf = OmegaConf.create({"depth": source_options(), "anchoring": load_config("explore").anchoring})
     return merge_user(conf, user_file, overrides)
 
 

@@ -57,6 +57,11 @@ CURVE_STEPS = "steps_1e5"
 CURVE_SCALE = 100_000  # a run's record rounds its curves to 5 decimals (exploration/outputs.py:metrics_record)
 
 
+def _gzip(data: bytes) -> bytes:
+    """`data` gzip'd as every file of this module is: smallest, no timestamp (the same bytes again)."""
+    return gzip.compress(data, COMPRESS_LEVEL, mtime=0)
+
+
 def encode_curves(record: dict) -> dict:
     """`record` with each of :data:`CURVES` that is exactly k / 1e5 at every step as
     ``{"steps_1e5": [k_0, k_1 - k_0, ...]}``; other curves (and every other field) unchanged."""
@@ -124,7 +129,7 @@ def write_plan(out: str | Path, plan: dict) -> Path:
     ``plan.json.gz`` where a pack left one (and no ``plan.json``), else ``plan.json``."""
     out = Path(out)
     if plan_file(out) == out / PACKED_PLAN:
-        data = gzip.compress(_plan_bytes(plan), COMPRESS_LEVEL, mtime=0)
+        data = _gzip(_plan_bytes(plan))
         return atomic_write(out / PACKED_PLAN, lambda tmp: tmp.write_bytes(data))
     return atomic_write(out / PLAN, lambda tmp: tmp.write_bytes(_plan_bytes(plan)))
 
@@ -136,7 +141,7 @@ def _pack_plan(out: Path) -> Path:
     if not path.is_file():
         return out / PACKED_PLAN
     data = path.read_bytes()
-    packed = gzip.compress(data, COMPRESS_LEVEL, mtime=0)
+    packed = _gzip(data)
     atomic_write(out / PACKED_PLAN, lambda tmp: tmp.write_bytes(packed))
     if gzip.decompress((out / PACKED_PLAN).read_bytes()) != data:
         raise InputError(f"{out / PACKED_PLAN}: the packed plan does not read back; {path} kept")
@@ -204,7 +209,7 @@ def write_pack(path: Path, records: dict[str, dict]) -> Path:
     """Write `records` (run key -> metrics record) as pack `path`, atomically, keys in natural order."""
     lines = [json.dumps({"key": key, "metrics": encode_curves(records[key])}, separators=(",", ":"))
              for key in sorted(records, key=_natural)]
-    data = gzip.compress(("\n".join(lines) + "\n").encode("utf-8"), COMPRESS_LEVEL, mtime=0)
+    data = _gzip(("\n".join(lines) + "\n").encode("utf-8"))
     return atomic_write(path, lambda tmp: tmp.write_bytes(data))
 
 

@@ -38,6 +38,17 @@ DEPTH_ALIASES = {"gt": "ground_truth"}
 """Short names every command takes for a depth source (``--depth gt``)."""
 
 
+def source_options() -> DictConfig:
+    """``configs/depth.yaml`` less its ``source`` key: every depth source's section, the ``depth``
+    section of a command that takes the source from its own flag or key (``explore --depth`` /
+    ``run.depth``, ``sequence --depth``, ``predict --depth``)."""
+    from ..config import load_config
+
+    options = load_config("depth")
+    options.pop("source")
+    return options
+
+
 def depth_source_name(name: str) -> str:
     """`name` with its alias resolved (``gt`` -> ``ground_truth``); other names unchanged."""
     return DEPTH_ALIASES.get(name, name)
@@ -73,6 +84,7 @@ def make_depth_source(
 __all__ = [
     "DEPTH_ALIASES",
     "depth_source_name",
+    "source_options",
     "DepthSource",
     "GroundTruthDepth",
     "EmulatedMonocularDepth",

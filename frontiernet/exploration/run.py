@@ -47,10 +47,11 @@ def load_run_config(user_file=None, overrides=(), names=("explore",)):
             wrong kind.
     """
     from ..config import load_config, merge_user
+    from ..depth import source_options
 
     conf = load_config(tuple(names))
     sections = {section: shipped_section(section) for section in RUN_SECTIONS}
-    sections["depth"].pop("source")
+    sections["depth"] = source_options()
     conf = OmegaConf.merge(conf, sections)
     return merge_user(conf, user_file, overrides)
 

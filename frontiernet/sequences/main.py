@@ -191,8 +191,9 @@ def load_sequence_config(user_file=None, overrides=()):
     from omegaconf import OmegaConf
 
     from ..config import load_config, merge_user
+    from ..depth import source_options
 
-    explore, depth = load_config("explore"), load_config("depth")
-    depth.pop("source")
-    base = OmegaConf.create({**{key: explore[key] for key in ("anchoring", "tracking", "map")}, "depth": depth})
+    explore = load_config("explore")
+    base = OmegaConf.create({**{key: explore[key] for key in ("anchoring", "tracking", "map")},
+                             "depth": source_options()})
     return merge_user(OmegaConf.merge(base, load_config("sequence")), user_file, overrides)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 from multiprocessing import Pool
 from pathlib import Path
 
