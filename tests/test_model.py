@@ -225,6 +225,37 @@ def test_depth_beyond_the_range_reads_as_invalid():
     assert torch.allclose(channel, torch.tensor([0.0, 0.5, 1.0, 1.0, 0.0, 0.0]))
 
 
+def test_inference_normalisation_is_the_training_one_on_one_thread(monkeypatch):
+    """Per-frame inputs are normalised on one torch thread (a busy machine's thread pool cost ~60x);
+    the values are the training path's to the bit, and the caller's thread count is kept."""
+    from frontiernet.model import normalise_batch, normalise_images
+
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 256, (2, 24, 32, 3), dtype=np.uint8)
+    depth = (rng.random((2, 24, 32)) * 5).astype(np.float32)
+    depth[0, 0, :6] = [0.0, 3.5, 3.5000002, np.nan, -1.0, np.inf]
+    import frontiernet.model.predictor as predictor
+
+    threads_seen = []
+
+    def recording(*args):
+        threads_seen.append(torch.get_num_threads())
+        return normalise_images(*args)
+
+    monkeypatch.setattr(predictor, "normalise_images", recording)
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        expected = normalise_images(torch.from_numpy(rgb).permute(0, 3, 1, 2).float() / 255.0,
+                                    torch.from_numpy(depth), "rgbd", MODEL_CONF["input"]).numpy()
+        got = normalise_batch(rgb, depth, "rgbd", MODEL_CONF["input"])
+        assert torch.get_num_threads() == 2 and threads_seen == [1]
+    finally:
+        torch.set_num_threads(previous)
+    assert got.dtype == np.float32 and got.shape == (2, 4, 24, 32)
+    assert np.array_equal(got.view(np.uint32), expected.view(np.uint32))
+
+
 def test_resize_and_crop_keeps_projections():
     """A 3D point's marker in the image is where the adjusted intrinsics project the point."""
     K = np.array([[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]])
