@@ -267,3 +267,15 @@ def test_bench_encoders_times_each_encoder_against_the_first():
         assert set(rows) == {"resnet18", "mobilenet_v3_small"}
         assert all(value == 1.0 for key, value in rows["resnet18"].items() if key.startswith("speedup_"))
         assert "speedup_1_threads" in rows["mobilenet_v3_small"]
+
+
+def test_running_an_exported_model_does_not_import_torchvision():
+    """torchvision (~1.5 s to import: it pulls in torch._dynamo) builds networks; a process that
+    runs an exported model and the exploration around it never needs it."""
+    import subprocess
+    import sys
+
+    code = ("import sys, frontiernet.model, frontiernet.exploration.methods, deploy.runtime, deploy.predict; "
+            "print('torchvision' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -39,7 +39,6 @@ from typing import Optional
 
 import torch
 import torch.nn.functional as F
-import torchvision
 from torch import nn
 
 from ..errors import InputError
@@ -60,6 +59,16 @@ FEATURE_ENCODERS = {
 }
 ENCODERS = (*RESNET_ENCODERS, *FEATURE_ENCODERS)
 INPUT_CHANNELS = {"rgbd": 4, "rgb": 3, "depth": 1}
+
+
+def _torchvision_model(name: str) -> nn.Module:
+    """torchvision's `name` model, untrained (an encoder's skeleton; weights come from a model file
+    or ImageNet's). torchvision is imported here, not with this module: importing it takes ~1.5 s
+    (it pulls in torch._dynamo), which every command that runs an exported (ONNX) model and only
+    reads this module's constants would pay."""
+    import torchvision
+
+    return getattr(torchvision.models, name)(weights=None)
 
 
 @dataclass(frozen=True)
@@ -153,7 +162,7 @@ class FrontierNet(nn.Module):
         if config.encoder in FEATURE_ENCODERS:
             skips, deepest = self._feature_encoder(config)
         else:
-            resnet = getattr(torchvision.models, config.encoder)(weights=None)
+            resnet = _torchvision_model(config.encoder)
             conv1 = nn.Conv2d(config.in_channels, 64, kernel_size=7, stride=2, padding=3, bias=False)
             self.stem = nn.Sequential(conv1, resnet.bn1, resnet.relu)               # stride 2, 64 ch
             self.pool = resnet.maxpool
@@ -174,7 +183,7 @@ class FrontierNet(nn.Module):
         """Stem, pool (identity) and layers from a torchvision model's `features` blocks, split at
         the ends in FEATURE_ENCODERS; the first convolution is rebuilt for the input channels (as
         the ResNet one: same kernel, stride and padding, torch's default initialisation)."""
-        features = getattr(torchvision.models, config.encoder)(weights=None).features
+        features = _torchvision_model(config.encoder).features
         first = features[0][0]
         features[0][0] = nn.Conv2d(config.in_channels, first.out_channels, kernel_size=first.kernel_size,
                                    stride=first.stride, padding=first.padding, bias=False)
