@@ -228,14 +228,13 @@ def test_depth_beyond_the_range_reads_as_invalid():
 def test_inference_normalisation_is_the_training_one_on_one_thread(monkeypatch):
     """Per-frame inputs are normalised on one torch thread (a busy machine's thread pool cost ~60x);
     the values are the training path's to the bit, and the caller's thread count is kept."""
+    import frontiernet.model.predictor as predictor
     from frontiernet.model import normalise_batch, normalise_images
 
     rng = np.random.default_rng(0)
     rgb = rng.integers(0, 256, (2, 24, 32, 3), dtype=np.uint8)
     depth = (rng.random((2, 24, 32)) * 5).astype(np.float32)
     depth[0, 0, :6] = [0.0, 3.5, 3.5000002, np.nan, -1.0, np.inf]
-    import frontiernet.model.predictor as predictor
-
     threads_seen = []
 
     def recording(*args):

@@ -26,9 +26,13 @@ RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": 
 
 
 def shipped_section(section: str):
-    """The shipped config of run section `section` (a key of :data:`RUN_SECTIONS`)."""
+    """The shipped config of run section `section` (a key of :data:`RUN_SECTIONS`); ``depth`` less
+    its ``source`` key (the run's source is ``--depth`` or ``run.depth``)."""
     from ..config import load_config
+    from ..depth import source_options
 
+    if section == "depth":
+        return source_options()
     name, key = RUN_SECTIONS[section]
     return load_config(name) if key is None else load_config(name)[key]
 
@@ -47,11 +51,9 @@ def load_run_config(user_file=None, overrides=(), names=("explore",)):
             wrong kind.
     """
     from ..config import load_config, merge_user
-    from ..depth import source_options
 
     conf = load_config(tuple(names))
     sections = {section: shipped_section(section) for section in RUN_SECTIONS}
-    sections["depth"] = source_options()
     conf = OmegaConf.merge(conf, sections)
     return merge_user(conf, user_file, overrides)
 
