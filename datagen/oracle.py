@@ -33,22 +33,21 @@ class OraclePerception(Perception):
     Args:
         scene, voxels: the scene and its voxel grid (the explorer's).
         sim_conf: the sim config the explorer uses (its camera replaces datagen's).
-        run_conf: the run config; its ``ground_truth`` section (datagen's, settable per run:
-            ``ground_truth.gain.volume=occluded``) replaces the shipped one. None: the shipped one.
+        ground_truth: the run config's ``ground_truth`` section (datagen's, settable per run:
+            ``ground_truth.gain.volume=occluded``), which replaces the shipped one. None: the
+            shipped one (``configs/datagen.yaml``).
         seed: seed of the gain sampling (ground truth measures gain at a random subset of
             frontier voxels).
     """
 
     name = "oracle"
 
-    def __init__(self, scene, voxels, sim_conf=None, run_conf=None, seed: int = 0) -> None:
-        from frontiernet.exploration.run import run_section
-
+    def __init__(self, scene, voxels, sim_conf=None, ground_truth=None, seed: int = 0) -> None:
         conf = load_datagen_config()
         if sim_conf is not None:
             conf.camera = sim_conf.camera
-        if run_conf is not None:
-            conf.ground_truth = run_section(run_conf, "ground_truth")
+        if ground_truth is not None:
+            conf.ground_truth = ground_truth
         self.generator = GroundTruthGenerator(scene, voxels, conf)
         gt = conf.ground_truth
         self.labels = {"truncation_px": float(gt.truncation_px), "frontier_threshold_px": 0.5,
@@ -63,8 +62,9 @@ class OraclePerception(Perception):
 
 
 def _oracle_perception(context: MethodContext) -> OraclePerception:
-    """The ground truth of the context's scene, camera and run config (its ``ground_truth`` section)."""
-    return OraclePerception(context.scene, context.voxels, context.sim_conf, context.conf)
+    """The ground truth of the context's scene, camera and run config (its ``ground_truth`` section;
+    the shipped one for a run config without it)."""
+    return OraclePerception(context.scene, context.voxels, context.sim_conf, context.conf.get("ground_truth"))
 
 
 def oracle(context: MethodContext) -> Method:

@@ -16,7 +16,7 @@ from pathlib import Path
 import torch
 
 from frontiernet.errors import InputError, positive_number
-from frontiernet.io import atomic_write, check_output_file
+from frontiernet.io import atomic_path, check_output_file
 from frontiernet.model import load_model, save_model
 from frontiernet.model.network import CONFIG_KEY
 
@@ -63,8 +63,12 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)  # torch.jit is deprecated, still supported
             scripted = torch.jit.script(model)
-            return atomic_write(out, lambda temporary: torch.jit.save(scripted, str(temporary), _extra_files=extra))
-    return atomic_write(out, lambda temporary: _export_onnx(model, example, temporary, conf))
+            with atomic_path(out) as temporary:
+                torch.jit.save(scripted, str(temporary), _extra_files=extra)
+            return Path(out)
+    with atomic_path(out) as temporary:
+        _export_onnx(model, example, temporary, conf)
+    return Path(out)
 
 
 def _export_onnx(model, example: torch.Tensor, path: Path, conf: dict) -> None:

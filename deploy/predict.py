@@ -21,7 +21,7 @@ import numpy as np
 from frontiernet.config import load_config, merge_user
 from frontiernet.errors import InputError
 from frontiernet.geometry import intrinsics_matrix
-from frontiernet.io import atomic_write, ensure_dir, write_image, write_json
+from frontiernet.io import ensure_dir, write_bytes, write_image, write_json
 from frontiernet.model.predictor import beyond_range_invalid, fill_invalid_nearest
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 from frontiernet.sequences.images import read_depth, read_rgb
@@ -150,7 +150,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     arrays["gain_logits"] = arrays["gain_logits"].astype(np.float16)
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
-    atomic_write(out / "outputs.npz", lambda temporary: temporary.write_bytes(buffer.getvalue()))
+    write_bytes(out / "outputs.npz", buffer.getvalue())
     if intrinsics is not None:
         depth_in = result["depth"]  # at the working size, 0 invalid
         result["frontiers"] = frame_frontiers(result["distance_field"], result["gain_class"],

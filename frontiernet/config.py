@@ -22,12 +22,14 @@ from .errors import InputError, check_keys
 _MISSING = object()
 
 
-def setting(check, *args, key: str | None = None, **kwargs):
+def setting(check, *args, key: str | None = None, each: Sequence[str] = (), **kwargs):
     """A field of a :class:`ConfigSection`: the value of the section's `key` (the field's name
     unless given; dotted: a key of a sub-section) as ``check(value, name, *args, **kwargs)``
     returns it, `name` being ``<SECTION>.<key>``; `check` raises InputError naming it for a bad
-    value (``setting(whole_number, 1)``: an integer >= 1, see :mod:`frontiernet.errors`)."""
-    return field(metadata={"check": (check, args, kwargs), "key": key})
+    value (``setting(whole_number, 1)``: an integer >= 1, see :mod:`frontiernet.errors`).
+    With `each`, the value is a sub-section: a dict of each key of `each`, checked the same way
+    under the name ``<SECTION>.<key>.<each key>``."""
+    return field(metadata={"check": (check, args, kwargs), "key": key, "each": tuple(each)})
 
 
 def section_value(section, key: str, where: str):
@@ -69,8 +71,12 @@ class ConfigSection:
         for spec in fields(cls):
             key = spec.metadata["key"] or spec.name
             check, args, kwargs = spec.metadata["check"]
-            value = section_value(section, key, cls.SECTION)
-            values[spec.name] = check(value, f"{cls.SECTION}.{key}", *args, **kwargs)
+            value, name = section_value(section, key, cls.SECTION), f"{cls.SECTION}.{key}"
+            if spec.metadata["each"]:
+                values[spec.name] = {part: check(section_value(value, part, name), f"{name}.{part}", *args, **kwargs)
+                                     for part in spec.metadata["each"]}
+            else:
+                values[spec.name] = check(value, name, *args, **kwargs)
         return cls(**values)
 
 

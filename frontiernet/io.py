@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -51,8 +53,17 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
     return path
 
 
-def atomic_write(path: str | Path, write) -> Path:
-    """Call ``write(tmp_path)`` on a temporary file beside `path`, then rename it into place."""
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary file beside `path` for the ``with`` block to write; renamed into place when the
+    block ends, removed when it raises (`path` is then left as it was).
+
+    ``with atomic_path(out / "figure.png") as tmp: figure.savefig(tmp, format="png")``. For a
+    writer that needs a file name; :func:`write_bytes` and :func:`write_text` write data.
+
+    Raises:
+        InputError: a folder in the way, or a folder that cannot be written (missing, no permission).
+    """
     path = Path(path)
     if path.is_dir():  # os.replace would fail after the work, with a traceback
         raise InputError(f"{path}: cannot write, a folder is in the way")
@@ -62,7 +73,7 @@ def atomic_write(path: str | Path, write) -> Path:
         raise InputError(f"{path}: cannot write ({error.strerror})") from None
     os.close(fd)
     try:
-        write(Path(tmp))
+        yield Path(tmp)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file normal permissions
@@ -70,19 +81,28 @@ def atomic_write(path: str | Path, write) -> Path:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    return path
+
+
+def write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write `data` to `path` atomically (:func:`atomic_path`); returns `path`."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write `text` (UTF-8) to `path` atomically (:func:`atomic_path`); returns `path`."""
+    return write_bytes(path, text.encode("utf-8"))
 
 
 def write_json(path: str | Path, data) -> Path:
-    return atomic_write(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
+    return write_text(path, json.dumps(data, indent=2) + "\n")
 
 
 def write_npy(path: str | Path, array: np.ndarray) -> Path:
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as handle:
-            np.save(handle, array)
-
-    return atomic_write(path, write)
+    with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+        np.save(handle, array)
+    return Path(path)
 
 
 def check_image_name(path: str | Path) -> None:
@@ -99,13 +119,10 @@ def write_image(path: str | Path, rgb: np.ndarray) -> Path:
 
     check_image_name(path)
 
-    def write(tmp: Path) -> None:
-        ok, data = cv2.imencode(Path(path).suffix, np.ascontiguousarray(rgb[..., ::-1]))
-        if not ok:
-            raise InputError(f"{path}: cannot encode image")
-        tmp.write_bytes(data.tobytes())
-
-    return atomic_write(path, write)
+    ok, data = cv2.imencode(Path(path).suffix, np.ascontiguousarray(rgb[..., ::-1]))
+    if not ok:
+        raise InputError(f"{path}: cannot encode image")
+    return write_bytes(path, data.tobytes())
 
 
 def colorize_depth(depth: np.ndarray, max_depth: float) -> np.ndarray:

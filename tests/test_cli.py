@@ -82,12 +82,13 @@ def test_the_installed_command_exits_2_without_traceback(tmp_path):
 def test_outputs_are_written_atomically_with_normal_permissions(tmp_path):
     import os
 
-    from frontiernet.io import atomic_write, write_json
+    from frontiernet.io import atomic_path, write_json
 
     target = write_json(tmp_path / "a.json", {"x": 1})
     assert oct(target.stat().st_mode & 0o777) == oct(0o666 & ~_umask())
-    with pytest.raises(RuntimeError):
-        atomic_write(tmp_path / "a.json", lambda tmp: (tmp.write_text("half"), (_ for _ in ()).throw(RuntimeError())))
+    with pytest.raises(RuntimeError), atomic_path(tmp_path / "a.json") as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("the writer fails half-way")
     assert json.loads((tmp_path / "a.json").read_text()) == {"x": 1}  # the old file is intact
     assert os.listdir(tmp_path) == ["a.json"]  # no temporary left behind
     with pytest.raises(InputError, match="a.json/b.json: cannot write"):  # a file where a folder should be

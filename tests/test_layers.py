@@ -16,7 +16,7 @@ LIBRARY = ROOT / "frontiernet"
 
 # docs/design.md, "Module map": layer of each top-level module or package of frontiernet/
 LAYERS = {
-    "errors": 1, "config": 1, "io": 1, "geometry": 1, "workers": 1, "registry": 1,
+    "errors": 1, "config": 1, "io": 1, "geometry": 1, "workers": 1, "registry": 1, "timing": 1,
     "model": 2, "depth": 2, "planning": 2, "scenes": 2,
     "simulator": 3,
     "mapping": 4,

@@ -136,9 +136,9 @@ def test_an_image_method_observes_every_n_frames_a_map_method_every_frame(plan_s
     calls = []
     propose = Method.propose
 
-    def counted(self, frame, depth, timed):
+    def counted(self, frame, depth, stopwatch):
         calls.append(len(calls))
-        return propose(self, frame, depth, timed)
+        return propose(self, frame, depth, stopwatch)
 
     monkeypatch.setattr(Method, "propose", counted)
     metrics = run_method(plan_spec, tmp_path / "run", method, 20, f"tracking.observe_every_steps={every}")

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io import atomic_write
+from ..io import atomic_path, write_text
 from ..scenes.spec import parse_spec
 from .plan import scene_key
 from .runner import ROW_FIELDS
@@ -315,7 +315,8 @@ def plot_curves(rows: list[dict], curves: dict, scenes: list[str], title: str, p
     if axes.lines:
         axes.legend(fontsize=8)
     figure.tight_layout()
-    atomic_write(path, lambda tmp: figure.savefig(tmp, format="png"))
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format="png")
     plt.close(figure)
 
 
@@ -348,15 +349,12 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     if depths:
         fields.insert(fields.index("method") + 1, "depth")
 
-    def write_csv(tmp: Path) -> None:
-        with open(tmp, "w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
-            writer.writeheader()
-            writer.writerows(rows)
-
-    atomic_write(out / "results.csv", write_csv)
+    with atomic_path(out / "results.csv") as tmp, open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
     table = table_markdown(rows, scenes, methods, pending, depths, interval=interval)
-    atomic_write(out / "table.md", lambda tmp: Path(tmp).write_text(table))
+    write_text(out / "table.md", table)
     plots = []
     for stem, members, title in _plot_sets(scenes, {row["scene"] for row in rows}):
         plots.append(out / f"coverage_{stem}.png")

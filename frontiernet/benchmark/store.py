@@ -45,7 +45,7 @@ from collections import defaultdict
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import atomic_write
+from ..io import write_bytes
 
 PACK_SUFFIX = ".jsonl.gz"
 PLAN = "plan.json"
@@ -130,8 +130,8 @@ def write_plan(out: str | Path, plan: dict) -> Path:
     out = Path(out)
     if plan_file(out) == out / PACKED_PLAN:
         data = _gzip(_plan_bytes(plan))
-        return atomic_write(out / PACKED_PLAN, lambda tmp: tmp.write_bytes(data))
-    return atomic_write(out / PLAN, lambda tmp: tmp.write_bytes(_plan_bytes(plan)))
+        return write_bytes(out / PACKED_PLAN, data)
+    return write_bytes(out / PLAN, _plan_bytes(plan))
 
 
 def _pack_plan(out: Path) -> Path:
@@ -142,7 +142,7 @@ def _pack_plan(out: Path) -> Path:
         return out / PACKED_PLAN
     data = path.read_bytes()
     packed = _gzip(data)
-    atomic_write(out / PACKED_PLAN, lambda tmp: tmp.write_bytes(packed))
+    write_bytes(out / PACKED_PLAN, packed)
     if gzip.decompress((out / PACKED_PLAN).read_bytes()) != data:
         raise InputError(f"{out / PACKED_PLAN}: the packed plan does not read back; {path} kept")
     path.unlink()
@@ -210,7 +210,7 @@ def write_pack(path: Path, records: dict[str, dict]) -> Path:
     lines = [json.dumps({"key": key, "metrics": encode_curves(records[key])}, separators=(",", ":"))
              for key in sorted(records, key=_natural)]
     data = _gzip(("\n".join(lines) + "\n").encode("utf-8"))
-    return atomic_write(path, lambda tmp: tmp.write_bytes(data))
+    return write_bytes(path, data)
 
 
 class FinishedRuns:

@@ -12,43 +12,24 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-import re
 import sys
 
 from .. import __version__
 from ..errors import InputError
 from ..registry import Registry
 from . import bench, demo, explore, render, scene, sequence
+from .parser import Parser
 
 COMMANDS = Registry("command", "frontiernet.commands", {"scene": scene, "render": render, "explore": explore,
                                                        "demo": demo, "bench": bench, "sequence": sequence})
 """The subcommands: name -> a module with ``add_parser(subparsers)``."""
-NEGATIVE_NUMBER = re.compile(r"-\.?\d")
-"""What the parser reads as a (negative) number, not an option (CPython's current argparse pattern, ``match``)."""
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse, but usage errors are one line with exit code 2 (argparse's own code), and an
-    argument that starts with '-' and a digit is a value, never an option: ``--pose -4.5,-0.5,1.2,0``,
-    ``--start -1,2,1.2,-90``, ``--seed -1`` read as written. Older argparse (3.11's) takes only a
-    lone ``-4.5`` for a number and ``-4.5,...`` for an unknown option; the rule here is the one of
-    CPython's current argparse: ``-``, an optional ``.``, a digit. No option here is named ``-<digit>``."""
-
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self._negative_number_matcher = NEGATIVE_NUMBER
-
-    def error(self, message: str):  # noqa: D401
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="frontiernet",
+    parser = Parser(prog="frontiernet",
                      description="frontiernet: visual frontier learning (FrontierNet, RA-L 2025). "
                                  "Scenes, the ray-cast simulator, data generation, training and exploration.")
     parser.add_argument("--version", action="version", version=f"frontiernet {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for command in COMMANDS.load_all():
         command.add_parser(subparsers)
     return parser

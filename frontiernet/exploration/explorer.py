@@ -28,6 +28,7 @@ from ..planning.planner import FrontierPlanner, PlanningGrid, resample_route
 from ..planning.traversed import TraversedCells
 from ..planning.tree import PoseGraph
 from ..simulator.agent import Agent
+from ..timing import Stopwatch
 from .methods import Method
 from .motion import Motion, yaw_of
 from .move_check import MoveCheck, body_radius, looked_at
@@ -85,11 +86,11 @@ class Explorer:
         method: a :class:`~frontiernet.exploration.methods.Method`.
         depth_source: a :class:`~frontiernet.depth.DepthSource` (reset by the caller).
         T_start: (4, 4) start pose (level camera at the configured height).
-        on_step: optional callback ``(explorer, record, frame, perception_result)`` per iteration
-            (video frames, progress).
+        on_step: what consumes each iteration, in order: callables ``(explorer, record, frame,
+            perception_result)`` (video frames and progress, a recording); none by default.
     """
 
-    def __init__(self, context, renderer, method: Method, depth_source, T_start: np.ndarray, on_step=None) -> None:
+    def __init__(self, context, renderer, method: Method, depth_source, T_start: np.ndarray, on_step=()) -> None:
         scene, voxels, conf = context.scene, context.voxels, context.conf
         self.scene, self.voxels, self.renderer = scene, voxels, renderer
         self.method, self.depth_source, self.conf = method, depth_source, conf
@@ -111,7 +112,7 @@ class Explorer:
                                        body_radius_m=self.body_radius)
         self.graph = PoseGraph(float(conf.planner.pose_link_m))
         self.poses: list[np.ndarray] = []
-        self.on_step = on_step
+        self.on_step = tuple(on_step)
         self.route = None
         self.backoff = None  # (2,) xy to step back to: after a collision (map-free mode), or boxed in
         self.retreat_index = None  # while boxed in on the planning grid: the trajectory index stepped back to
@@ -121,32 +122,31 @@ class Explorer:
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
         self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
         self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
-        self._timings: dict = {}
+        self.stopwatch = Stopwatch()  # this step's wall time per stage (StepRecord.timings_ms)
         self.observe_every = whole_number(conf.tracking.observe_every_steps, "tracking.observe_every_steps", 1)
 
     # -- sensing --------------------------------------------------------------------------------
 
-    def _timed(self, stage: str, function, *args):
-        start = time.perf_counter()
-        value = function(*args)
-        self._timings[stage] = self._timings.get(stage, 0.0) + time.perf_counter() - start
-        return value
-
     def sense(self):
         """Render at the current pose and update map and frontiers; returns (frame, perception result)."""
         T = self.agent.pose
-        frame = self._timed("render", self.renderer.render, T)
+        with self.stopwatch("render"):
+            frame = self.renderer.render(T)
         # a monocular source degrades the depth of every hit, far ones included; the map keeps its range
         far = self.depth_source.sees_past_range and frame.hit_depth is not None
         ground_truth = frame.hit_depth if far else frame.depth
-        depth = self._timed("depth", self.depth_source.estimate, frame.rgb, frame.K, ground_truth)
-        self._timed("map", self._integrate, depth, frame, T)
+        with self.stopwatch("depth"):
+            depth = self.depth_source.estimate(frame.rgb, frame.K, ground_truth)
+        with self.stopwatch("map"):
+            self._integrate(depth, frame, T)
         if self.method.fresh_frontiers or len(self.poses) % self.observe_every == 0:  # poses: frames tracked
-            observations, seen = self.method.propose(frame, depth, self._timed)
+            observations, seen = self.method.propose(frame, depth, self.stopwatch)
         else:  # between an image method's observations: the map and the bookkeeping go on
             observations, seen = [], plain_view(frame, depth)
-        self._timed("tracking", self._track, observations, T)
-        self._timed("coverage", self.score.observe, frame.depth, frame.K, T)
+        with self.stopwatch("tracking"):
+            self._track(observations, T)
+        with self.stopwatch("coverage"):
+            self.score.observe(frame.depth, frame.K, T)
         return frame, seen
 
     def _integrate(self, depth, frame, T) -> None:
@@ -316,14 +316,14 @@ class Explorer:
             if self.agent.steps >= max_steps:
                 self.result.stop_reason = "step budget spent"
                 break
-            self._timings = {}
+            self.stopwatch.reset()
             start = time.perf_counter()
             target = self._start_turn()
             if target is None:
                 if self.route is None or self.steps_since_plan >= int(self.conf.motion.replan_every_steps):
                     if len(self.tracker) or self.route is not None:
                         self.plan()
-                self._timings["planning"] = time.perf_counter() - start
+                self.stopwatch.seconds["planning"] = time.perf_counter() - start
                 target = self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
@@ -332,7 +332,8 @@ class Explorer:
                 continue  # a goal was dropped or failed: plan again (failures blacklist frontiers)
             if self.route is not None:
                 self.look_around_left = np.radians(float(self.conf.motion.look_around_deg))
-            collided = self._timed("motion", self.move, target)
+            with self.stopwatch("motion"):
+                collided = self.move(target)
             self.steps_since_plan += 1
             frame, seen = self.sense()
             self._record(iteration, collided, frame, seen)
@@ -347,10 +348,10 @@ class Explorer:
         record = StepRecord(iteration, self.agent.steps, np.round(T[:3, 3], 4).tolist(), round(yaw_of(T), 4),
                             self.score.coverage(), self.score.surface_coverage, float(self.map.known_volume_m3), len(self.tracker),
                             None if self.route is None else self.route.frontier_id, collided,
-                            {k: round(v * 1e3, 2) for k, v in self._timings.items()})
+                            {k: round(v * 1e3, 2) for k, v in self.stopwatch.seconds.items()})
         self.result.records.append(record)
-        if self.on_step is not None:
-            self.on_step(self, record, frame, seen)
+        for consumer in self.on_step:
+            consumer(self, record, frame, seen)
 
 
 __all__ = ["Explorer", "ExplorationResult", "StepRecord", "STAGES", "SIMULATOR_STAGES"]

@@ -91,16 +91,17 @@ class MethodContext:
 class FrontierSource:
     """Proposes one frame's frontier observations.
 
-    ``source(frame, depth, timed) -> (observations, view)``: `observations` are
+    ``source(frame, depth, stopwatch) -> (observations, view)``: `observations` are
     :class:`~frontiernet.frontiers.anchoring.FrontierObservation`-like records in the world
     frame; `view` a :class:`~frontiernet.exploration.perception.PerceptionResult` for the
     video (frontier pixels, or none). `frame` is the rendered
     :class:`~frontiernet.simulator.camera.Frame` (its pose ``T_world_cam``), `depth` (H, W)
-    float32 metres, NaN invalid, the robot's depth. `timed(stage, function, *args)` times a stage
-    of the step (``perception``, ``anchoring``). The run's map already holds this frame.
+    float32 metres, NaN invalid, the robot's depth. `stopwatch` is the explorer's
+    :class:`~frontiernet.timing.Stopwatch`: ``with stopwatch("perception"): ...`` times a stage of
+    the step (``perception``, ``anchoring``). The run's map already holds this frame.
     """
 
-    def __call__(self, frame, depth: np.ndarray, timed) -> tuple[list, PerceptionResult]:
+    def __call__(self, frame, depth: np.ndarray, stopwatch) -> tuple[list, PerceptionResult]:
         raise NotImplementedError
 
 
@@ -116,12 +117,14 @@ class ImageSource(FrontierSource):
     def __init__(self, perception: Perception, anchoring, rng: np.random.Generator) -> None:
         self.perception, self.anchoring, self.rng = perception, anchoring, rng
 
-    def __call__(self, frame, depth, timed):
+    def __call__(self, frame, depth, stopwatch):
         from ..frontiers import anchor_prediction
 
-        seen = timed("perception", self.perception, frame, depth)
-        observations = timed("anchoring", anchor_prediction, seen.distance_field, seen.gain_class, seen.depth, seen.K,
-                             frame.T_world_cam, self.anchoring, seen.labels, self.rng, seen.gain_logits)
+        with stopwatch("perception"):
+            seen = self.perception(frame, depth)
+        with stopwatch("anchoring"):
+            observations = anchor_prediction(seen.distance_field, seen.gain_class, seen.depth, seen.K,
+                                             frame.T_world_cam, self.anchoring, seen.labels, self.rng, seen.gain_logits)
         return observations, seen
 
 
@@ -141,11 +144,12 @@ class MapSource(FrontierSource):
             raise ValueError("map frontiers need the run's map (a MethodContext with voxels)")
         self.gain, self.map, self.conf = gain, occupancy, conf
 
-    def __call__(self, frame, depth, timed):
+    def __call__(self, frame, depth, stopwatch):
         from ..frontiers.map_frontiers import map_frontiers
 
         z = float(frame.T_world_cam[2, 3])  # the camera height the robot keeps
-        observations = timed("anchoring", map_frontiers, self.map, z, self.conf, frame.T_world_cam, self.gain)
+        with stopwatch("anchoring"):
+            observations = map_frontiers(self.map, z, self.conf, frame.T_world_cam, self.gain)
         return observations, plain_view(frame, depth)
 
 
@@ -185,12 +189,12 @@ class Method:
         if (self.goal == "vacuum") != (self.moves is not None):
             raise InputError(f"method {self.name!r}: the vacuum goal rule and a method's own moves go together")
 
-    def propose(self, frame, depth: np.ndarray, timed) -> tuple[list, PerceptionResult]:
+    def propose(self, frame, depth: np.ndarray, stopwatch) -> tuple[list, PerceptionResult]:
         """This frame's frontier observations and the view for the video (see :class:`FrontierSource`;
         none and the plain camera view without a source)."""
         if self.source is None:
             return [], plain_view(frame, depth)
-        return self.source(frame, depth, timed)
+        return self.source(frame, depth, stopwatch)
 
 
 def image_method(name: str, perception: Perception, context: MethodContext, uses_model: bool = False) -> Method:

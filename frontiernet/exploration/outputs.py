@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write, write_json
+from ..io import atomic_path, write_json
 from .explorer import SIMULATOR_STAGES, STAGES, ExplorationResult
 from .surface import coverage_auc
 
@@ -103,7 +103,8 @@ def plot_coverage(path: Path, coverage: np.ndarray, budget: int, title: str) -> 
     axis.set(xlabel="step", ylabel="explored volume (%)", xlim=(0, budget), ylim=(0, 100), title=title)
     axis.grid(alpha=0.3)
     figure.tight_layout()
-    atomic_write(path, lambda tmp: figure.savefig(tmp, format="png"))
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format="png")
     plt.close(figure)
 
 

@@ -164,7 +164,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
     """
     from ..depth import make_depth_source
-    from ..io import atomic_write, ensure_dir
+    from ..io import ensure_dir, write_text
     from ..simulator.world import build_world
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
@@ -200,12 +200,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
     pictures = StepPictures(voxels, conf, writer, budget, progress=progress)
-
-    def on_step(*args) -> None:
-        pictures(*args)
-        if recorder is not None:
-            recorder(*args)
-
+    on_step = (pictures,) if recorder is None else (pictures, recorder)
     explorer = Explorer(context, world.renderer, exploration_method, depth_source, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock
     try:
@@ -221,7 +216,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
             "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),
             "wall_s": round(time.perf_counter() - clock, 2)}
     record = write_run(out, result, budget, info, explorer.tracker)
-    atomic_write(out / "config.yaml", lambda tmp: tmp.write_text(OmegaConf.to_yaml(conf)))
+    write_text(out / "config.yaml", OmegaConf.to_yaml(conf))
     if writer is not None:
         record["video"] = str(out / "exploration.mp4")
     if recorder is not None:

@@ -1,4 +1,4 @@
-"""Per-step video frames and progress of a run (the explorer's ``on_step`` callback)."""
+"""Per-step video frames and progress of a run (an ``on_step`` consumer of the explorer)."""
 
 from __future__ import annotations
 

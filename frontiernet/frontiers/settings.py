@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..config import ConfigSection, section_value, setting
+from ..config import ConfigSection, setting
 from ..errors import InputError
 from .gain import GAIN_DECODINGS
 
@@ -41,15 +41,6 @@ def _kernel(value, name: str) -> int:
     if kernel % 2 == 0 or kernel > 31:
         raise InputError(f"{name} must be odd and at most 31, got {kernel}")
     return kernel
-
-
-def _weights(section, name: str) -> dict:
-    """A weight >= 0 per feature of :data:`FEATURE_NAMES`, at least one > 0."""
-    weights = {feature: _number(section_value(section, feature, name), f"{name}.{feature}")
-               for feature in FEATURE_NAMES}
-    if not any(weights.values()):
-        raise InputError(f"{name} must give at least one feature a weight > 0")
-    return weights
 
 
 def _choice(value, name: str, choices: tuple[str, ...]) -> str:
@@ -95,9 +86,13 @@ class AnchoringSettings(ConfigSection):
     forward_weight: float = setting(_number)
     horizontal_directions: bool = setting(_flag)
     max_pixels: int = setting(_number, minimum=2, integer=True)
-    feature_weights: dict = setting(_weights)
+    feature_weights: dict = setting(_number, each=FEATURE_NAMES)
     min_cluster_size: int = setting(_number, key="hdbscan.min_cluster_size", minimum=2, integer=True)
     min_samples: int = setting(_number, key="hdbscan.min_samples", minimum=1, integer=True)
     cluster_selection_epsilon: float = setting(_number, key="hdbscan.cluster_selection_epsilon")
     allow_single_cluster: bool = setting(_flag, key="hdbscan.allow_single_cluster")
     cluster_gain: str = setting(_choice, CLUSTER_GAINS)
+
+    def __post_init__(self) -> None:
+        if not any(self.feature_weights.values()):
+            raise InputError(f"{self.SECTION}.feature_weights must give at least one feature a weight > 0")

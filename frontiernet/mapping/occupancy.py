@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, positive_number
-from ..io import atomic_write
+from ..io import atomic_path
 from ..simulator.voxels import VoxelGrid
 from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
 from .checks import MapSettings, depth_edges, depth_image, finite_number, scalar
@@ -46,6 +46,9 @@ class OccupancyMap:
         shape: (X, Y, Z) number of voxels per axis.
         conf: the ``map`` section of ``configs/explore.yaml`` (DictConfig, dict or
             :class:`MapSettings`).
+    Attributes:
+        origin: as given; voxel_size: edge length, metres (``settings.voxel_size``); shape: the
+            (X, Y, Z) voxel counts; settings: the checked :class:`MapSettings`.
     Raises:
         InputError: a bad origin, shape or config value.
     """
@@ -64,6 +67,9 @@ class OccupancyMap:
         dims = tuple(int(n) for n in np.asarray(shape).reshape(-1)) if np.size(shape) == 3 else ()
         if len(dims) != 3 or min(dims) < 1:
             raise InputError(f"map shape must be 3 positive voxel counts (X, Y, Z), got {shape!r}")
+        # plain attributes, not properties: VoxelGrid's index helpers read them without calling back here
+        self.voxel_size = float(self.settings.voxel_size)
+        self.shape: tuple[int, int, int] = dims  # type: ignore[assignment]
         self._log_odds = np.zeros(dims, np.float32)
         self._observed = np.zeros(dims, bool)
         self._known_voxels = 0
@@ -96,15 +102,6 @@ class OccupancyMap:
         return cls(bounds[0], tuple(shape.tolist()), settings)
 
     # -- geometry and state ----------------------------------------------------------------------
-
-    @property
-    def voxel_size(self) -> float:
-        """Voxel edge length, metres."""
-        return self.settings.voxel_size
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        return self._log_odds.shape  # type: ignore[return-value]
 
     @property
     def log_odds(self) -> np.ndarray:
@@ -342,12 +339,10 @@ class OccupancyMap:
 
     def save(self, path: str | Path) -> Path:
         """Write the map (grid, state and settings) to an ``.npz`` file, atomically."""
-        def write(tmp: Path) -> None:
-            with open(tmp, "wb") as handle:
-                np.savez_compressed(handle, format=_FORMAT, origin=self.origin, log_odds=self._log_odds,
-                                    observed=self._observed, settings=np.array(repr(asdict(self.settings))))
-
-        return atomic_write(path, write)
+        with atomic_path(path) as tmp, open(tmp, "wb") as handle:
+            np.savez_compressed(handle, format=_FORMAT, origin=self.origin, log_odds=self._log_odds,
+                                observed=self._observed, settings=np.array(repr(asdict(self.settings))))
+        return Path(path)
 
     @classmethod
     def load(cls, path: str | Path) -> OccupancyMap:

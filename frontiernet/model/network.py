@@ -42,7 +42,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..errors import InputError
-from ..io import atomic_write
+from ..io import write_bytes
 
 RESNET_ENCODERS = ("resnet18", "resnet34", "resnet50")
 FEATURE_ENCODERS = {
@@ -344,7 +344,7 @@ def save_model(path: str | Path, model: FrontierNet, model_conf: dict, info: dic
         tensors[name] = value.contiguous()
     metadata = {CONFIG_KEY: json.dumps(conf), INFO_KEY: json.dumps(info or {})}
     payload = save(tensors, metadata=metadata)
-    return atomic_write(path, lambda temporary: temporary.write_bytes(payload))
+    return write_bytes(path, payload)
 
 
 def load_model(path: str | Path | None = None) -> tuple[FrontierNet, dict]:

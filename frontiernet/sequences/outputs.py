@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import back_projected_points
-from ..io import atomic_write, write_json
+from ..io import atomic_path, write_json
 from ..model.overlay import frontier_overlay
 
 
@@ -57,7 +57,9 @@ class PointCloudFusion:
     def write(self, path: Path) -> Path:
         import open3d as o3d
 
-        return atomic_write(path, lambda tmp: _checked(o3d.io.write_point_cloud(str(tmp), self.cloud), path))
+        with atomic_path(path) as tmp:
+            _checked(o3d.io.write_point_cloud(str(tmp), self.cloud), path)
+        return Path(path)
 
 
 def _checked(ok: bool, path: Path) -> None:
@@ -91,7 +93,9 @@ def write_arrows(path: Path, frontiers, gain_colour) -> Path:
 
     mesh = frontier_arrows(frontiers, gain_colour)
     mesh.compute_vertex_normals()
-    return atomic_write(path, lambda tmp: _checked(o3d.io.write_triangle_mesh(str(tmp), mesh), path))
+    with atomic_path(path) as tmp:
+        _checked(o3d.io.write_triangle_mesh(str(tmp), mesh), path)
+    return Path(path)
 
 
 def camera_picture(arrays: dict, frontiers, T_world_cam: np.ndarray, labels: dict, threshold_px: float,

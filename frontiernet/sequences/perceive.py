@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io import atomic_write, ensure_dir
+from ..io import ensure_dir, write_bytes
 
 
 def frame_depth(frame, rgb: np.ndarray, depth_source) -> np.ndarray:
@@ -112,7 +112,7 @@ def perceive_frames(sequence, runtime, depth_source, cache_dir: Path, model_name
                 arrays = perceive_frame(frame, runtime, depth_source, conf)
                 buffer = io.BytesIO()
                 np.savez_compressed(buffer, key=np.array(key), **arrays)
-                atomic_write(path, lambda tmp: tmp.write_bytes(buffer.getvalue()))
+                write_bytes(path, buffer.getvalue())
             paths.append(path)
             bar.advance(task)
     return paths

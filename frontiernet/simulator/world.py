@@ -12,13 +12,13 @@ builds the renderer of ``camera``, with its background colour (``camera.backgrou
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 from omegaconf import OmegaConf
 
 from ..config import load_config, merge_user
 from ..scenes import Scene, load_scene
+from ..timing import Stopwatch
 from .camera import PinholeCamera, Renderer
 from .raycast import select_backend
 from .voxels import VoxelGrid, voxelize_scene
@@ -77,20 +77,17 @@ def build_world(scene: str | Scene, sim_conf, scenes_conf=None, *, voxels: bool 
     if not isinstance(scene, Scene) and scenes_conf is None:
         raise TypeError("build_world: a scene spec needs scenes_conf, the command's scenes config")
     backend = select_backend(sim_conf.raycast.backend)
-    seconds = {}
+    stopwatch = Stopwatch()
     if not isinstance(scene, Scene):
-        start = time.perf_counter()
-        scene = load_scene(scene, scenes_conf)
-        seconds["load"] = time.perf_counter() - start
+        with stopwatch("load"):
+            scene = load_scene(scene, scenes_conf)
     grid = None
     if voxels:
-        start = time.perf_counter()
-        grid = voxelize_scene(scene, sim_conf.voxels)
-        seconds["voxelize"] = time.perf_counter() - start
+        with stopwatch("voxelize"):
+            grid = voxelize_scene(scene, sim_conf.voxels)
     rendering = None
     if renderer:
-        start = time.perf_counter()
-        camera = sim_conf.camera
-        rendering = Renderer(scene, PinholeCamera.from_config(camera), tuple(camera.background))
-        seconds["renderer"] = time.perf_counter() - start
-    return World(scene, grid, rendering, backend, seconds)
+        with stopwatch("renderer"):
+            camera = sim_conf.camera
+            rendering = Renderer(scene, PinholeCamera.from_config(camera), tuple(camera.background))
+    return World(scene, grid, rendering, backend, stopwatch.seconds)
