@@ -122,7 +122,7 @@ class Explorer:
         self.look_around_left = np.radians(float(conf.motion.look_around_deg))
         self.start_turn_left = np.radians(float(conf.motion.start_turn_deg))
         self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
-        self.stopwatch = Stopwatch()  # this step's wall time per stage (StepRecord.timings_ms)
+        self.stopwatch = Stopwatch()  # this step's wall time per stage (StepRecord.timings, in ms)
         self.observe_every = whole_number(conf.tracking.observe_every_steps, "tracking.observe_every_steps", 1)
 
     # -- sensing --------------------------------------------------------------------------------
