@@ -19,8 +19,9 @@ class Stopwatch:
         seconds: stage name -> float seconds, in the order the stages first ran.
     """
 
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = {}
+    def __init__(self, seconds: dict[str, float] | None = None) -> None:
+        """`seconds`: the dict to add to (a record's field); None: a new one."""
+        self.seconds: dict[str, float] = {} if seconds is None else seconds
 
     @contextmanager
     def __call__(self, stage: str) -> Iterator[None]:

@@ -11,7 +11,6 @@ metres first (:mod:`.gravity`). The tracker's gain views sit at the median camer
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,6 +18,7 @@ import numpy as np
 from ..frontiers import FrontierTracker
 from ..frontiers.anchoring import anchor_prediction
 from ..mapping import OccupancyMap
+from ..timing import Stopwatch
 from .perceive import cached_full_depth, load_cached
 
 
@@ -85,41 +85,28 @@ def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict
     result = TrackedSequence(poses, tracker, occupancy, view_z=view_z, seen_bounds=seen)
     rng = np.random.default_rng(int(conf.seed))
     columns = (TextColumn("tracking"), BarColumn(), MofNCompleteColumn())
+    stopwatch = Stopwatch(result.seconds)  # all frames' seconds per stage
     with Progress(*columns, transient=True, disable=not progress) as bar:
         task = bar.add_task("frames", total=len(poses))
         for index, (frame, path) in enumerate(zip(sequence, cache_paths)):
             arrays = load_cached(path)
             T = poses[index]
-            clock = _Clock(result.seconds)
-            observations = anchor_prediction(arrays["distance_field"].astype(np.float32), arrays["gain_class"],
-                                             arrays["depth"], arrays["K"], T, conf.anchoring, labels, rng)
-            clock("anchoring")
-            occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T, monocular)
-            clock("map")
-            ids = tracker.add(observations, index, index)
-            tracker.update_gains(occupancy)
-            removed_before = len(tracker.removed_log)
-            tracker.prune(poses[:index + 1], occupancy)
-            for record in tracker.removed_log[removed_before:]:
-                record["removed_frame"] = index
-            result.per_frame.append({"frame": frame.name, "observations": len(observations),
-                                     "frontier_ids": [i for i in ids if i is not None], "alive": len(tracker)})
-            clock("tracking")
+            with stopwatch("anchoring"):
+                observations = anchor_prediction(arrays["distance_field"].astype(np.float32), arrays["gain_class"],
+                                                 arrays["depth"], arrays["K"], T, conf.anchoring, labels, rng)
+            with stopwatch("map"):
+                occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T, monocular)
+            with stopwatch("tracking"):
+                ids = tracker.add(observations, index, index)
+                tracker.update_gains(occupancy)
+                removed_before = len(tracker.removed_log)
+                tracker.prune(poses[:index + 1], occupancy)
+                for record in tracker.removed_log[removed_before:]:
+                    record["removed_frame"] = index
+                result.per_frame.append({"frame": frame.name, "observations": len(observations),
+                                         "frontier_ids": [i for i in ids if i is not None], "alive": len(tracker)})
             if on_frame is not None:
-                on_frame(index, arrays, result)
-                clock("point_cloud_and_video")
+                with stopwatch("point_cloud_and_video"):
+                    on_frame(index, arrays, result)
             bar.advance(task)
     return result
-
-
-
-class _Clock:
-    """Adds the seconds since the last call to ``seconds[stage]``."""
-
-    def __init__(self, seconds: dict) -> None:
-        self.seconds, self.last = seconds, time.perf_counter()
-
-    def __call__(self, stage: str) -> None:
-        now = time.perf_counter()
-        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self.last
-        self.last = now
