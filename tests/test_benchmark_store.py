@@ -154,6 +154,38 @@ def test_packs_store_rounded_curves_as_integer_steps_and_read_every_form_back(tm
         records[first["key"]]["coverage_per_step"]
 
 
+def test_packing_rewrites_older_list_form_packs_with_the_same_records_and_report(tmp_path):
+    runs = fake_benchmark(tmp_path)
+    assert bench("--pack", "--report", "--out", tmp_path)[0] == 0
+    expected = report_files(tmp_path)
+    packs = sorted((tmp_path / "runs").rglob("*.jsonl.gz"))
+    today = {path: path.read_bytes() for path in packs}
+    old = packs[0]  # as packs were written before 2026-11-28: the curves as lists of floats
+    lines = gzip.decompress(today[old]).decode().splitlines()
+    old.write_bytes(gzip_lines(*(json.dumps({"key": entry["key"], "metrics": read_pack(old)[entry["key"]]})
+                                 for entry in map(json.loads, lines))))
+    assert isinstance(next(iter(read_pack(old).values()))["coverage_per_step"], list)
+    assert "steps_1e5" not in gzip.decompress(old.read_bytes()).decode()
+    late = next(run for run in runs if not run["copy_of"] and pack_of(tmp_path, run) != old)  # another pack's new run
+    records = read_pack(pack_of(tmp_path, late))
+    record = records.pop(late["key"])
+    write_pack(pack_of(tmp_path, late), records)
+    (tmp_path / "runs" / late["key"]).mkdir(parents=True)
+    (tmp_path / "runs" / late["key"] / "metrics.json").write_text(json.dumps(record))
+
+    code, stdout, _ = bench("--pack", "--report", "--out", tmp_path)
+    assert code == 0 and "packed 1 run(s) into 1 file(s), 1 older pack(s) rewritten in today's form" in stdout
+    assert {path: path.read_bytes() for path in packs} == today  # both packs as today's code writes them
+    assert report_files(tmp_path) == expected
+    code, stdout, _ = bench("--pack", "--out", tmp_path)
+    assert code == 0 and "rewritten" not in stdout and {path: path.read_bytes() for path in packs} == today
+
+
+def pack_of(out, run: dict):
+    """The pack of `run` in benchmark folder `out`."""
+    return out / "runs" / (run["key"].rsplit("/", 1)[0] + ".jsonl.gz")
+
+
 def gzip_lines(*lines: str) -> bytes:
     return gzip.compress("\n".join(lines).encode())
 

@@ -205,12 +205,16 @@ def _natural(key: str) -> list:
     return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", key)]
 
 
-def write_pack(path: Path, records: dict[str, dict]) -> Path:
-    """Write `records` (run key -> metrics record) as pack `path`, atomically, keys in natural order."""
+def _pack_bytes(records: dict[str, dict]) -> bytes:
+    """The bytes of a pack of `records` (run key -> metrics record): keys in natural order, curves as integer steps."""
     lines = [json.dumps({"key": key, "metrics": encode_curves(records[key])}, separators=(",", ":"))
              for key in sorted(records, key=_natural)]
-    data = _gzip(("\n".join(lines) + "\n").encode("utf-8"))
-    return write_bytes(path, data)
+    return _gzip(("\n".join(lines) + "\n").encode("utf-8"))
+
+
+def write_pack(path: Path, records: dict[str, dict]) -> Path:
+    """Write `records` (run key -> metrics record) as pack `path`, atomically, keys in natural order."""
+    return write_bytes(path, _pack_bytes(records))
 
 
 class FinishedRuns:
@@ -247,14 +251,15 @@ def pack(out: str | Path) -> dict:
     """Move the ``metrics.json`` of every finished run of the plan in benchmark folder `out` into
     its (scene, method) pack (module docstring), then remove those files; a run's other outputs
     (trajectory.json, frontiers.json, coverage.png, config.yaml) stay. The plan is packed too
-    (``plan.json`` -> ``plan.json.gz``). Runs nothing; safe beside a running benchmark of this
+    (``plan.json`` -> ``plan.json.gz``), and a pack in an older form (curves as lists where they
+    are integer steps today) is rewritten in today's, the same records (read back to check). Runs nothing; safe beside a running benchmark of this
     code (it packs the runs finished when it starts; the benchmark's next resume reads the packed
     plan), not beside another pack, nor beside a benchmark of code from before packed plans (which
     finds no plan.json: pack such a folder with that code, ``scripts/pinned.sh``).
 
     Returns:
-        ``{"runs": runs packed now, "packs": [pack paths written], "packed": runs in packs in all,
-        "plan": the packed plan}``.
+        ``{"runs": runs packed now, "packs": [pack paths written], "rewritten": [older-form pack paths
+        rewritten], "packed": runs in packs in all, "plan": the packed plan}``.
     Raises:
         InputError: no benchmark in `out`, or a corrupt metrics.json or pack (nothing removed then).
     """
@@ -265,7 +270,16 @@ def pack(out: str | Path) -> dict:
         path = out / "runs" / run["key"] / "metrics.json"
         if not run.get("copy_of") and path.is_file():
             fresh[pack_path(out, run["key"])][run["key"]] = read_metrics(path)
-    written = []
+    written, rewritten = [], []
+    for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")):  # packs in an older form: rewritten in today's
+        if path in fresh or path.read_bytes() == (data := _pack_bytes(records := read_pack(path))):
+            continue
+        lines = gzip.decompress(data).decode("utf-8").splitlines()  # checked before the old pack is replaced
+        if json.dumps([decode_curves(json.loads(line)["metrics"]) for line in lines]) != \
+                json.dumps([records[key] for key in sorted(records, key=_natural)]):  # (as JSON: NaN == NaN)
+            raise InputError(f"{path}: rewritten in today's form it would not read back the same runs; left as it is")
+        write_bytes(path, data)
+        rewritten.append(path)
     for path, records in fresh.items():
         merged = {**(read_pack(path) if path.is_file() else {}), **records}
         write_pack(path, merged)
@@ -281,8 +295,8 @@ def pack(out: str | Path) -> dict:
                 except OSError:
                     break
     total = sum(len(read_pack(path)) for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")))
-    return {"runs": sum(len(records) for records in fresh.values()), "packs": written, "packed": total,
-            "plan": _pack_plan(out)}
+    return {"runs": sum(len(records) for records in fresh.values()), "packs": written, "rewritten": rewritten,
+            "packed": total, "plan": _pack_plan(out)}
 
 
 __all__ = ["FinishedRuns", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",

@@ -82,7 +82,8 @@ def run_exploration_benchmark(args) -> int:
         if not args.out:
             raise InputError("--pack needs --out DIR, the benchmark folder")
         packed = pack(args.out)
-        print(f"bench: packed {packed['runs']} run(s) into {len(packed['packs'])} file(s); "
+        rewritten = f", {len(packed['rewritten'])} older pack(s) rewritten in today's form" if packed["rewritten"] else ""
+        print(f"bench: packed {packed['runs']} run(s) into {len(packed['packs'])} file(s){rewritten}; "
               f"{packed['packed']} runs packed in {args.out}/runs; the plan in {packed['plan']}")
         if not args.report:
             return 0
