@@ -252,10 +252,11 @@ def pack(out: str | Path) -> dict:
     its (scene, method) pack (module docstring), then remove those files; a run's other outputs
     (trajectory.json, frontiers.json, coverage.png, config.yaml) stay. The plan is packed too
     (``plan.json`` -> ``plan.json.gz``), and a pack in an older form (curves as lists where they
-    are integer steps today) is rewritten in today's, the same records (read back to check). Runs nothing; safe beside a running benchmark of this
-    code (it packs the runs finished when it starts; the benchmark's next resume reads the packed
-    plan), not beside another pack, nor beside a benchmark of code from before packed plans (which
-    finds no plan.json: pack such a folder with that code, ``scripts/pinned.sh``).
+    are integer steps today) is rewritten in today's form, once its new bytes are checked to read
+    back the same records. Runs nothing; safe beside a running benchmark of this code (it packs the
+    runs finished when it starts; the benchmark's next resume reads the packed plan), not beside
+    another pack, nor beside a benchmark of code from before packed plans (which finds no
+    plan.json: pack such a folder with that code, ``scripts/pinned.sh``).
 
     Returns:
         ``{"runs": runs packed now, "packs": [pack paths written], "rewritten": [older-form pack paths
