@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from frontiernet.benchmark.plan import RunSpec
-from frontiernet.benchmark.store import read_pack, read_plan, write_pack
+from frontiernet.benchmark.store import pack_path, read_pack, read_plan, write_pack
 from frontiernet.cli.main import main
 from test_benchmark import bench
 
@@ -166,10 +166,10 @@ def test_packing_rewrites_older_list_form_packs_with_the_same_records_and_report
                                  for entry in map(json.loads, lines))))
     assert isinstance(next(iter(read_pack(old).values()))["coverage_per_step"], list)
     assert "steps_1e5" not in gzip.decompress(old.read_bytes()).decode()
-    late = next(run for run in runs if not run["copy_of"] and pack_of(tmp_path, run) != old)  # another pack's new run
-    records = read_pack(pack_of(tmp_path, late))
+    late = next(run for run in runs if not run["copy_of"] and pack_path(tmp_path, run["key"]) != old)  # another pack's new run
+    records = read_pack(pack_path(tmp_path, late["key"]))
     record = records.pop(late["key"])
-    write_pack(pack_of(tmp_path, late), records)
+    write_pack(pack_path(tmp_path, late["key"]), records)
     (tmp_path / "runs" / late["key"]).mkdir(parents=True)
     (tmp_path / "runs" / late["key"] / "metrics.json").write_text(json.dumps(record))
 
@@ -179,11 +179,6 @@ def test_packing_rewrites_older_list_form_packs_with_the_same_records_and_report
     assert report_files(tmp_path) == expected
     code, stdout, _ = bench("--pack", "--out", tmp_path)
     assert code == 0 and "rewritten" not in stdout and {path: path.read_bytes() for path in packs} == today
-
-
-def pack_of(out, run: dict):
-    """The pack of `run` in benchmark folder `out`."""
-    return out / "runs" / (run["key"].rsplit("/", 1)[0] + ".jsonl.gz")
 
 
 def gzip_lines(*lines: str) -> bytes:

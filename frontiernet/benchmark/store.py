@@ -165,8 +165,9 @@ def read_metrics(path: Path) -> dict:
     return record
 
 
-def read_pack(path: Path) -> dict[str, dict]:
-    """Run key -> metrics record of pack `path`, in the file's order.
+def read_pack(path: Path, data: bytes | None = None) -> dict[str, dict]:
+    """Run key -> metrics record of pack `path`, in the file's order; `data`: the pack's bytes where
+    they are in hand (read from `path` otherwise).
 
     Raises:
         InputError: the file is not a pack (not gzip, truncated, a line that is not
@@ -180,7 +181,7 @@ def read_pack(path: Path) -> dict[str, dict]:
                           "or remove it to run its runs again")
 
     try:
-        text = gzip.decompress(Path(path).read_bytes()).decode("utf-8")
+        text = gzip.decompress(Path(path).read_bytes() if data is None else data).decode("utf-8")
     except (OSError, EOFError, zlib.error, UnicodeDecodeError) as error:  # BadGzipFile is an OSError
         raise corrupt(str(error) or type(error).__name__) from None
     for number, line in enumerate(text.splitlines(), 1):
@@ -271,15 +272,17 @@ def pack(out: str | Path) -> dict:
         path = out / "runs" / run["key"] / "metrics.json"
         if not run.get("copy_of") and path.is_file():
             fresh[pack_path(out, run["key"])][run["key"]] = read_metrics(path)
-    written, rewritten = [], []
+    written, rewritten, packed = [], [], {}  # packed: pack path -> its number of runs
     for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")):  # packs in an older form: rewritten in today's
-        if path in fresh or path.read_bytes() == (data := _pack_bytes(records := read_pack(path))):
+        if path in fresh:  # (written below with its new runs)
             continue
-        lines = gzip.decompress(data).decode("utf-8").splitlines()  # checked before the old pack is replaced
-        if json.dumps([decode_curves(json.loads(line)["metrics"]) for line in lines]) != \
-                json.dumps([records[key] for key in sorted(records, key=_natural)]):  # (as JSON: NaN == NaN)
+        records = read_pack(path, old := path.read_bytes())
+        packed[path] = len(records)
+        if old == (data := _pack_bytes(records)):
+            continue
+        if json.dumps(sorted(read_pack(path, data).items())) != json.dumps(sorted(records.items())):  # NaN == NaN
             raise InputError(f"{path}: rewritten in today's form it would not read back the same runs; left as it is")
-        write_bytes(path, data)
+        write_bytes(path, data)  # checked before the old pack is replaced
         rewritten.append(path)
     for path, records in fresh.items():
         merged = {**(read_pack(path) if path.is_file() else {}), **records}
@@ -287,6 +290,7 @@ def pack(out: str | Path) -> dict:
         if set(read_pack(path)) != set(merged):  # read back before anything is removed
             raise InputError(f"{path}: the pack written does not read back; per-run files kept")
         written.append(path)
+        packed[path] = len(merged)
         for key in records:
             folder = out / "runs" / key
             (folder / "metrics.json").unlink()
@@ -295,9 +299,8 @@ def pack(out: str | Path) -> dict:
                     empty.rmdir()
                 except OSError:
                     break
-    total = sum(len(read_pack(path)) for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")))
     return {"runs": sum(len(records) for records in fresh.values()), "packs": written, "rewritten": rewritten,
-            "packed": total, "plan": _pack_plan(out)}
+            "packed": sum(packed.values()), "plan": _pack_plan(out)}
 
 
 __all__ = ["FinishedRuns", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",
