@@ -36,7 +36,10 @@ def load(spec: str) -> tuple[str, dict]:
     rows, names = {}, []
     for part in where.split("+"):
         path = Path(part)
-        path = path / "results.csv" if path.is_dir() else path
+        if path.is_dir():
+            if not (path / "results.csv").is_file():  # an untracked report (docs/benchmark/regimes)
+                sys.exit(f"{path}: no results.csv; `frontiernet bench --report --out {path}` writes it")
+            path = path / "results.csv"
         names.append(path.parent.name)
         with open(path) as handle:
             for r in csv.DictReader(handle):
