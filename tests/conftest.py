@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,9 @@ from frontiernet.scenes.builder import MeshBuilder
 from frontiernet.scenes.scene import Material
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+needs_git = pytest.mark.skipif(shutil.which("git") is None or not (REPO_ROOT / ".git").exists(),
+                               reason="needs git and a git checkout")
+"""For a test that reads the checkout's history or its list of tracked files."""
 
 # Two-room box (see two_room_scene): interior [0, 6] x [0, 4] x [0, 2.5] m, walls 0.2 m
 # thick outside it, a 0.2 m partition at x in [2.9, 3.1] with a door y in [1.5, 2.4],

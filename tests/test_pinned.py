@@ -4,18 +4,18 @@ wrong commit or a worktree of another commit is one line, exit 2."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from conftest import needs_git
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "scripts" / "pinned.sh"
 
-pytestmark = pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(),
-                                reason="needs git and a git checkout")
+pytestmark = needs_git
 
 
 def _git(*args: str) -> str:

@@ -8,31 +8,22 @@ counts), in bytes.
 
 from __future__ import annotations
 
-import shutil
 import subprocess
-from pathlib import Path
 
-import pytest
+from conftest import REPO_ROOT, needs_git
 
-ROOT = Path(__file__).resolve().parents[1]
 MAX_TRACKED_BYTES = 10_000_000
 """Issue 29, "Done when": the tracked tree, shipped weights aside, is under 10 MB."""
 WEIGHTS = "frontiernet/weights/"
 
 
-def tracked_files() -> list[str]:
-    """Paths (relative to the checkout, '/'-separated) of the files git tracks; skips without git."""
-    if shutil.which("git") is None or not (ROOT / ".git").exists():
-        pytest.skip("not a git checkout")
-    listed = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True).stdout
-    return [name for name in listed.decode().split("\0") if name]
-
-
+@needs_git
 def test_the_tracked_tree_without_the_shipped_weights_stays_under_10_MB():
-    tracked = tracked_files()
+    listed = subprocess.run(["git", "ls-files", "-z"], cwd=REPO_ROOT, capture_output=True, check=True).stdout
+    tracked = [name for name in listed.decode().split("\0") if name]  # '/'-separated, relative to the checkout
     assert any(name.startswith(WEIGHTS) for name in tracked)  # the weights are what is set aside
     files = [name for name in tracked if not name.startswith(WEIGHTS)]
-    sizes = {name: (ROOT / name).stat().st_size for name in files if (ROOT / name).is_file()}
+    sizes = {name: (REPO_ROOT / name).stat().st_size for name in files if (REPO_ROOT / name).is_file()}
     total = sum(sizes.values())
     largest = sorted(sizes, key=sizes.get, reverse=True)[:5]
     assert total < MAX_TRACKED_BYTES, f"{total / 1e6:.2f} MB tracked; largest: " + ", ".join(
