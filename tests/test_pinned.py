@@ -6,24 +6,22 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-from conftest import needs_git
+from conftest import REPO_ROOT, needs_git
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "scripts" / "pinned.sh"
+SCRIPT = REPO_ROOT / "scripts" / "pinned.sh"
 
 pytestmark = needs_git
 
 
 def _git(*args: str) -> str:
-    return subprocess.run(["git", "-C", str(ROOT), *args], check=True, capture_output=True, text=True).stdout.strip()
+    return subprocess.run(["git", "-C", str(REPO_ROOT), *args], check=True, capture_output=True, text=True).stdout.strip()
 
 
 def _pinned(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(SCRIPT), *args], cwd=ROOT, capture_output=True, text=True, timeout=300,
+    return subprocess.run([str(SCRIPT), *args], cwd=REPO_ROOT, capture_output=True, text=True, timeout=300,
                           env={"PATH": "/usr/bin:/bin", "PYTHON": sys.executable, "NICE": "0"})
 
 
