@@ -11,8 +11,9 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-LIBRARY = ROOT / "frontiernet"
+from conftest import REPO_ROOT
+
+LIBRARY = REPO_ROOT / "frontiernet"
 
 # docs/design.md, "Module map": layer of each top-level module or package of frontiernet/
 LAYERS = {
@@ -31,7 +32,7 @@ MAX_MODULE_LINES = 450
 
 
 def _module_name(path: Path) -> str:
-    parts = path.relative_to(ROOT).with_suffix("").parts
+    parts = path.relative_to(REPO_ROOT).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
@@ -89,7 +90,7 @@ def test_no_import_runs_up_a_layer():
 
 
 def test_the_library_never_imports_what_is_built_on_it():
-    found = [f"{path.relative_to(ROOT)} imports {name}" for path in LIBRARY.rglob("*.py")
+    found = [f"{path.relative_to(REPO_ROOT)} imports {name}" for path in LIBRARY.rglob("*.py")
              for name in sorted(_imports(path)) if name.split(".")[0] in ABOVE_THE_LIBRARY]
     assert found == []
 
@@ -114,6 +115,6 @@ def test_no_import_circle_between_library_files():
 
 
 def test_no_module_is_longer_than_the_limit():
-    long = [f"{path.relative_to(ROOT)}: {lines} lines" for folder in (LIBRARY, *(ROOT / name for name in ABOVE_THE_LIBRARY))
+    long = [f"{path.relative_to(REPO_ROOT)}: {lines} lines" for folder in (LIBRARY, *(REPO_ROOT / name for name in ABOVE_THE_LIBRARY))
             for path in sorted(folder.rglob("*.py")) if (lines := len(path.read_text().splitlines())) > MAX_MODULE_LINES]
     assert long == []

@@ -9,12 +9,12 @@ import importlib.util
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+from conftest import REPO_ROOT
+
 ABSENT = ("open3d", "hdbscan", "trimesh", "pycolmap")
 
 TORCH_ONLY = f"""
@@ -33,7 +33,7 @@ sys.exit(main(sys.argv[1:]))
 
 def frontiernet_torch_only(*args: str, exit_code: int = 0) -> subprocess.CompletedProcess:
     """Run `frontiernet ARGS` in a fresh Python where the packages of ABSENT cannot be imported."""
-    done = subprocess.run([sys.executable, "-c", TORCH_ONLY, *args], cwd=REPO, capture_output=True, text=True,
+    done = subprocess.run([sys.executable, "-c", TORCH_ONLY, *args], cwd=REPO_ROOT, capture_output=True, text=True,
                           timeout=900)
     assert "failed to load" not in done.stderr, done.stderr  # every command module imported
     assert done.returncode == exit_code, done.stderr[-3000:]
@@ -76,7 +76,7 @@ def test_datagen_runs_on_embree_without_open3d_and_labels_as_open3d_does(tmp_pat
 
 @pytest.mark.slow
 def test_train_and_evaluate_run_without_open3d_hdbscan_trimesh_pycolmap(tiny_dataset, tmp_path):
-    frontiernet_torch_only("train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
+    frontiernet_torch_only("train", "--config", str(REPO_ROOT / "configs" / "train_tiny.yaml"), "--no-progress",
                            f"data.path={tiny_dataset}", f"out={tmp_path}", "name=node", "trainer.max_epochs=1",
                            "trainer.max_steps=2", "data.max_val_samples=2")
     model = tmp_path / "node" / "model.safetensors"

@@ -16,6 +16,7 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
+from conftest import REPO_ROOT
 from datagen import open_dataset
 from datagen.labels import distance_field
 from frontiernet.cli.main import main
@@ -28,7 +29,6 @@ from train.metrics import DistanceError, FrontierCurves, GainDice, depth_jump_sc
 from train.packed import pack_sample, unpack_distance
 from train.transforms import resample_mask, training_item, training_sample
 
-REPO = Path(__file__).resolve().parents[1]
 LABELS = OmegaConf.to_container(load_config("model").labels)
 TRAIN_LOSS = OmegaConf.to_container(load_config("train").loss)
 
@@ -210,7 +210,7 @@ def train_losses(run: Path) -> list[float]:
 
 @pytest.mark.slow
 def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp_path, capsys, one_line_error):
-    args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
+    args = ["train", "--config", str(REPO_ROOT / "configs" / "train_tiny.yaml"), "--no-progress",
             f"data.path={tiny_dataset}", f"out={tmp_path}", "name=tiny", "trainer.max_epochs=6"]
     assert main(args) == 0
     run = tmp_path / "tiny"
@@ -255,7 +255,7 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
 @pytest.mark.slow
 def test_time_horizon_ends_the_cosine_at_max_time(tiny_dataset, tmp_path):
     # a wall-clock budget (a lent GPU's 10 minutes) ends with a decayed rate, not cut mid-cosine
-    args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
+    args = ["train", "--config", str(REPO_ROOT / "configs" / "train_tiny.yaml"), "--no-progress",
             f"data.path={tiny_dataset}", f"out={tmp_path}", "trainer.max_epochs=100000",
             "trainer.max_time=00:00:00:20", "optim.warmup_steps=1"]  # warm-up done at once: few steps suffice
     for horizon in ("time", "steps"):
@@ -273,7 +273,7 @@ def test_time_horizon_ends_the_cosine_at_max_time(tiny_dataset, tmp_path):
 
 @pytest.mark.slow
 def test_ctrl_c_leaves_a_resumable_checkpoint(tiny_dataset, tmp_path):
-    arguments = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress",
+    arguments = ["train", "--config", str(REPO_ROOT / "configs" / "train_tiny.yaml"), "--no-progress",
                  f"data.path={tiny_dataset}", f"out={tmp_path}", "name=stop", "trainer.max_epochs=1000"]
     # The run as a terminal starts it, Ctrl-C raising KeyboardInterrupt. A suite started in the
     # background (`nohup make test &`) has SIGINT ignored, children inherit that, and Python then
@@ -347,7 +347,7 @@ def test_a_model_and_a_dataset_of_other_gain_definitions_are_refused(tiny_datase
     info = json.loads((other / "dataset.json").read_text())
     info["config"]["ground_truth"]["gain"]["volume"] = "occluded"
     (other / "dataset.json").write_text(json.dumps(info))
-    args = ["train", "--config", str(REPO / "configs" / "train_tiny.yaml"), "--no-progress", f"data.path={other}",
+    args = ["train", "--config", str(REPO_ROOT / "configs" / "train_tiny.yaml"), "--no-progress", f"data.path={other}",
             f"out={tmp_path}", "trainer.max_epochs=1"]
     assert main(args + ["name=a", "model.labels.gain_definition=unobserved/blend"]) == 2
     assert "model.labels.gain_definition: unobserved/blend" in one_line_error()

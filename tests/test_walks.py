@@ -20,7 +20,9 @@ from pathlib import Path
 
 import pytest
 
-LIBRARY = Path(__file__).resolve().parents[1] / "frontiernet"
+from conftest import REPO_ROOT
+
+LIBRARY = REPO_ROOT / "frontiernet"
 
 
 def _chain(frame, root: str) -> list[str]:
