@@ -172,6 +172,15 @@ def test_the_report_plots_each_scene_and_the_mean_of_each_source_with_several(tm
     assert all(path.stat().st_size > 1000 for path in plots)
 
 
+def test_a_background_run_says_how_long_the_runs_left_take_at_its_rate_so_far():
+    from frontiernet.benchmark.runner import time_left
+
+    assert time_left(3600.0, 60, 338) == "about 4.6 h left"  # a minute a run, 278 to go
+    assert time_left(600.0, 10, 15) == "about 5 min left"
+    assert time_left(20.0, 2, 3) == "about 10 s left"
+    assert time_left(0.0, 0, 5) == "" and time_left(100.0, 5, 5) == ""  # nothing to go on; nothing left
+
+
 @pytest.mark.slow
 def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     out = tmp_path / "bench"
@@ -180,8 +189,9 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
     code, stdout, stderr = bench(*args)
     assert code == 0, stderr
     assert "Vox@25" in stdout and "4 runs (0 failed)" in stdout
-    # not on a terminal (a background run's log): a line per finished run
-    assert len([line for line in stderr.splitlines() if line.startswith("bench ") and "/4: " in line]) == 4
+    # not on a terminal (a background run's log): a line per finished run, with the time left but on the last
+    lines = [line for line in stderr.splitlines() if line.startswith("bench ") and "/4: " in line]
+    assert len(lines) == 4 and all(" left" in line for line in lines[:3]) and " left" not in lines[3]
 
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert len(rows) == 4 and {r["status"] for r in rows} == {"done"}

@@ -17,6 +17,7 @@ import logging
 import os
 import shutil
 import sys
+import time
 from pathlib import Path
 
 from ..errors import InputError
@@ -171,15 +172,35 @@ def run_all(runs, settings: dict, workers: int = 1, backend: str = "local", prog
     return with_copies(every, {**done, **{row["key"]: row for row in rows}})
 
 
+def time_left(elapsed_s: float, finished: int, total: int) -> str:
+    """How long the runs not yet finished will take at the rate so far, for a log line: ``about
+    6.1 h left`` (``min`` under an hour, ``s`` under a minute); "" before the first run or after
+    the last. The rate is wall time per finished run of this invocation, so parallel workers and
+    whatever else the machine does are in it.
+
+    Args:
+        elapsed_s: wall time since the first run started (s).
+        finished: runs finished so far; total: runs this invocation runs.
+    """
+    if finished <= 0 or finished >= total:
+        return ""
+    seconds = elapsed_s / finished * (total - finished)
+    if seconds >= 3600:
+        return f"about {seconds / 3600:.1f} h left"
+    return f"about {seconds / 60:.0f} min left" if seconds >= 60 else f"about {seconds:.0f} s left"
+
+
 class _Progress:
     """A rich progress bar over the runs on a terminal; elsewhere (a log file of a background
-    run) a line per finished run; silent when disabled."""
+    run) a line per finished run, with the time left (:func:`time_left`); silent when disabled."""
 
     def __init__(self, total: int, enabled: bool) -> None:
         self.total, self.enabled, self._bar, self._count = total, enabled, None, 0
         self._lines = enabled and not sys.stderr.isatty()
+        self._started = time.monotonic()
 
     def __enter__(self):
+        self._started = time.monotonic()
         if self.enabled and not self._lines:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -198,11 +219,13 @@ class _Progress:
             self._bar.update(self._task, advance=1, last=last)
         elif self._lines:
             took = f" in {row['wall_s']:.0f} s" if row.get("wall_s") is not None else ""
-            print(f"bench {self._count}/{self.total}: {row['key']} {last}{took}", file=sys.stderr, flush=True)
+            left = time_left(time.monotonic() - self._started, self._count, self.total)
+            print(f"bench {self._count}/{self.total}: {row['key']} {last}{took}{'; ' + left if left else ''}",
+                  file=sys.stderr, flush=True)
 
     def __exit__(self, *exc) -> None:
         if self._bar is not None:
             self._bar.__exit__(*exc)
 
 
-__all__ = ["run_one", "run_all", "finished_row", "with_copies", "BACKENDS", "ROW_FIELDS"]
+__all__ = ["run_one", "run_all", "time_left", "finished_row", "with_copies", "BACKENDS", "ROW_FIELDS"]
