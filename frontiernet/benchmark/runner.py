@@ -200,7 +200,6 @@ class _Progress:
         self._started = time.monotonic()
 
     def __enter__(self):
-        self._started = time.monotonic()
         if self.enabled and not self._lines:
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
