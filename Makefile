@@ -22,9 +22,9 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/frontiernet demo --out outputs/demo
 
-# One pytest worker per core (pytest-xdist): on a 2-core machine the suite takes 0.58x the wall time of
-# one process (501 s against 858 s, 2026-12-02, beside a niced benchmark), since many tests wait on
-# subprocesses and worker pools. `pytest` alone still runs it in one process.
+# One pytest worker per core (pytest-xdist): on a 2-core machine `make test` took 512 s against 858 s
+# for one process (0.60x; 2026-12-02, each beside a niced benchmark); many tests wait on subprocesses
+# and worker pools. `pytest` alone still runs it in one process.
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n auto
 
