@@ -56,6 +56,8 @@ KEYS_ADDED_AFTER_PLANS = {
     "tracking.merge": "nearest",
     "tracking.merge_clusters": {"eps": 1.8, "direction_weight": 2.0},
     "planner.traversed_is_free": False,  # the map alone decides what is traversable, as before the key
+    # issue 54: the omniscient bound's settings (they change no run of any other method)
+    "omniscient": {"candidate_spacing_m": 0.7, "yaw_count": 8, "view_width_px": 16, "max_candidates": 150},
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config

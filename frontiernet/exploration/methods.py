@@ -21,6 +21,8 @@ gain-distance            the map's frontiers                   visible unknown v
 random-frontier          the map's frontiers                   --                      random, fixed per frontier
 vacuum                   none                                  --                      straight on until blocked, then a
                                                                                        random turn (GLEAM's "vacuum")
+omniscient               reachable views of the robot's map    true unseen volume      gain / distance: the bound
+                                                                                       (:mod:`.omniscient`)
 =======================  ====================================  ======================  ====================
 
 The first five are the paper's system and its Fig. 9 ablations, the next two the oracle's
@@ -51,7 +53,7 @@ from .ablations import discontinuity_frontiers, uniform_gain
 from .perception import Perception, PerceptionResult, plain_view
 from .vacuum import VacuumMoves
 
-GOAL_RULES = ("utility", "nearest", "random", "vacuum")
+GOAL_RULES = ("utility", "nearest", "random", "rate", "vacuum")
 
 
 @dataclass
@@ -161,7 +163,8 @@ class Method:
         name: as on the command line.
         source: its frontier source (None: no frontiers, e.g. ``vacuum``).
         goal: ``utility`` (gain^e / distance, paper Eq. 8), ``nearest`` (1 / distance),
-            ``random`` (a random score drawn once per frontier) or ``vacuum`` (no planner: the
+            ``random`` (a random score drawn once per frontier), ``rate`` (gain / distance: volume
+            per metre, whatever ``planner.gain_exponent``) or ``vacuum`` (no planner: the
             method's own `moves`).
         fresh_frontiers: the frontier set is this frame's proposals only (map frontiers are
             recomputed from the whole map every frame); otherwise observations are merged
@@ -265,10 +268,16 @@ def _vacuum(context: MethodContext) -> Method:
     return Method("vacuum", None, "vacuum", moves=VacuumMoves(context.rng))
 
 
+def _omniscient(context: MethodContext) -> Method:
+    from .omniscient import make_omniscient  # it builds on this module's FrontierSource
+
+    return make_omniscient(context)
+
+
 METHODS = Registry("exploration method", "frontiernet.methods", {
     "frontiernet": _frontiernet, "df-uniform": _df_uniform, "discontinuity-gain": _discontinuity_gain,
     "discontinuity-uniform": _discontinuity_uniform, **{name: _map_method(name) for name in MAP_METHODS},
-    "vacuum": _vacuum})
+    "vacuum": _vacuum, "omniscient": _omniscient})
 """Every exploration method: name -> factory ``make(context: MethodContext) -> Method``. Built in:
 the paper's system and its Fig. 9 ablations (:mod:`.ablations`; only ``discontinuity-uniform``
 loads no model), the map methods, ``vacuum``; other packages register under the entry point

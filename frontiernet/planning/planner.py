@@ -195,9 +195,12 @@ class FrontierPlanner:
     def score(self, frontier, distance_m: float) -> float:
         """How good `frontier` is as the goal at route length `distance_m`, by the goal rule:
         ``utility`` (Eq. 8), ``nearest`` (1 / distance: Yamauchi's nearest frontier first) or
-        ``random`` (a uniform draw, fixed per frontier id, seeded)."""
+        ``random`` (a uniform draw, fixed per frontier id, seeded) or ``rate`` (gain / distance:
+        volume per metre of travel, whatever ``gain_exponent``; the omniscient bound's rule)."""
         if self.goal == "nearest":
             return 1.0 / max(distance_m, float(self.conf["min_distance_m"]))
+        if self.goal == "rate":
+            return float(frontier.gain_m3) / max(distance_m, float(self.conf["min_distance_m"]))
         if self.goal == "random":
             return self._random_scores.setdefault(frontier.id, float(self._rng.random()))
         return self.utility(frontier.gain_m3, distance_m)

@@ -1,0 +1,185 @@
+"""The all-knowing bound, ``--method omniscient``: the view that sees the most unseen true volume
+per metre of travel, chosen with the scene's ground truth (issue 54).
+
+No robot has this knowledge: the method is a reference that every other method is reported as a
+share of (``frontiernet bench --report``, "Share of the bound"). It is greedy, so not optimal, but it
+is strong and honest:
+
+* **It knows the truth where perception would guess.** A candidate view's gain is the volume of the
+  scene's *explorable* voxels that no ground-truth ray has observed yet (exactly what the coverage
+  metric still lacks: :class:`~frontiernet.exploration.score.GroundTruthScore`), seen from the view
+  through the *true* occupancy (walls occlude, unknown space does not), within the camera's field of
+  view and range.
+* **It moves as every method does.** Candidate views lie on the robot's own planning grid, on cells
+  it can reach over the map it has built (the explorer's move check refuses moves into unknown
+  space, for this method as for all), on a lattice ``omniscient.candidate_spacing_m`` apart, each with
+  the best of ``omniscient.yaw_count`` headings. The explorer's planner routes to the chosen one with
+  the ``rate`` goal rule (gain / path length: volume per metre, each step being a fixed length), and
+  the same motion, step counting and collision check apply.
+* **It stops** when no reachable view sees ``tracking.min_gain_m3`` of unseen volume any more.
+
+Cost: one frustum integration per (cell, heading) at a coarse raster (``view_width_px``; the volume
+is integrated along each ray, so the raster sets noise, not bias), numba-compiled; cells farther
+than the sensor's reach from any unseen explorable voxel are skipped without a ray.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ..errors import InputError, positive_number
+from ..geometry import poses_from_headings
+from ..mapping import OccupancyMap
+from ..mapping.traversal import frustum_volume
+from ..planning.grid import geodesic_distance
+from ..planning.planner import PlanningGrid
+from .methods import FrontierSource
+from .perception import plain_view
+
+
+@dataclass(frozen=True)
+class ViewCandidates:
+    """The candidate views of one frame.
+
+    Attributes:
+        xy: (N, 2) float64 world positions (metres), cell centres of the planning grid.
+        yaw: (N,) float64 best heading of each (radians, world frame, 0 = +x).
+        gain_m3: (N,) float64 unseen explorable volume the view at `xy`, `yaw` sees (m^3).
+    """
+
+    xy: np.ndarray
+    yaw: np.ndarray
+    gain_m3: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Observation:
+    """A candidate view as the tracker takes it (``position``, ``direction``, ``gain_m3``)."""
+
+    position: np.ndarray
+    direction: np.ndarray
+    gain_m3: float
+    T_world_cam: np.ndarray
+
+
+def lattice_cells(reachable: np.ndarray, spacing: int) -> np.ndarray:
+    """(N, 2) int64 cells of `reachable` ((X, Y) bool) on the lattice ``i % spacing == j % spacing ==
+    0`` (fixed in the world, so a candidate keeps its place and its tracker id from frame to frame)."""
+    lattice = np.zeros_like(reachable)
+    lattice[::spacing, ::spacing] = True
+    return np.argwhere(reachable & lattice)
+
+
+def near_unseen(unseen_columns: np.ndarray, cells: np.ndarray, reach_cells: float) -> np.ndarray:
+    """(N,) bool: whether some column with unseen explorable volume lies within `reach_cells` of
+    each of the (N, 2) `cells` (a view farther than its sensor's reach from all of them sees none)."""
+    if not unseen_columns.any():
+        return np.zeros(len(cells), bool)
+    distance = ndimage.distance_transform_edt(~unseen_columns)
+    return distance[cells[:, 0], cells[:, 1]] <= reach_cells
+
+
+class OmniscientSource(FrontierSource):
+    """Candidate views scored with the ground truth (see the module docstring).
+
+    Args:
+        voxels: the scene's :class:`~frontiernet.simulator.voxels.VoxelGrid` (true occupancy and
+            explorable volume).
+        occupancy: the robot's map (:attr:`MethodContext.map`): where views are reachable.
+        conf: the run config (``omniscient``, ``planner``, ``map``, ``motion.pitch_deg``).
+        camera: the sim config's ``camera`` (field of view and range of the views).
+    """
+
+    def __init__(self, voxels, occupancy, conf, camera) -> None:
+        if voxels is None or occupancy is None:
+            raise InputError("the omniscient method needs the scene's voxels and the run's map")
+        settings = conf.omniscient
+        self.voxels, self.map, self.conf = voxels, occupancy, conf
+        self.seen = OccupancyMap.like(voxels, conf.map)  # what ground-truth rays observed (the metric's map)
+        self.width = int(positive_number(settings.view_width_px, "omniscient.view_width_px"))
+        self.focal = float(camera.focal_px) * self.width / float(camera.width)  # the camera's field of view
+        self.max_depth = float(camera.max_depth)
+        self.pitch = np.radians(float(conf.motion.pitch_deg))
+        self.yaws = np.arange(int(positive_number(settings.yaw_count, "omniscient.yaw_count"))) \
+            * (2 * np.pi / int(settings.yaw_count))
+        spacing = positive_number(settings.candidate_spacing_m, "omniscient.candidate_spacing_m", "metres")
+        self.spacing = max(1, int(round(spacing / voxels.voxel_size)))
+        self.passable = np.ascontiguousarray(~voxels.occupied)
+        # a view's rays reach max_depth / cos(half the diagonal field of view) from its centre
+        half_diagonal = np.arctan(np.sqrt(2.0) * (self.width / 2.0) / self.focal)
+        self.reach_cells = self.max_depth / np.cos(half_diagonal) / voxels.voxel_size
+        self.directions = self.seen._pixel_directions(self.width, self.focal)
+        # The camera never sees the planning band right under itself: its lowest ray (half the
+        # vertical field of view below the pitch) reaches the band's bottom this far out, and the
+        # grid keeps planner.clearance_m from that unknown. Within the ring the explorer leaves
+        # along the frontier-tree edge (the planner's c*), so views beyond it are reachable.
+        lowest = np.arctan(float(camera.height) / 2.0 / float(camera.focal_px)) - self.pitch
+        self.ring_m = float(conf.planner.clearance_m) + float(conf.planner.height_band_m) / np.tan(lowest)
+
+    def __call__(self, frame, depth, stopwatch):
+        with stopwatch("perception"):  # the truth's "perception": what the camera has really seen
+            self.seen.integrate(frame.depth, frame.K, frame.T_world_cam)
+        with stopwatch("anchoring"):
+            candidates = self.candidates(frame.T_world_cam)
+        z = float(frame.T_world_cam[2, 3])
+        observations = [_Observation(np.array([x, y, z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]), float(gain),
+                                     frame.T_world_cam.copy())
+                        for (x, y), yaw, gain in zip(candidates.xy, candidates.yaw, candidates.gain_m3)]
+        return observations, plain_view(frame, depth)
+
+    def _ring(self, grid: PlanningGrid, xy: np.ndarray) -> np.ndarray:
+        """(X, Y) bool: the grid cells within :attr:`ring_m` of the robot at `xy` (2,)."""
+        i, j = np.indices(grid.cost.shape)
+        centre = (np.asarray(xy) - grid.origin_xy) / grid.cell_m - 0.5
+        return (i - centre[0]) ** 2 + (j - centre[1]) ** 2 <= (self.ring_m / grid.cell_m) ** 2
+
+    def unseen(self) -> np.ndarray:
+        """(X, Y, Z) bool: explorable voxels no ground-truth ray has observed yet."""
+        return self.voxels.explorable & ~self.seen.observed
+
+    def candidates(self, T_world_cam: np.ndarray) -> ViewCandidates:
+        """The reachable lattice views from the robot at `T_world_cam` ((4, 4), world frame) whose
+        best heading sees at least ``tracking.min_gain_m3``, the ``omniscient.max_candidates``
+        largest gains."""
+        xy, z = T_world_cam[:2, 3], float(T_world_cam[2, 3])
+        grid = PlanningGrid.from_map(self.map, z, self.conf.planner, xy)
+        start = grid.cell(xy)
+        empty = ViewCandidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+        if not grid.inside(*start):
+            return empty
+        open_cells = np.isfinite(grid.cost) | (self._ring(grid, xy) if self.ring_m > 0 else False)
+        reachable = np.isfinite(geodesic_distance(np.where(open_cells, 1.0, np.inf), start))
+        unseen = np.ascontiguousarray(self.unseen())
+        cells = lattice_cells(reachable, self.spacing)
+        cells = cells[near_unseen(unseen.any(axis=2), cells, self.reach_cells)]
+        if not len(cells):
+            return empty
+        centres = grid.centres(cells)
+        yaws = np.tile(self.yaws, len(cells))
+        poses = poses_from_headings(np.column_stack([np.repeat(centres, len(self.yaws), axis=0),
+                                                     np.full(len(yaws), z)]), yaws, self.pitch)
+        gains = np.zeros(len(poses))
+        frustum_volume(np.ascontiguousarray(poses[:, :3, 3]), np.ascontiguousarray(poses[:, :3, :3]), self.directions,
+                       self.max_depth, self.focal, self.voxels.origin, self.voxels.voxel_size, self.passable, unseen,
+                       gains)
+        gains = gains.reshape(len(cells), len(self.yaws))
+        best = np.argmax(gains, axis=1)
+        gain = gains[np.arange(len(cells)), best]
+        keep = np.flatnonzero(gain >= float(self.conf.tracking.min_gain_m3))
+        keep = keep[np.argsort(-gain[keep], kind="stable")][:int(self.conf.omniscient.max_candidates)]
+        return ViewCandidates(centres[keep], self.yaws[best[keep]], gain[keep])
+
+
+def make_omniscient(context):
+    """The ``omniscient`` method (:data:`~frontiernet.exploration.methods.METHODS`): candidate views
+    proposed afresh each frame, goals by the ``rate`` rule (gain / path length)."""
+    from .methods import Method
+
+    source = OmniscientSource(context.voxels, context.map, context.conf, context.sim_conf.camera)
+    return Method("omniscient", source, "rate", fresh_frontiers=True)
+
+
+__all__ = ["OmniscientSource", "ViewCandidates", "lattice_cells", "near_unseen", "make_omniscient"]
