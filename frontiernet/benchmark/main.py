@@ -16,6 +16,7 @@ from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
                    with_keys_added_after)
+from .budget import BudgetRule, scene_budget
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, plan_file, read_plan, write_plan
@@ -33,7 +34,10 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             HM3D scenes: :func:`~frontiernet.scenes.spec.expand_specs`);
         methods: method names (:mod:`frontiernet.exploration.methods`).
         starts, repeats: start poses per scene, runs per start and method.
-        max_steps: step budget (None: ``run.max_steps``); seed: start poses and run seeds
+        max_steps: one fixed step budget for every scene; None: scene-sized budgets, the paper's
+            protocol (:mod:`.budget`, ``budget`` of ``configs/bench.yaml``), with Vox@25 / @50 at
+            the steps where the methods on average reach 25 / 50 % coverage
+            (:func:`~frontiernet.benchmark.report.add_shared_vox`). seed: start poses and run seeds
             (None: ``run.seed``); model: as ``frontiernet explore``.
         depth: the depth source as ``frontiernet explore`` takes it (None: ``run.depth``), or a
             comma list of sources (``gt,emulated``): every run once per source
@@ -47,7 +51,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             that does not load, a depth list with an unknown, repeated or empty item, a changed
             plan in a folder that holds another benchmark's runs.
     """
-    budget = int(conf.run.max_steps if max_steps is None else max_steps)
+    rule = None if max_steps is not None else BudgetRule.from_conf(load_config("bench").budget)
+    budget = rule.min_steps if rule is not None else int(max_steps)
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
@@ -63,22 +68,27 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
 
         open_runtime(model)
     out = Path(out)
-    settings = {"budget": budget, "seed": seed, "model": str(model) if model else None, "depth": depth,
-                "scene_starts": bool(scene_starts),
+    settings = {"budget": budget if rule is None else rule.as_dict(), "seed": seed,
+                "model": str(model) if model else None, "depth": depth, "scene_starts": bool(scene_starts),
                 "conf": OmegaConf.to_container(conf, resolve=True)}
-    poses = None
-    if plan_file(out) is not None:  # resuming: the same settings, the same start poses
-        poses = resumable_plan(out, settings)["start_poses"]
+    if rule is not None:
+        settings["vox_steps"] = "coverage"
+    poses, budgets = None, None
+    if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
+        previous = resumable_plan(out, settings)
+        poses, budgets = previous["start_poses"], previous.get("budgets")
     clock = time.perf_counter()
+    if rule is not None:
+        budgets = {scene: (budgets or {}).get(scene) or scene_budget(scene, conf, rule)[0] for scene in scenes}
     runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
-                                  depths)
+                                  depths, budgets)
     ensure_dir(out)
-    write_plan(out, {"settings": settings, "start_poses": start_poses,
+    write_plan(out, {"settings": settings, "start_poses": start_poses, **({"budgets": budgets} if budgets else {}),
                      "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
     rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],
                           "depth": depth}, workers, backend, progress)
     report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None,
-                          interval=load_config("bench").report.interval)
+                          interval=load_config("bench").report.interval, vox_steps=settings.get("vox_steps", "budget"))
     return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
@@ -100,6 +110,12 @@ def resumable_plan(out: Path, settings: dict) -> dict:
         previous["settings"]["conf"].setdefault(section, shipped[section])
     with_idle_keys(previous["settings"], settings)
     with_keys_added_after(previous["settings"]["conf"])
+    old, new = previous["settings"]["budget"], settings["budget"]
+    if isinstance(old, int) != isinstance(new, int):  # another protocol, not just another setting
+        made = f"a fixed budget of {old} steps a scene" if isinstance(old, int) else "scene-sized budgets"
+        give = f"--max-steps {old} resumes it" if isinstance(old, int) else "leave out --max-steps to resume it"
+        raise InputError(f"{out} holds a benchmark made under another protocol ({made}); {give}, or use another "
+                         "--out: its runs are not mixed with this protocol's")
     if previous["settings"] != settings:
         raise InputError(f"{out} holds a benchmark with other settings "
                          f"({first_difference(previous['settings'], settings)}); use another --out or remove it")
@@ -126,7 +142,8 @@ def report(out: str | Path) -> dict:
     scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
     depths = list(dict.fromkeys(run["depth"] for run in runs if run.get("depth"))) or None
     written = write_report(out, reported, scenes, methods, pending, finished, depths,
-                           interval=load_config("bench").report.interval)
+                           interval=load_config("bench").report.interval,
+                           vox_steps=plan["settings"].get("vox_steps", "budget"))
     return {"rows": reported, **written, "pending": pending}
 
 

@@ -79,6 +79,8 @@ class RunSpec:
             docstring), or None.
         depth: the run's depth source (a name of :data:`frontiernet.depth.SOURCES`) when the
             benchmark has several, else None (every run takes the benchmark's one source).
+        max_steps: the run's step budget: its scene's under scene-sized budgets (:mod:`.budget`),
+            else None (every run takes the benchmark's one fixed budget).
     """
 
     scene: str
@@ -89,6 +91,7 @@ class RunSpec:
     seed: int
     copy_of: str | None = None
     depth: str | None = None
+    max_steps: int | None = None
 
     @property
     def key(self) -> str:
@@ -99,10 +102,12 @@ class RunSpec:
         return f"{scene_key(self.scene)}/{group}/start{self.start}_repeat{self.repeat}"
 
     def as_dict(self) -> dict:
-        """The run as plan.json stores it; ``depth`` only when set (a one-source plan is as before)."""
+        """The run as plan.json stores it; ``depth`` and ``max_steps`` only when set (a one-source,
+        fixed-budget plan is as before)."""
         record = {**asdict(self), "start_pose": list(self.start_pose)}
-        if record["depth"] is None:
-            del record["depth"]
+        for optional in ("depth", "max_steps"):
+            if record[optional] is None:
+                del record[optional]
         return record
 
 
@@ -237,7 +242,7 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
 def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
               poses: dict | None = None, scene_starts: bool = False,
-              depths: list[str] = ("ground_truth",)) -> tuple[list[RunSpec], dict]:
+              depths: list[str] = ("ground_truth",), budgets: dict | None = None) -> tuple[list[RunSpec], dict]:
     """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by
     method, depth source by depth source, and the start poses they use (scene -> list of
     (x, y, z, yaw_deg)).
@@ -249,6 +254,8 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
         depths: the depth sources' names (:data:`frontiernet.depth.SOURCES`, as
             :func:`depth_sources` gives them); each decides with the method whether that
             source's repeats are copies. With several, each run carries its source (module docstring).
+        budgets: scene -> step budget under scene-sized budgets (:mod:`.budget`; each run carries its
+            scene's), or None: the benchmark's one fixed budget.
     Raises:
         InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
             repeats below 1, or a scene that does not load.
@@ -275,10 +282,11 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
                 for method in methods:
                     for depth in depths:
                         regime = depth if len(depths) > 1 else None
+                        budget = None if budgets is None else int(budgets[scene])
                         first = RunSpec(scene, method, start, 0, tuple(poses[scene][start]), int(seed), depth=regime)
                         copy_of = first.key if repeat > 0 and repeats_identically(method, depth) else None
                         runs.append(RunSpec(scene, method, start, repeat, first.start_pose, int(seed) + repeat,
-                                            copy_of, regime))
+                                            copy_of, regime, budget))
     return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}
 
 

@@ -56,21 +56,45 @@ def coverage_at(curve: np.ndarray, step: float) -> float:
     return float(curve[min(int(np.ceil(step - 1e-9)), len(curve) - 1)])
 
 
-def add_shared_vox(rows: list[dict], curves: dict) -> None:
-    """Set ``vox25_shared`` and ``vox50_shared`` of every finished row (see the module docstring).
+VOX_STEPS = ("budget", "coverage")
+
+
+def first_step_at(curve: np.ndarray, level: float) -> int:
+    """The first step at which a per-step coverage curve reaches `level` (a fraction); the run's
+    last step when it never does."""
+    reached = np.flatnonzero(curve >= level - 1e-12)
+    return int(reached[0]) if len(reached) else len(curve) - 1
+
+
+def add_shared_vox(rows: list[dict], curves: dict, vox_steps: str = "budget") -> None:
+    """Set ``vox25_shared`` and ``vox50_shared`` of every finished row: each run's coverage at a step
+    shared by the runs of one comparison (same scene, start, repeat and depth source).
+
+    The shared step is, by `vox_steps`:
+
+    * ``coverage`` (the paper's definition, the scene-sized protocol: :mod:`.budget`): the mean over
+      the compared runs of the step at which each first reaches 25 / 50 % coverage (a run that never
+      does counts its last step);
+    * ``budget`` (the fixed-budget benchmarks made before): the mean over the compared runs of
+      25 / 50 % of each one's steps.
 
     Args:
         rows: result rows (:data:`~frontiernet.benchmark.runner.ROW_FIELDS`; ``depth`` when the
             benchmark has several sources: a comparison is one source's runs).
         curves: row index -> (S + 1,) coverage per step of the finished runs.
     """
+    if vox_steps not in VOX_STEPS:
+        raise InputError(f"vox_steps must be one of {', '.join(VOX_STEPS)}, got {vox_steps!r}")
     groups = defaultdict(list)
     for index, row in enumerate(rows):
         if index in curves:
             groups[(row["scene"], row["start"], row["repeat"], row.get("depth"))].append(index)
     for members in groups.values():
         for k in (25, 50):
-            step = float(np.mean([k / 100 * (len(curves[i]) - 1) for i in members]))
+            if vox_steps == "coverage":
+                step = float(np.mean([first_step_at(curves[i], k / 100) for i in members]))
+            else:
+                step = float(np.mean([k / 100 * (len(curves[i]) - 1) for i in members]))
             for i in members:
                 rows[i][f"vox{k}_shared"] = coverage_at(curves[i], step)
 
@@ -329,14 +353,16 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
 
 
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
-                 finished: FinishedRuns | None = None, depths: list[str] | None = None, *, interval) -> dict:
+                 finished: FinishedRuns | None = None, depths: list[str] | None = None, *, interval,
+                 vox_steps: str = "budget") -> dict:
     """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
     ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
     `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not;
     `finished`: the runs' records (per run or packed; None: read from `out`); `depths`: the
     benchmark's depth sources when it has several (the rows carry theirs; results.csv then has a
     ``depth`` column after ``method``), else None; `interval`: ``report.interval`` of
-    ``configs/bench.yaml``."""
+    ``configs/bench.yaml``; `vox_steps`: how Vox@25 / @50's shared steps are set (:func:`add_shared_vox`;
+    a plan's ``settings.vox_steps``, ``budget`` for plans made before the scene-sized protocol)."""
     out = Path(out)
     finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
@@ -344,7 +370,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
         if row["status"] == "done":
             metrics = finished.metrics(row.get("copy_of") or row["key"])
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
-    add_shared_vox(rows, curves)
+    add_shared_vox(rows, curves, vox_steps)
     fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]
     if depths:
         fields.insert(fields.index("method") + 1, "depth")

@@ -105,7 +105,8 @@ def run_one(run: dict, settings: dict) -> dict:
         run: a :class:`~frontiernet.benchmark.plan.RunSpec` as a dict, plus its ``key``.
         settings: ``out`` (benchmark folder), ``conf`` (the explore config as a dict),
             ``max_steps``, ``model``, ``depth`` (the benchmark's one source, or None: ``run.depth``;
-            a run that carries its own ``depth`` takes that), ``threads``.
+            a run that carries its own ``depth`` takes that; likewise its own ``max_steps``: its
+            scene's budget), ``threads``.
     """
     from omegaconf import OmegaConf
 
@@ -121,7 +122,7 @@ def run_one(run: dict, settings: dict) -> dict:
     try:
         record = main(OmegaConf.create(settings["conf"]), run["scene"], partial, method=run["method"],
                       model=settings["model"], depth=run.get("depth") or settings["depth"],
-                      max_steps=int(settings["max_steps"]),
+                      max_steps=int(run.get("max_steps") or settings["max_steps"]),
                       start=",".join(str(v) for v in run["start_pose"]), seed=int(run["seed"]), video=False,
                       progress=False)
         shutil.rmtree(final, ignore_errors=True)

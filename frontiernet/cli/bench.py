@@ -54,7 +54,9 @@ def _exploration_options(parser) -> None:
     group.add_argument("--scene-starts", action="store_true",
                        help="use the start positions a scene ships first (KTH plan folders: MapEx's)")
     group.add_argument("--repeats", type=int, default=3, help="runs per start and method (seeds seed..seed+R-1)")
-    options.max_steps(group, "configs/explore.yaml")
+    group.add_argument("--max-steps", type=int,
+                       help="one fixed step budget for every scene (default: scene-sized budgets, the paper's "
+                            "protocol: configs/bench.yaml budget, from each scene's explorable floor area)")
     group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
     group.add_argument("--report", action="store_true",
                        help="with --out only: rebuild results.csv, table.md and the plots from the runs finished "
