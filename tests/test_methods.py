@@ -52,7 +52,7 @@ def test_every_built_in_method_is_listed_and_built(two_room_scene, two_room_voxe
 
 def test_unknown_method_or_goal_rule_is_an_input_error_listing_the_valid_ones():
     with pytest.raises(InputError, match="valid: .*classic.*gain-distance.*vacuum"):
-        make_method("nbvp", MethodContext(load_config("explore"), load_config("sim")))
+        make_method("no-such-method", MethodContext(load_config("explore"), load_config("sim")))
     with pytest.raises(InputError, match="goal rule"):
         Method("mine", None, "closest")
     with pytest.raises(InputError, match="no frontier source"):

@@ -58,6 +58,10 @@ KEYS_ADDED_AFTER_PLANS = {
     "planner.traversed_is_free": False,  # the map alone decides what is traversable, as before the key
     # issue 54: the omniscient bound's settings (they change no run of any other method)
     "omniscient": {"candidate_spacing_m": 0.7, "yaw_count": 8, "view_width_px": 16, "max_candidates": 150},
+    # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
+    "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
+             "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "max_samples": 5000,
+             "stall_frames": 17},
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config

@@ -18,7 +18,7 @@ def add_parser(subparsers) -> None:
                         help="exploration method: frontiernet (the model), oracle (ground-truth frontiers), its hybrids "
                              "oracle-uniform and frontiernet-oracle-gain, the Fig. 9 "
                              "ablations df-uniform, discontinuity-gain, discontinuity-uniform, the baselines classic, "
-                             "gain-distance, random-frontier, vacuum, the all-knowing bound omniscient, or a plugin "
+                             "gain-distance, random-frontier, nbvp, vacuum, the all-knowing bound omniscient, or a plugin "
                              "(docs/exploration.md)")
     options.model_option(parser)
     parser.add_argument("--depth", help="depth source: gt, emulated, depth_anything_v2, metric3d_v2 "

@@ -23,6 +23,8 @@ vacuum                   none                                  --               
                                                                                        random turn (GLEAM's "vacuum")
 omniscient               reachable views of the robot's map    true unseen volume      gain / distance: the bound
                                                                                        (:mod:`.omniscient`)
+nbvp                     an RRT of views in the robot's map    visible unknown volume  the best branch's first node, then
+                                                                                       plan again (Bircher 2016, :mod:`.nbvp`)
 =======================  ====================================  ======================  ====================
 
 The first five are the paper's system and its Fig. 9 ablations, the next two the oracle's
@@ -274,10 +276,16 @@ def _omniscient(context: MethodContext) -> Method:
     return make_omniscient(context)
 
 
+def _nbvp(context: MethodContext) -> Method:
+    from .nbvp import make_nbvp  # it builds on this module's FrontierSource
+
+    return make_nbvp(context)
+
+
 METHODS = Registry("exploration method", "frontiernet.methods", {
     "frontiernet": _frontiernet, "df-uniform": _df_uniform, "discontinuity-gain": _discontinuity_gain,
     "discontinuity-uniform": _discontinuity_uniform, **{name: _map_method(name) for name in MAP_METHODS},
-    "vacuum": _vacuum, "omniscient": _omniscient})
+    "vacuum": _vacuum, "omniscient": _omniscient, "nbvp": _nbvp})
 """Every exploration method: name -> factory ``make(context: MethodContext) -> Method``. Built in:
 the paper's system and its Fig. 9 ablations (:mod:`.ablations`; only ``discontinuity-uniform``
 loads no model), the map methods, ``vacuum``; other packages register under the entry point
