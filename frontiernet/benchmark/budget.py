@@ -14,7 +14,7 @@ robot's camera height (``motion.camera_height_m`` above the floor) times the vox
 The area, not the volume, because the robot travels in the plane and sees a whole storey from
 where it stands (a tall hall holds more volume, not more travel); it is cheap and known before any
 run, so every method gets the same budget. ``steps_per_m2`` is calibrated on the development scenes
-from the all-knowing bound (``--method omniscient``): twice the steps it needs per m^2 to observe
+from the all-knowing bound (``--method omniscient``): 1.5 times the steps it needs per m^2 to observe
 90 % of the explorable volume, so that the methods, which are slower than the bound, reach 25 and
 50 % (the calibration and its command: docs/benchmark.md, "Scene-sized budgets").
 """
