@@ -158,6 +158,15 @@ def plan_spec(tmp_path_factory) -> str:
     return floorplan_spec(tmp_path_factory.mktemp("plan"), "plan", plan)
 
 
+@pytest.fixture(scope="session")
+def closet_spec(tmp_path_factory) -> str:
+    """One closed room of 1.9 x 1.9 m (a floor plan): a look-around sees every wall, then nothing is left."""
+    plan = np.full((60, 60), 254, np.uint8)
+    plan[5:55, 5:11] = plan[5:55, 49:55] = 0
+    plan[5:11, 5:55] = plan[49:55, 5:55] = 0
+    return floorplan_spec(tmp_path_factory.mktemp("closet"), "closet", plan)
+
+
 @pytest.fixture
 def one_line_error(capsys):
     """Reads what a command printed to stderr and checks it is one line, no traceback."""

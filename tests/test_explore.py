@@ -14,7 +14,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import floorplan_spec, scenes_config
+from conftest import scenes_config
 from PIL import Image
 
 from frontiernet.cli.main import main
@@ -131,15 +131,6 @@ def test_wrap_angle_returns_the_documented_range(angle, wrapped):
 
 
 # -- scenes and helpers --------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def closet_spec(tmp_path_factory) -> str:
-    """One closed room of 1.9 x 1.9 m: a look-around sees every wall."""
-    plan = np.full((60, 60), 254, np.uint8)
-    plan[5:55, 5:11] = plan[5:55, 49:55] = 0
-    plan[5:11, 5:55] = plan[49:55, 5:55] = 0
-    return floorplan_spec(tmp_path_factory.mktemp("closet"), "closet", plan)
 
 
 def run_cli(args) -> tuple[int, str, str]:

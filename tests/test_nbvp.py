@@ -9,10 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from conftest import floorplan_spec
 from frontiernet.exploration.methods import MethodContext, make_method, method_names
 from frontiernet.exploration.move_check import body_radius
-from frontiernet.exploration.nbvp import NbvpPlanner, NbvpSource, accumulated_gains, stop_node, visited
+from frontiernet.exploration.nbvp import NbvpSource, accumulated_gains, stop_node, visited
 from frontiernet.exploration.run import load_run_config
 from frontiernet.geometry import pose_from_heading, poses_from_headings
 from frontiernet.mapping import FREE
@@ -145,10 +144,7 @@ def test_the_same_seed_gives_the_same_nbvp_run(nbvp_run, plan_spec, tmp_path):
     assert metrics["coverage_per_step"] == again["coverage_per_step"]
 
 
-def test_nbvp_stops_with_no_frontiers_left_in_a_small_closed_room(tmp_path):
-    plan = np.full((60, 60), 254, np.uint8)  # one closed room of 1.9 x 1.9 m
-    plan[5:55, 5:11] = plan[5:55, 49:55] = 0
-    plan[5:11, 5:55] = plan[49:55, 5:55] = 0
-    metrics = run_method(floorplan_spec(tmp_path, "closet", plan), tmp_path / "closet", "nbvp", 300, "--depth", "gt")
+def test_nbvp_stops_with_no_frontiers_left_in_a_small_closed_room(closet_spec, tmp_path):
+    metrics = run_method(closet_spec, tmp_path / "closet", "nbvp", 300, "--depth", "gt")
     assert metrics["stop_reason"] == "no frontiers left" and metrics["steps"] < 300
     assert metrics["collisions"] == 0 and metrics["coverage"] > 0.6

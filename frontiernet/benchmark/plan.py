@@ -62,6 +62,10 @@ KEYS_ADDED_AFTER_PLANS = {
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "max_samples": 5000,
              "stall_frames": 17},
+    # the step account's thresholds (exploration/steps.py: metrics.json's step_account): reporting only, no run changes
+    "steps": {"translation_m": 0.02, "new_volume_m3": 0.05, "revisit_cell_m": 0.5, "revisit_after_steps": 10,
+              "livelock_window_steps": 50, "livelock_gain_m3": 1.0, "livelock_radius_m": 2.0,
+              "premature_unseen": 0.1, "reachable_dilation_m": 0.3},
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned, each with the value
 under which the code runs as it did before the key existed. The rule: a ``plan.json`` whose config

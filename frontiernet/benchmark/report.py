@@ -12,6 +12,8 @@ plans, procedural scenes) and for all scenes: mean +- std over every run of thos
 every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50 with a cluster
 bootstrap interval, ``configs/bench.yaml``; wins and losses), and what the runs cost in
 worker-hours (copies of a run excluded).
+Where the steps go (:mod:`.steps_report`): per method, the mean share of the budget in each
+category of the runs' step accounts, their premature stops and unseen reachable volume.
 GLEAM's metrics come with each run (:mod:`frontiernet.exploration.surface`): surface coverage
 of Poisson-disk samples of the mesh, its AUC over the budget and the one-way Chamfer distance
 to the robot's map.
@@ -38,6 +40,7 @@ from ..io import atomic_path, write_text
 from ..scenes.spec import parse_spec
 from .plan import scene_key
 from .runner import ROW_FIELDS
+from .steps_report import account_columns, account_fields, steps_markdown
 from .store import FinishedRuns
 
 SUCCESS_COVERAGE = 0.4
@@ -280,7 +283,8 @@ def metric_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> 
 def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
                    depths: list[str] | None = None, *, interval) -> str:
     """The summary (:func:`summary_markdown`), each method against ``classic``
-    (:func:`versus_markdown`), the compute (:func:`compute_markdown`), then one Table I per metric
+    (:func:`versus_markdown`), where the steps go (:func:`~.steps_report.steps_markdown`), the compute
+    (:func:`compute_markdown`), then one Table I per metric
     (:func:`metric_markdown`) (`pending`: runs of the plan not finished yet, said at the top).
     With several depth sources (`depths`, rows with their ``depth``): the summary and the
     comparison with classic per source, the monocular penalty (:func:`penalty_markdown`), then
@@ -302,6 +306,7 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
     for depth in regimes:
         lines += heading(depth, "summary") + summary_markdown(of(depth), scenes, methods)
         lines += versus_markdown(of(depth), scenes, methods, interval)
+        lines += steps_markdown(of(depth), methods)
     lines += penalty_markdown(done, methods, depths, interval)
     for depth in regimes:
         lines += heading(depth, "per scene") + compute_markdown(of(depth), methods)
@@ -370,8 +375,9 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
         if row["status"] == "done":
             metrics = finished.metrics(row.get("copy_of") or row["key"])
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
+            row.update(account_fields(metrics))  # where the steps went, when the record has it
     add_shared_vox(rows, curves, vox_steps)
-    fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared"]
+    fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared", *account_columns(rows)]
     if depths:
         fields.insert(fields.index("method") + 1, "depth")
 

@@ -34,6 +34,7 @@ from .motion import Motion, yaw_of
 from .move_check import MoveCheck, body_radius, looked_at
 from .perception import plain_view
 from .score import GroundTruthScore
+from .steps import reachable_columns, run_account
 
 STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion", "coverage")
 SIMULATOR_STAGES = ("motion", "coverage")
@@ -70,6 +71,7 @@ class ExplorationResult:
     path_length_m: float = 0.0
     explorable_m3: float = 0.0
     reconstruction: dict = field(default_factory=dict)  # GLEAM's Chamfer distance and completeness
+    account: dict = field(default_factory=dict)  # where the steps go (:func:`.steps.run_account`)
 
 
 class Explorer:
@@ -341,6 +343,9 @@ class Explorer:
             self.result.stop_reason = "iteration limit"
         self.result.poses = [T.tolist() for T in self.agent.trajectory]
         self.result.reconstruction = self.score.reconstruction(self.map)
+        unseen = self.score.unseen_in(*reachable_columns(self.scene, self.voxels, self.conf))
+        self.result.account = run_account(self.result.records, max_steps, self.result.stop_reason,
+                                          self.result.explorable_m3, unseen, self.conf)
         return self.result
 
     def _record(self, iteration: int, collided: bool, frame, seen) -> None:

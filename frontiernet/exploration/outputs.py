@@ -2,8 +2,9 @@
 
 ``metrics.json`` holds coverage per step (the fraction of the scene's explorable volume
 observed), Vox@k at 25 / 50 / 100 % of the step budget (docs/design.md item 7; the benchmark
-shares the 25 / 50 % step counts across methods), path length, collisions and the mean time
-per stage. The video shows, per step, the camera image with the perceived frontier pixels
+shares the 25 / 50 % step counts across methods), path length, collisions, the mean time
+per stage and where the steps went (:mod:`.steps`: ``step_account``, ``unseen_reachable``,
+``premature_stop``). The video shows, per step, the camera image with the perceived frontier pixels
 coloured by gain class beside a top-down view of the robot's map with its path, the live
 frontiers (arrows along their view directions) and the goal.
 """
@@ -66,6 +67,7 @@ def metrics(result: ExplorationResult, budget: int, info: dict, tracker=None) ->
             "surface_coverage": float(surface[-1]), "surface_auc": round(coverage_auc(surface, budget), 5),
             "chamfer_m": _finite_or_none(result.reconstruction.get("chamfer_m")),
             "completeness": result.reconstruction.get("completeness"),
+            **result.account,  # step_account, unseen_reachable, premature_stop (.steps.run_account)
             "timing": timing_summary(result.records), "coverage_per_step": np.round(coverage, 5).tolist(),
             "surface_coverage_per_step": np.round(surface, 5).tolist()}
 

@@ -44,6 +44,20 @@ class GroundTruthScore:
         observed = self.coverage_map.observed & self.voxels.explorable
         return float(observed.sum()) / max(int(self.voxels.num_explorable), 1)
 
+    def unseen_in(self, columns: np.ndarray, band: slice) -> float:
+        """Fraction of the scene's explorable volume not observed so far in the columns of `columns`
+        ((X, Y) bool over the scene grid's columns, e.g. the reachable ones:
+        :func:`~frontiernet.exploration.steps.reachable_columns`) that the camera never saw at its own
+        height: none of the column's explorable voxels in the layers `band` (a slice of the grid's
+        z index) observed. Floor and ceiling voxels that no pose at the camera's height sees (beside
+        the robot, in a small room) do not count once the camera has looked over their column."""
+        observed, explorable = self.coverage_map.observed, self.voxels.explorable
+        open_band = np.any(explorable[:, :, band], axis=2)
+        looked_over = np.any(observed[:, :, band] & explorable[:, :, band], axis=2)
+        counted = np.asarray(columns, bool) & open_band & ~looked_over
+        unseen = explorable & ~observed & counted[:, :, None]
+        return float(unseen.sum()) / max(int(self.voxels.num_explorable), 1)
+
     def reconstruction(self, robot_map: OccupancyMap) -> dict:
         """GLEAM's Chamfer distance and completeness of `robot_map` (:meth:`SurfaceCoverage.chamfer`)."""
         return self.surface.chamfer(robot_map)
