@@ -193,7 +193,7 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--methods", "classic,nbvp"], "unknown method 'nbvp'; valid: classic"),
+    (["--methods", "classic,no-such-method"], "unknown method 'no-such-method'; valid: classic"),
     (["--max-steps", "3"], "at least 4 steps"),
     (["--starts", "0"], "at least 1"),
     (["--backend", "slurm"], "--backend must be one of local, ray"),

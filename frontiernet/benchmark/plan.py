@@ -58,6 +58,8 @@ KEYS_ADDED_AFTER_PLANS = {
     "planner.traversed_is_free": False,  # the map alone decides what is traversable, as before the key
     # issue 54: the omniscient bound's settings (they change no run of any other method)
     "omniscient": {"candidate_spacing_m": 0.7, "yaw_count": 8, "view_width_px": 16, "max_candidates": 150},
+    "planner.forgive_before_stop": False,  # issue 54: a goal given up on stays given up on, as before
+    "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "max_samples": 5000,

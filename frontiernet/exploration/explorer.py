@@ -72,6 +72,7 @@ class ExplorationResult:
     explorable_m3: float = 0.0
     reconstruction: dict = field(default_factory=dict)  # GLEAM's Chamfer distance and completeness
     account: dict = field(default_factory=dict)  # where the steps go (:func:`.steps.run_account`)
+    forgiven: int = 0  # times the goals given up on had another chance before a stop (planner.forgive_before_stop)
 
 
 class Explorer:
@@ -126,6 +127,12 @@ class Explorer:
         self.result = ExplorationResult(explorable_m3=float(voxels.explorable_volume_m3))
         self.stopwatch = Stopwatch()  # this step's wall time per stage (StepRecord.timings, in ms)
         self.observe_every = whole_number(conf.tracking.observe_every_steps, "tracking.observe_every_steps", 1)
+        start_failure = str(conf.planner.get("start_failure", "blame"))
+        if start_failure not in ("blame", "step_back"):
+            raise InputError(f"planner.start_failure must be 'blame' or 'step_back', got {start_failure!r}")
+        self.step_back, self.start_failed_at = start_failure == "step_back", None
+        self.escape = None  # (4, 4) pose to step to first: off a spot a fresh route could not start from
+        self.forgive, self.forgiven_at_m3 = bool(conf.planner.get("forgive_before_stop", False)), -np.inf
 
     # -- sensing --------------------------------------------------------------------------------
 
@@ -205,6 +212,20 @@ class Explorer:
                                       "utility": round(route.utility, 4), "distance_m": round(route.distance_m, 3)})
         self.route, self.waypoint, self.steps_since_plan, self.look_xy = route, 0, 0, None
 
+    def _away_pose(self, T: np.ndarray) -> np.ndarray | None:
+        """Where to step before planning again when a fresh route could not start at `T` ((4, 4)
+        pose): one increment straight away from the nearest occupied voxel of the planning band
+        within reach of the body, heading kept (the robot backs or sidesteps off the wall), if the
+        move check allows it; None otherwise. A (4, 4) pose."""
+        xy = T[:2, 3]
+        wall = self.map.nearest_occupied_in_disk(xy, self.body_radius + self.motion.max_translation,
+                                                 *self.move_check.band)
+        if wall is None or np.linalg.norm(xy - wall) < 1e-6:
+            return None
+        away = T.copy()
+        away[:2, 3] = xy + (xy - wall) / np.linalg.norm(xy - wall) * self.motion.max_translation
+        return away if self.move_check(T, away)[0] == "ok" else None
+
     def _retreat_point(self, xy: np.ndarray) -> np.ndarray | None:
         """The next earlier trajectory position (xy) to step back to while the robot is boxed in
         on the planning grid: it stands where the map allows no step (a counter top under the
@@ -222,9 +243,17 @@ class Explorer:
     def _route_failed(self) -> None:
         """The next increment of the route is not allowed by the map. A route planned on an
         older map is only dropped (the next round replans on today's map); a fresh one counts
-        as a failure of its goal."""
+        as a failure of its goal. With ``planner.start_failure: step_back``, a fresh route that
+        cannot even start here (its first increment refused) counts once per step at most, and the
+        robot first steps off the nearest wall (:meth:`_away_pose`) before planning again: the spot,
+        not the goal, is what the route could not leave, and replanning from it gives the same route."""
         if self.steps_since_plan > 0:
             self.route = None
+        elif self.step_back and self.waypoint == 0:
+            if self.start_failed_at != self.agent.steps:
+                self.start_failed_at = self.agent.steps
+                self._goal_failed()
+            self.route, self.escape = None, self._away_pose(self.agent.pose)
         else:
             self._goal_failed()
 
@@ -240,6 +269,9 @@ class Explorer:
         T = self.agent.pose
         if self.method.moves is not None:
             return self.method.moves.next_pose(T, self.motion, self.move_check)
+        if self.escape is not None:  # off the spot a route could not start from (planner.start_failure)
+            target, self.escape = self.escape, None
+            return target
         if self.backoff is not None:
             target, self.backoff = self.backoff, None
             return self.motion.towards(T, target)
@@ -278,6 +310,25 @@ class Explorer:
             self.route = None  # arrived; if the frontier survives the next prune it is not explained
             self.planner.fail(frontier.id)
         return pose
+
+    def _forgive(self) -> bool:
+        """With ``planner.forgive_before_stop``, before the run stops with no frontier left: give
+        the goals given up on (blacklisted, and the frontiers their tombstones buried) another
+        chance when the map has learnt at least ``tracking.min_gain_m3`` since they last had one
+        (a goal was given up on the map of its time; a longer run spends its steps instead of
+        stopping while a route may now exist). Returns whether it did: the loop then looks around
+        again, and the next frame proposes the buried frontiers anew."""
+        known = float(self.map.known_volume_m3)
+        if not self.forgive or not self.planner.blacklist \
+                or known < self.forgiven_at_m3 + float(self.conf.tracking.min_gain_m3):
+            return False
+        self.forgiven_at_m3 = known
+        self.planner.blacklist.clear()
+        self.planner.failures.clear()
+        self.tracker.tombstones.clear()
+        self.look_around_left = np.radians(float(self.conf.motion.look_around_deg))
+        self.result.forgiven += 1
+        return True
 
     def _start_turn(self) -> np.ndarray | None:
         """The next increment of the turn on the spot at the start (``motion.start_turn_deg``), or
@@ -329,6 +380,8 @@ class Explorer:
                 target = self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
+                    if self._forgive():
+                        continue
                     self.result.stop_reason = "no frontiers left"
                     break
                 continue  # a goal was dropped or failed: plan again (failures blacklist frontiers)
