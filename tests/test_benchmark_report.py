@@ -159,3 +159,22 @@ def test_the_report_plots_each_scene_and_the_mean_of_each_source_with_several(tm
     expected += ["coverage_summary_procedural.png", "coverage_summary_all_scenes.png"]  # no mean of the one mesh
     assert sorted(path.name for path in plots) == sorted(expected)
     assert all(path.stat().st_size > 1000 for path in plots)
+
+
+def test_every_method_is_reported_as_a_share_of_the_bound_overall_and_per_scene():
+    scenes = ["procedural:1", "procedural:2"]
+    share = {"classic": 0.5, "frontiernet": 0.8}  # of the bound's coverage, at every k and start
+    rows = [{"scene": scene, "method": method, "start": start, "repeat": 0, "status": "done",
+             "vox25_shared": 0.2 * f, "vox50_shared": 0.4 * f, "vox100": 0.9 * f, "success": True}
+            for scene in scenes for start in (0, 1)
+            for method, f in (("omniscient", 1.0), *share.items())]
+    table = table_markdown(rows, scenes, ["classic", "frontiernet", "omniscient"], interval=INTERVAL)
+    bound = table.split("### Share of the bound (omniscient, paired runs)")[1].split("###")[0]
+    assert "Vox@25, Vox@50 and Vox@100" in bound and "omniscient |" not in bound  # the bound is not its own row
+    assert "| classic | 0.50x [0.50, 0.50] (0-4) | 0.50x [0.50, 0.50] (0-4) | 0.50x [0.50, 0.50] (0-4) |" in bound
+    assert "| frontiernet | 0.80x" in bound
+    for scene in scenes:
+        assert f"### Share of the bound on {scene_key(scene)}" in table
+    without = table_markdown([r for r in rows if r["method"] != "omniscient"], scenes, ["classic", "frontiernet"],
+                             interval=INTERVAL)
+    assert "Share of the bound" not in without

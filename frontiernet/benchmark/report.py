@@ -187,33 +187,56 @@ def paired_ratio_cell(pairs: list[tuple[dict, dict]], field: str, interval) -> s
     return f"{ours.mean() / theirs.mean():.2f}x{shown} ({wins}-{losses})"
 
 
+VOX_FIELDS = {"vox25_shared": "Vox@25", "vox50_shared": "Vox@50", "vox100": "Vox@100"}
+BOUND = "omniscient"  # the all-knowing bound (frontiernet/exploration/omniscient.py): every method as a share of it
+
+
 def versus_markdown(done: list[dict], scenes: list[str], methods: list[str], interval,
-                    reference: str = REFERENCE) -> list[str]:
+                    reference: str = REFERENCE, fields=("vox25_shared", "vox50_shared"),
+                    title: str | None = None) -> list[str]:
     """Each method against `reference` over paired runs (same scene, start and repeat, both
-    finished), per scene source and over all scenes: the ratio of their mean Vox@25 and Vox@50
-    (the paper's Table I comparison: FrontierNet / Classic about 1.75 at both) with its bootstrap
-    interval over (scene, start) clusters (:func:`paired_ratio_cell`; `interval`: ``report.interval``
-    of ``configs/bench.yaml``), and how many pairs the method covered more (wins) and less (losses).
-    No section unless `reference` is among `methods`."""
+    finished), per scene source and over all scenes: the ratio of their mean `fields` (keys of
+    :data:`VOX_FIELDS`; Vox@25 and Vox@50 by default: the paper's Table I comparison, FrontierNet /
+    Classic about 1.75 at both) with its bootstrap interval over (scene, start) clusters
+    (:func:`paired_ratio_cell`; `interval`: ``report.interval`` of ``configs/bench.yaml``), and how
+    many pairs the method covered more (wins) and less (losses). `title`: the section's heading
+    (default "Against <reference> (paired runs)"). No section unless `reference` is among `methods`."""
     others = [m for m in methods if m != reference]
     if reference not in methods or not others:
         return []
     by_run = {(r["method"], r["scene"], r["start"], r["repeat"]): r for r in done}
     groups = _source_groups(scenes)
-    lines = [f"### Against {reference} (paired runs)", "",
-             f"Ratio of mean Vox@25 and Vox@50 to {reference}'s over the runs both finished (same scene, start, "
+    names = [VOX_FIELDS[field] for field in fields]
+    lines = [f"### {title or f'Against {reference} (paired runs)'}", "",
+             f"Ratio of mean {', '.join(names[:-1])} and {names[-1]} to {reference}'s over the runs both finished (same scene, start, "
              f"repeat), with its {float(interval.confidence):.0%} bootstrap interval over (scene, start) clusters "
              "in square brackets; in round brackets the pairs where the method covered more - less.", "",
-             "| method | " + " | ".join(f"{name}: Vox@25 | Vox@50" for name in groups) + " |",
-             "| --- |" + " --- | --- |" * len(groups)]
+             "| method | " + " | ".join(" | ".join(f"{name}: {vox}" if i == 0 else vox for i, vox in enumerate(names))
+                                        for name in groups) + " |",
+             "| --- |" + " --- |" * len(names) * len(groups)]
     for method in others:
         cells = []
         for members in groups.values():
             pairs = [(r, by_run[(reference, *key[1:])]) for key, r in by_run.items()
                      if key[0] == method and key[1] in members and (reference, *key[1:]) in by_run]
-            cells += [paired_ratio_cell(pairs, field, interval) for field in ("vox25_shared", "vox50_shared")]
+            cells += [paired_ratio_cell(pairs, field, interval) for field in fields]
         lines.append(f"| {method} | " + " | ".join(cells) + " |")
     return lines + [""]
+
+
+def bound_markdown(done: list[dict], scenes: list[str], methods: list[str], interval) -> list[str]:
+    """Every method as a share of the all-knowing bound (:data:`BOUND`, when among `methods`): its
+    mean Vox@25, Vox@50 and Vox@100 over the bound's on paired runs, per scene source and over all
+    scenes (:func:`versus_markdown`), then per scene (no section without the bound)."""
+    if BOUND not in methods:
+        return []
+    title = f"Share of the bound ({BOUND}, paired runs)"
+    lines = versus_markdown(done, scenes, methods, interval, BOUND, tuple(VOX_FIELDS), title)
+    if len(scenes) > 1 and lines:
+        for scene in scenes:
+            lines += versus_markdown([r for r in done if r["scene"] == scene], [scene], methods, interval, BOUND,
+                                     tuple(VOX_FIELDS), f"Share of the bound on {scene_key(scene)}")
+    return lines
 
 
 def penalty_markdown(done: list[dict], methods: list[str], depths: list[str] | None, interval) -> list[str]:
@@ -306,6 +329,7 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
     for depth in regimes:
         lines += heading(depth, "summary") + summary_markdown(of(depth), scenes, methods)
         lines += versus_markdown(of(depth), scenes, methods, interval)
+        lines += bound_markdown(of(depth), scenes, methods, interval)
         lines += steps_markdown(of(depth), methods)
     lines += penalty_markdown(done, methods, depths, interval)
     for depth in regimes:
@@ -394,6 +418,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "ratio_interval",
+__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
+           "ratio_interval",
            "paired_ratio_cell", "penalty_markdown", "metric_markdown", "compute_markdown", "coverage_at",
            "SUCCESS_COVERAGE"]
