@@ -90,3 +90,24 @@ def test_the_bound_explores_both_rooms_without_collisions_and_at_least_as_fast_a
 def test_the_bound_refuses_a_context_without_the_scene():
     with pytest.raises(Exception, match="omniscient method needs the scene"):
         make_method("omniscient", MethodContext(load_config("explore"), load_config("sim")))
+
+
+def test_candidates_are_scored_afresh_every_n_frames_and_on_arrival(omniscient, monkeypatch):
+    from frontiernet.timing import Stopwatch
+
+    method, context, renderer = omniscient
+    source = method.source
+    source.refresh_every = 3
+    scored = []
+    real = source.candidates
+    monkeypatch.setattr(source, "candidates", lambda T: scored.append(T) or real(T))
+    T = pose_from_heading(1.5, 2.0, 1.2, 0.0, np.radians(float(context.conf.motion.pitch_deg)))
+    frame = renderer.render(T)
+    first = [method.propose(frame, frame.depth, Stopwatch())[0] for _ in range(4)]
+    assert len(scored) == 2  # frames 1 and 4
+    assert [o.position.tolist() for o in first[1]] == [o.position.tolist() for o in first[0]]  # proposed again
+    best = first[3][0]
+    arrived = pose_from_heading(best.position[0], best.position[1], 1.2, np.arctan2(best.direction[1], best.direction[0]),
+                                np.radians(float(context.conf.motion.pitch_deg)))
+    method.propose(renderer.render(arrived), frame.depth, Stopwatch())
+    assert len(scored) == 3  # it stands at a candidate view: the next goal is chosen from fresh gains

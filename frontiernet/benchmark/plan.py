@@ -57,7 +57,8 @@ KEYS_ADDED_AFTER_PLANS = {
     "tracking.merge_clusters": {"eps": 1.8, "direction_weight": 2.0},
     "planner.traversed_is_free": False,  # the map alone decides what is traversable, as before the key
     # issue 54: the omniscient bound's settings (they change no run of any other method)
-    "omniscient": {"candidate_spacing_m": 0.7, "yaw_count": 8, "view_width_px": 16, "max_candidates": 150},
+    "omniscient": {"candidate_spacing_m": 0.7, "yaw_count": 8, "view_width_px": 16, "max_candidates": 150,
+                   "refresh_every_steps": 1},
     "planner.forgive_before_stop": False,  # issue 54: a goal given up on stays given up on, as before
     "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)

@@ -112,6 +112,8 @@ class OmniscientSource(FrontierSource):
         half_diagonal = np.arctan(np.sqrt(2.0) * (self.width / 2.0) / self.focal)
         self.reach_cells = self.max_depth / np.cos(half_diagonal) / voxels.voxel_size
         self.directions = self.seen._pixel_directions(self.width, self.focal)
+        self.refresh_every = int(positive_number(settings.get("refresh_every_steps", 1), "omniscient.refresh_every_steps"))
+        self.cached, self.frames_since = None, 0
         # The camera never sees the planning band right under itself: its lowest ray (half the
         # vertical field of view below the pitch) reaches the band's bottom this far out, and the
         # grid keeps planner.clearance_m from that unknown. Within the ring the explorer leaves
@@ -123,7 +125,10 @@ class OmniscientSource(FrontierSource):
         with stopwatch("perception"):  # the truth's "perception": what the camera has really seen
             self.seen.integrate(frame.depth, frame.K, frame.T_world_cam)
         with stopwatch("anchoring"):
-            candidates = self.candidates(frame.T_world_cam)
+            if self._stale(frame.T_world_cam):
+                self.cached, self.frames_since = self.candidates(frame.T_world_cam), 0
+            self.frames_since += 1
+            candidates = self.cached
         z = float(frame.T_world_cam[2, 3])
         observations = [_Observation(np.array([x, y, z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]), float(gain),
                                      frame.T_world_cam.copy())
@@ -135,6 +140,19 @@ class OmniscientSource(FrontierSource):
         i, j = np.indices(grid.cost.shape)
         centre = (np.asarray(xy) - grid.origin_xy) / grid.cell_m - 0.5
         return (i - centre[0]) ** 2 + (j - centre[1]) ** 2 <= (self.ring_m / grid.cell_m) ** 2
+
+    def _stale(self, T_world_cam: np.ndarray) -> bool:
+        """Whether the candidates are scored again this frame: every ``omniscient.refresh_every_steps``
+        frames, and whenever the robot has visited one by the tracker's rule (within
+        ``tracking.visited_distance_m``, heading within ``visited_angle_rad``: it has arrived, and
+        the next goal is chosen from fresh gains). In between, the last candidates are proposed
+        again (the planner chooses at most every ``motion.replan_every_steps``)."""
+        if self.cached is None or self.frames_since >= self.refresh_every:
+            return True
+        near = np.linalg.norm(self.cached.xy - T_world_cam[:2, 3], axis=1) < float(self.conf.tracking.visited_distance_m)
+        facing = np.cos(self.cached.yaw - np.arctan2(T_world_cam[1, 2], T_world_cam[0, 2])) \
+            > np.cos(float(self.conf.tracking.visited_angle_rad))
+        return bool(np.any(near & facing))
 
     def unseen(self) -> np.ndarray:
         """(X, Y, Z) bool: explorable voxels no ground-truth ray has observed yet."""
