@@ -244,16 +244,18 @@ class Explorer:
         """The next increment of the route is not allowed by the map. A route planned on an
         older map is only dropped (the next round replans on today's map); a fresh one counts
         as a failure of its goal. With ``planner.start_failure: step_back``, a fresh route that
-        cannot even start here (its first increment refused) counts once per step at most, and the
-        robot first steps off the nearest wall (:meth:`_away_pose`) before planning again: the spot,
-        not the goal, is what the route could not leave, and replanning from it gives the same route."""
+        cannot even start here (its first increment refused) counts once per step at most while the
+        robot can step off the nearest wall (:meth:`_away_pose`), which it does before planning again:
+        the spot, not the goal, is what the route could not leave, and replanning from it gives the
+        same route."""
         if self.steps_since_plan > 0:
             self.route = None
         elif self.step_back and self.waypoint == 0:
-            if self.start_failed_at != self.agent.steps:
-                self.start_failed_at = self.agent.steps
+            escape = self._away_pose(self.agent.pose)
+            if escape is None or self.start_failed_at != self.agent.steps:  # without a step off, every time:
+                self.start_failed_at = self.agent.steps  # nothing else would change before the next try
                 self._goal_failed()
-            self.route, self.escape = None, self._away_pose(self.agent.pose)
+            self.route, self.escape = None, escape
         else:
             self._goal_failed()
 
