@@ -258,15 +258,15 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
         # (docs/benchmark/published/resume.sh adds --set planner.gain_exponent=1: the plan ran with 1,
         # the default since 2026-11-27 is 2)
-        overrides = ("planner.gain_exponent=1", *overrides)
+        overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", *overrides)
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 
     assert resumable_plan(published, protocol())["start_poses"] == stored["start_poses"]
     # today's default exponent is a change of settings for this plan: refused, naming the key
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
-        resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(None, []), resolve=True)})
-    assert "--set $SETTINGS" in (published / "resume.sh").read_text()
+        resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(None, ["planner.forgive_before_stop=false"]), resolve=True)})
+    assert "--set planner.forgive_before_stop=false $SETTINGS" in (published / "resume.sh").read_text()
     assert "SETTINGS=${SETTINGS-planner.gain_exponent=1}" in (published / "resume.sh").read_text()
     with pytest.raises(InputError, match=r"\(conf.planner.approach_radius_m: 0.0 in the plan, 1.5 now\)"):
         resumable_plan(published, protocol("planner.approach_radius_m=1.5"))
@@ -321,6 +321,7 @@ def test_the_two_regime_plan_resumes_with_todays_defaults():
     from frontiernet.exploration.run import load_run_config
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
+        overrides = ("planner.forgive_before_stop=false", *overrides)  # published/resume.sh sets it for all
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 

@@ -84,7 +84,8 @@ def shop():
 
 
 def test_shop_of_the_issue_is_explorable_and_explore_can_start():
-    from frontiernet.exploration.run import load_run_config, start_sampler
+    from frontiernet.exploration.region import start_sampler
+    from frontiernet.exploration.run import load_run_config
     from frontiernet.simulator.poses import check_pose
 
     scene, interior = shop()

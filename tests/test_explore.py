@@ -407,7 +407,7 @@ def test_demo_prints_the_coverage_and_writes_the_video(plan_spec, tmp_path):
 
 
 def test_sampled_start_is_seeded_and_clear_of_obstacles(plan_spec):
-    from frontiernet.exploration.run import sample_start
+    from frontiernet.exploration.region import sample_start
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.raycast import distance_to_surface
     from frontiernet.simulator.voxels import voxelize_scene

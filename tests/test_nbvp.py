@@ -11,7 +11,8 @@ import pytest
 
 from frontiernet.exploration.methods import MethodContext, make_method, method_names
 from frontiernet.exploration.move_check import body_radius
-from frontiernet.exploration.nbvp import NbvpSource, accumulated_gains, stop_node, visited
+from frontiernet.exploration.nbvp import NbvpSource, visited
+from frontiernet.exploration.nbvp_tree import accumulated_gains, stop_node
 from frontiernet.exploration.run import load_run_config
 from frontiernet.geometry import pose_from_heading, poses_from_headings
 from frontiernet.mapping import FREE

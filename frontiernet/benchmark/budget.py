@@ -62,8 +62,8 @@ class BudgetRule:
 
 def explorable_floor_m2(scene, voxels, conf) -> float:
     """Explorable floor area (m^2) of a scene: the explorable voxels of the layer at the robot's
-    camera height (:func:`~frontiernet.exploration.run.camera_z`) times the voxel's footprint."""
-    from ..exploration.run import camera_z
+    camera height (:func:`~frontiernet.exploration.region.camera_z`) times the voxel's footprint."""
+    from ..exploration.region import camera_z
 
     layer = voxels.layer(camera_z(scene, conf))
     return float(np.count_nonzero(voxels.explorable[:, :, layer])) * voxels.voxel_size ** 2

@@ -1,7 +1,7 @@
 """Benchmark plan: start poses per scene and the runs (scene x method x start x repeat).
 
 Start poses are sampled once per scene with the benchmark's seed (the explorer's own
-:func:`~frontiernet.exploration.run.start_sampler`: camera height above the floor, clearance
+:func:`~frontiernet.exploration.region.start_sampler`: camera height above the floor, clearance
 from obstacles, inside the region the robot can travel, random heading) and shared by every
 method and repeat, so methods differ by their goal choice alone. Repeat r of a start runs with
 seed ``seed + r`` (the depth source, anchoring's pixel subset and random methods draw from it).
@@ -220,14 +220,15 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
     With `scene_starts`, the positions a scene ships come first (a KTH plan folder's MapEx
     ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``),
-    except those outside the scene's main region (:func:`~frontiernet.exploration.run.start_sampler`:
+    except those outside the scene's main region (:func:`~frontiernet.exploration.region.start_sampler`:
     shut in by doors too narrow for the robot; logged and left out); sampled poses fill up the count.
 
     Raises:
         InputError: an unknown or unreadable scene, or one without free space to start from.
     """
     from ..exploration.motion import yaw_of
-    from ..exploration.run import camera_z, run_section, start_sampler
+    from ..exploration.region import camera_z, start_sampler
+    from ..exploration.run import run_section
     from ..simulator.world import build_world
 
     world = build_world(spec, run_section(conf, "sim"), run_section(conf, "scenes"), renderer=False)

@@ -218,8 +218,7 @@ class Explorer:
         within reach of the body, heading kept (the robot backs or sidesteps off the wall), if the
         move check allows it; None otherwise. A (4, 4) pose."""
         xy = T[:2, 3]
-        wall = self.map.nearest_occupied_in_disk(xy, self.body_radius + self.motion.max_translation,
-                                                 *self.move_check.band)
+        wall = self.move_check.nearest_obstacle(xy, self.body_radius + self.motion.max_translation)
         if wall is None or np.linalg.norm(xy - wall) < 1e-6:
             return None
         away = T.copy()

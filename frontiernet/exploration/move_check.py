@@ -18,7 +18,7 @@ from collections import deque
 import numpy as np
 
 from ..errors import InputError, whole_number
-from ..geometry import atan2, back_projected_points
+from ..geometry import atan2, back_projected_points, grid_cells, squared_distance_to_cells
 from ..mapping import FREE, UNKNOWN
 from .motion import Motion, wrap_angle, yaw_of
 
@@ -141,6 +141,23 @@ class MoveCheck:
             # facing it again would not either; it no longer holds the body back (the occupied test
             # still does, should it be mapped occupied later)
             self.faced_unknown.append(unknown_xy)
+
+    def nearest_obstacle(self, xy: np.ndarray, reach_m: float) -> np.ndarray | None:
+        """The point ((2,) float64 world xy, metres) nearest to world point `xy` ((2,) metres) on
+        the squares of the planning band's occupied columns (as the occupied test sees them), among
+        those within `reach_m`; None when there is none."""
+        _, occupied = self.map.slice_2d(*self.band)  # the planner's band, cached until the map changes
+        cell, origin = float(self.map.voxel_size), np.asarray(self.map.origin[:2], np.float64)
+        lo = np.clip(grid_cells(xy[None] - reach_m, origin, cell)[0], 0, occupied.shape)
+        hi = np.clip(grid_cells(xy[None] + reach_m, origin, cell)[0] + 1, 0, occupied.shape)
+        cells = lo + np.argwhere(occupied[lo[0]:hi[0], lo[1]:hi[1]])
+        if not len(cells):
+            return None
+        squared = squared_distance_to_cells(cells, origin, cell, xy)
+        if squared.min() > reach_m ** 2:
+            return None
+        corner = origin + cells[int(np.argmin(squared))] * cell
+        return np.clip(xy, corner, corner + cell)  # the square's point nearest to xy
 
     def blocked(self, xy: np.ndarray) -> bool:
         """Whether the map has an occupied voxel in the planning band over world point `xy` (2,):

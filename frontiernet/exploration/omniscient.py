@@ -36,7 +36,7 @@ from ..mapping import OccupancyMap
 from ..mapping.traversal import frustum_volume
 from ..planning.grid import geodesic_distance
 from ..planning.planner import PlanningGrid
-from .methods import FrontierSource
+from .sources import FrontierSource, Method
 from .perception import plain_view
 
 
@@ -194,8 +194,6 @@ class OmniscientSource(FrontierSource):
 def make_omniscient(context):
     """The ``omniscient`` method (:data:`~frontiernet.exploration.methods.METHODS`): candidate views
     proposed afresh each frame, goals by the ``rate`` rule (gain / path length)."""
-    from .methods import Method
-
     source = OmniscientSource(context.voxels, context.map, context.conf, context.sim_conf.camera)
     return Method("omniscient", source, "rate", fresh_frontiers=True)
 

@@ -16,6 +16,7 @@ from omegaconf import OmegaConf
 
 from ..errors import InputError, whole_number
 from ..geometry import parse_pose_text, pose_from_heading
+from .region import sample_start
 
 RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": ("datagen", "ground_truth"),
                 "scenes": ("scenes", None)}
@@ -69,64 +70,6 @@ def run_depth_source(depth: str | None, conf) -> str:
     from ..depth import depth_source_name
 
     return depth_source_name(depth or str(conf.run.depth))
-
-
-def camera_z(scene, conf) -> float:
-    """World z (metres) of the robot's camera: ``motion.camera_height_m`` above the scene's floor."""
-    return float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
-
-
-def _camera_clearance(scene, voxels, conf) -> tuple[float, np.ndarray]:
-    """Camera height z (:func:`camera_z`) and the (X, Y) float64 clearance (metres) of each
-    column over the planning band around it."""
-    z = camera_z(scene, conf)
-    band = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
-    return z, voxels.column_clearance(voxels.layer(z), band)
-
-
-def _largest_region(traversable: np.ndarray) -> np.ndarray:
-    """(X, Y) bool: the largest 8-connected region of `traversable` (as the planner's grid search moves)."""
-    from scipy import ndimage
-
-    labels, count = ndimage.label(traversable, structure=np.ones((3, 3), bool))
-    if count == 0:
-        return traversable
-    return labels == 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
-
-
-def start_sampler(scene, voxels, conf):
-    """The scene's main region and a sampler of start poses in it, from one clearance map.
-
-    The main region is the largest 8-connected region of columns at camera height at least
-    ``planner.clearance_m`` from obstacles over the planning band (the robot's true traversable
-    space). A start outside it is shut in a room whose doors are too narrow for the robot (KTH
-    plans draw some office doors 0.5 m wide), and every method would explore that room alone.
-
-    Returns:
-        (region, draw): region, (X, Y) bool columns of the main region; draw(rng), a (4, 4)
-        start pose: camera ``motion.camera_height_m`` above the scene's floor, at a random spot
-        of the region at least ``run.start_clearance_m`` from obstacles, random heading. draw
-        raises :class:`InputError` when the scene has no such spot (no free space at camera height).
-    """
-    z, clearance = _camera_clearance(scene, voxels, conf)
-    region = _largest_region(clearance >= float(conf.planner.clearance_m))
-    cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & region)
-
-    def draw(rng: np.random.Generator) -> np.ndarray:
-        if not len(cells):
-            raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
-                             f"with {conf.run.start_clearance_m} m clearance to start from")
-        i, j = cells[rng.integers(len(cells))]
-        x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * voxels.voxel_size
-        return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)),
-                                 np.radians(float(conf.motion.pitch_deg)))
-
-    return region, draw
-
-
-def sample_start(scene, voxels, conf, rng: np.random.Generator) -> np.ndarray:
-    """One start pose drawn by :func:`start_sampler` (raises :class:`InputError` as its draw)."""
-    return start_sampler(scene, voxels, conf)[1](rng)
 
 
 def explore(scene: str, out: str | Path, user_file=None, overrides=(), **options) -> dict:

@@ -267,7 +267,7 @@ def reachable_columns(scene, voxels, conf) -> tuple[np.ndarray, slice]:
 
     Returns:
         (columns, band): columns, (X, Y) bool: the main region of
-        :func:`~frontiernet.exploration.run.start_sampler` (columns at camera height at least
+        :func:`~frontiernet.exploration.region.start_sampler` (columns at camera height at least
         ``planner.clearance_m`` from obstacles, the largest connected part) grown by
         ``steps.reachable_dilation_m``: the growth adds back the band the clearance cuts off along
         the walls of the same rooms, which the camera sees from a step away; it is kept that small
@@ -275,7 +275,7 @@ def reachable_columns(scene, voxels, conf) -> tuple[np.ndarray, slice]:
         cannot enter and outdoors. band: the z slice of the layers within ``planner.height_band_m``
         of the camera (the planning band, as the region's clearance is taken over).
     """
-    from .run import camera_z, start_sampler
+    from .region import camera_z, start_sampler
 
     region = start_sampler(scene, voxels, conf)[0]
     columns = dilated_columns(region, voxels.voxel_size, AccountSettings.from_config(conf.steps).reachable_dilation_m)

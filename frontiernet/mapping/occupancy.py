@@ -143,25 +143,6 @@ class OccupancyMap:
         return bool(disks_touch_cells(occupied, self.origin[:2] + lo * self.voxel_size, self.voxel_size,
                                       xy[None], radius)[0])
 
-    def nearest_occupied_in_disk(self, xy: np.ndarray, radius_m: float, z_min: float, z_max: float
-                                 ) -> np.ndarray | None:
-        """The point ((2,) float64 world xy, metres) nearest to world point `xy` ((2,) metres) on the
-        squares of the columns of the height band [z_min, z_max] with an occupied voxel (the
-        squares :meth:`cylinder_touches_occupied` tests), among those within `radius_m` of it; None
-        when there is none."""
-        xy, radius, lo, window = self._disk_window(xy, radius_m, z_min, z_max, "nearest_occupied_in_disk")
-        if window is None:
-            return None
-        occupied = np.any(self._observed[window] & (self._log_odds[window] > self.settings.occupied_threshold), axis=2)
-        if not occupied.any():
-            return None
-        cells = lo + np.argwhere(occupied)
-        squared = squared_distance_to_cells(cells, self.origin[:2], self.voxel_size, xy)
-        if squared.min() > radius ** 2:
-            return None
-        corner = self.origin[:2] + cells[int(np.argmin(squared))] * self.voxel_size
-        return np.clip(xy, corner, corner + self.voxel_size)  # the square's point nearest to xy
-
     def nearest_unknown_in_disk(self, xy: np.ndarray, radius_m: float, z: float,
                                 exclude: np.ndarray | None = None) -> np.ndarray | None:
         """The centre ((2,) float64 world xy, metres) of the unknown voxel nearest to `xy` among those

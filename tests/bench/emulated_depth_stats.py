@@ -23,7 +23,7 @@ import numpy as np
 from frontiernet.benchmark.perf import default_bench_scene
 from frontiernet.config import load_config
 from frontiernet.depth import make_depth_source
-from frontiernet.exploration.run import start_sampler
+from frontiernet.exploration.region import start_sampler
 from frontiernet.simulator.world import build_world
 
 OLD = {"fill_depth": 3.5, "scale_per_frame": False, "frame_correlation": 0.0}

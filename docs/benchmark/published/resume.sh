@@ -13,6 +13,8 @@
 # FRONTIERNET="scripts/pinned.sh COMMIT ../pinned" runs one commit's code while the checkout is edited),
 # SETTINGS (`--set` KEY=VALUE pairs; unset: planner.gain_exponent=1, the exponent this folder's plan
 # ran with before 2 became the default on 2026-11-27; a new folder sets it empty: today's defaults).
+# Every folder of this fixed-budget protocol ran before planner.forgive_before_stop existed (on
+# since 2026-12-05): its runs stop as they did, so the command always sets it false.
 set -euo pipefail
 SETTINGS=${SETTINGS-planner.gain_exponent=1}
 cd "$(dirname "$0")/../../.."
@@ -26,5 +28,5 @@ $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods "${METHODS:-frontiernet,oracle,classic,gain-distance,df-uniform,discontinuity-gain,discontinuity-uniform,random-frontier,vacuum}" \
     --starts 3 --repeats "${REPEATS:-3}" --max-steps 500 --scene-starts --model runs/shipped.onnx \
-    ${DEPTH:+--depth "$DEPTH"} ${SETTINGS:+--set $SETTINGS} --workers "${WORKERS:-2}" --out "$OUT_DIR"
+    ${DEPTH:+--depth "$DEPTH"} --set planner.forgive_before_stop=false $SETTINGS --workers "${WORKERS:-2}" --out "$OUT_DIR"
 exec $FRONTIERNET bench --pack --out "$OUT_DIR"
