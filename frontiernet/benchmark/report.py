@@ -1,12 +1,12 @@
 """Benchmark report: ``results.csv``, ``table.md`` and coverage curves per scene.
 
 **Vox@k** (docs/design.md item 7, the paper's Table I): coverage (known fraction of the scene's
-explorable volume) when the step count reaches k % of the run. Runs of one comparison (same
-scene, start and repeat) can end at different steps (no frontiers left), so for k = 25 and
-50 the step is shared: the mean over the compared methods of k % of each one's steps; a run
-that ended earlier holds its final coverage. k = 100 is the end of each run (the budget
-unless it stopped earlier). **Success**: Vox@100 > 40 %. Table cells are mean +- std over
-starts x repeats; the last column is the mean over scenes. The summary at the top has the
+explorable volume) at a step shared by the runs of one comparison (same scene, start and
+repeat): with scene-sized budgets (:mod:`.budget`) the mean over the compared methods of the step
+at which each first reaches k % coverage (the paper's), with a fixed budget the mean of k % of
+each one's steps (:func:`add_shared_vox`); a run that ended earlier holds its final coverage.
+k = 100 is the end of each run (the budget unless it stopped earlier). **Success**: Vox@100 > 40 %.
+Table cells are mean +- std over starts x repeats; the last column is the mean over scenes. The summary at the top has the
 paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
 plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes; then
 every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50 with a cluster
