@@ -6,8 +6,8 @@ repeat): with scene-sized budgets (:mod:`.budget`) the mean over the compared me
 at which each first reaches k % coverage (the paper's), with a fixed budget the mean of k % of
 each one's steps (:func:`add_shared_vox`); a run that ended earlier holds its final coverage.
 k = 100 is the end of each run (the budget unless it stopped earlier). **Success**: Vox@100 > 40 %.
-Table cells are mean +- std over starts x repeats; the last column is the mean over scenes. The summary at the top has the
-paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
+Table cells are mean +- std over starts x repeats; the last column is the mean over scenes.
+The summary at the top has the paper's Table I columns (Vox@25/50/100, success) for each scene source (meshes, HM3D, floor
 plans, procedural scenes) and for all scenes: mean +- std over every run of those scenes; then
 every method against ``classic`` over paired runs (ratio of mean Vox@25 and @50 with a cluster
 bootstrap interval, ``configs/bench.yaml``; wins and losses), and what the runs cost in
