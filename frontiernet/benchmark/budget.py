@@ -69,17 +69,18 @@ def explorable_floor_m2(scene, voxels, conf) -> float:
     return float(np.count_nonzero(voxels.explorable[:, :, layer])) * voxels.voxel_size ** 2
 
 
-def scene_budget(spec: str, conf, rule: BudgetRule) -> tuple[int, float]:
-    """(steps, explorable floor m^2) of scene `spec` under `rule` (`conf`: the run config).
+def scene_budget(spec: str, conf, rule: BudgetRule, world=None) -> tuple[int, float]:
+    """(steps, explorable floor m^2) of scene `spec` under `rule` (`conf`: the run config; `world`:
+    the scene's :func:`~frontiernet.exploration.run.planning_world` when the caller has it, else
+    built here).
 
     Raises:
         InputError: an unknown or unreadable scene, or one with no explorable floor at camera height
             (no budget can apply: its line names the scene).
     """
-    from ..exploration.run import run_section
-    from ..simulator.world import build_world
+    from ..exploration.run import planning_world
 
-    world = build_world(spec, run_section(conf, "sim"), run_section(conf, "scenes"), renderer=False)
+    world = world if world is not None else planning_world(spec, conf)
     area = explorable_floor_m2(world.scene, world.voxels, conf)
     if area <= 0:
         raise InputError(f"{spec}: no explorable floor at camera height {conf.motion.camera_height_m} m, so no "

@@ -16,7 +16,7 @@ from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
                    with_keys_added_after)
-from .budget import BudgetRule, scene_budget
+from .budget import BudgetRule
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, plan_file, read_plan, write_plan
@@ -78,10 +78,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         previous = resumable_plan(out, settings)
         poses, budgets = previous["start_poses"], previous.get("budgets")
     clock = time.perf_counter()
-    if rule is not None:
-        budgets = {scene: (budgets or {}).get(scene) or scene_budget(scene, conf, rule)[0] for scene in scenes}
-    runs, start_poses = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses, scene_starts,
-                                  depths, budgets)
+    runs, start_poses, budgets = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses,
+                                           scene_starts, depths, budgets, rule)
     ensure_dir(out)
     write_plan(out, {"settings": settings, "start_poses": start_poses, **({"budgets": budgets} if budgets else {}),
                      "runs": [{**run.as_dict(), "key": run.key} for run in runs]})

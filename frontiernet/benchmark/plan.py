@@ -215,23 +215,23 @@ def scene_key(spec: str) -> str:
     return f"{stem}-{hashlib.sha1(str(spec).encode()).hexdigest()[:6]}"
 
 
-def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = False) -> list[tuple]:
+def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = False, world=None) -> list[tuple]:
     """`count` start poses (x, y, z, yaw_deg) of scene `spec`, seeded (see the module docstring).
 
     With `scene_starts`, the positions a scene ships come first (a KTH plan folder's MapEx
     ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``),
     except those outside the scene's main region (:func:`~frontiernet.exploration.region.start_sampler`:
     shut in by doors too narrow for the robot; logged and left out); sampled poses fill up the count.
+    `world`: the scene's :func:`~frontiernet.exploration.run.planning_world`, when the caller has it already (None: built here).
 
     Raises:
         InputError: an unknown or unreadable scene, or one without free space to start from.
     """
     from ..exploration.motion import yaw_of
     from ..exploration.region import camera_z, start_sampler
-    from ..exploration.run import run_section
-    from ..simulator.world import build_world
+    from ..exploration.run import planning_world
 
-    world = build_world(spec, run_section(conf, "sim"), run_section(conf, "scenes"), renderer=False)
+    world = world if world is not None else planning_world(spec, conf)
     scene, voxels = world.scene, world.voxels
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
@@ -254,10 +254,12 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
 
 def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, seed: int, conf,
               poses: dict | None = None, scene_starts: bool = False,
-              depths: list[str] = ("ground_truth",), budgets: dict | None = None) -> tuple[list[RunSpec], dict]:
+              depths: list[str] = ("ground_truth",), budgets: dict | None = None,
+              rule=None) -> tuple[list[RunSpec], dict, dict | None]:
     """Every run of the benchmark, scene by scene, start by start, repeat by repeat, method by
-    method, depth source by depth source, and the start poses they use (scene -> list of
-    (x, y, z, yaw_deg)).
+    method, depth source by depth source, the start poses they use (scene -> list of
+    (x, y, z, yaw_deg)) and, under scene-sized budgets, the budgets (scene -> steps; else None).
+    Each scene is loaded once for what is missing of both.
 
     Args:
         poses: start poses already sampled, by scene (e.g. read back from a previous
@@ -266,8 +268,10 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
         depths: the depth sources' names (:data:`frontiernet.depth.SOURCES`, as
             :func:`depth_sources` gives them); each decides with the method whether that
             source's repeats are copies. With several, each run carries its source (module docstring).
-        budgets: scene -> step budget under scene-sized budgets (:mod:`.budget`; each run carries its
-            scene's), or None: the benchmark's one fixed budget.
+        budgets: scene -> step budget already set (read back from a previous ``plan.json``), with
+            `rule`; rule: the :class:`~frontiernet.benchmark.budget.BudgetRule` of scene-sized budgets
+            (each run carries its scene's; missing scenes are sized by it), or None: the benchmark's
+            one fixed budget.
     Raises:
         InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
             repeats below 1, or a scene that does not load.
@@ -284,11 +288,19 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
             raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
     if int(starts) < 1 or int(repeats) < 1:
         raise InputError(f"--starts and --repeats must be at least 1, got {starts} and {repeats}")
-    poses = dict(poses or {})
+    from ..exploration.run import planning_world
+    from .budget import scene_budget
+
+    poses, budgets = dict(poses or {}), None if rule is None else dict(budgets or {})
     runs = []
     for scene in scenes:
-        if scene not in poses or len(poses[scene]) < int(starts):
-            poses[scene] = start_poses(scene, int(starts), seed, conf, scene_starts)
+        need_poses = scene not in poses or len(poses[scene]) < int(starts)
+        need_budget = budgets is not None and scene not in budgets
+        world = planning_world(scene, conf) if need_poses or need_budget else None
+        if need_poses:
+            poses[scene] = start_poses(scene, int(starts), seed, conf, scene_starts, world)
+        if need_budget:
+            budgets[scene] = scene_budget(scene, conf, rule, world)[0]
         for start in range(int(starts)):
             for repeat in range(int(repeats)):
                 for method in methods:
@@ -299,7 +311,7 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
                         copy_of = first.key if repeat > 0 and repeats_identically(method, depth) else None
                         runs.append(RunSpec(scene, method, start, repeat, first.start_pose, int(seed) + repeat,
                                             copy_of, regime, budget))
-    return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}
+    return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}, budgets
 
 
 __all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",

@@ -65,6 +65,15 @@ def run_section(conf, section: str):
     return conf[section] if section in conf else shipped_section(section)
 
 
+def planning_world(spec: str, conf):
+    """The :class:`~frontiernet.simulator.world.World` of scene `spec` without a renderer (the scene and
+    its voxels under the run config `conf`'s ``sim`` and ``scenes`` sections): what a plan reads of a
+    scene (its start poses, its budget). Raises InputError for an unknown or unreadable scene."""
+    from ..simulator.world import build_world
+
+    return build_world(spec, run_section(conf, "sim"), run_section(conf, "scenes"), renderer=False)
+
+
 def run_depth_source(depth: str | None, conf) -> str:
     """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``)."""
     from ..depth import depth_source_name
