@@ -31,6 +31,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
+from ..frontiers.anchoring import FrontierObservation
 from ..geometry import poses_from_headings
 from ..mapping import OccupancyMap
 from ..mapping.traversal import frustum_volume
@@ -53,16 +54,6 @@ class ViewCandidates:
     xy: np.ndarray
     yaw: np.ndarray
     gain_m3: np.ndarray
-
-
-@dataclass(frozen=True)
-class _Observation:
-    """A candidate view as the tracker takes it (``position``, ``direction``, ``gain_m3``)."""
-
-    position: np.ndarray
-    direction: np.ndarray
-    gain_m3: float
-    T_world_cam: np.ndarray
 
 
 def lattice_cells(reachable: np.ndarray, spacing: int) -> np.ndarray:
@@ -130,8 +121,8 @@ class OmniscientSource(FrontierSource):
             self.frames_since += 1
             candidates = self.cached
         z = float(frame.T_world_cam[2, 3])
-        observations = [_Observation(np.array([x, y, z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]), float(gain),
-                                     frame.T_world_cam.copy())
+        observations = [FrontierObservation(np.array([x, y, z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]),
+                                            float(gain), 1, np.full(2, np.nan), frame.T_world_cam.copy())
                         for (x, y), yaw, gain in zip(candidates.xy, candidates.yaw, candidates.gain_m3)]
         return observations, plain_view(frame, depth)
 
