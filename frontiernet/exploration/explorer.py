@@ -33,7 +33,6 @@ from .methods import Method
 from .motion import Motion, yaw_of
 from .move_check import MoveCheck, body_radius, looked_at
 from .perception import plain_view
-from .score import GroundTruthScore
 from .steps import reachable_columns, run_account
 
 STAGES = ("render", "depth", "perception", "anchoring", "map", "tracking", "planning", "motion", "coverage")
@@ -109,7 +108,7 @@ class Explorer:
         self.traversed = TraversedCells.like(self.map) \
             if bool(conf.planner.traversed_is_free) and not self.map_free else None
         self.move_check = MoveCheck(self.map, self.motion, conf.planner, self.body_radius, self.traversed)
-        self.score = GroundTruthScore(scene, voxels, conf)  # the metrics; the robot never reads them
+        self.score = context.ground_truth()  # the metrics; the robot never reads them
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
         self.planner = FrontierPlanner(conf.planner, goal=method.goal, seed=int(conf.run.seed),
                                        body_radius_m=self.body_radius)
@@ -148,14 +147,14 @@ class Explorer:
             depth = self.depth_source.estimate(frame.rgb, frame.K, ground_truth)
         with self.stopwatch("map"):
             self._integrate(depth, frame, T)
+        with self.stopwatch("coverage"):  # before the method: a reference that knows the truth reads it
+            self.score.observe(frame.depth, frame.K, T)
         if self.method.fresh_frontiers or len(self.poses) % self.observe_every == 0:  # poses: frames tracked
             observations, seen = self.method.propose(frame, depth, self.stopwatch)
         else:  # between an image method's observations: the map and the bookkeeping go on
             observations, seen = [], plain_view(frame, depth)
         with self.stopwatch("tracking"):
             self._track(observations, T)
-        with self.stopwatch("coverage"):
-            self.score.observe(frame.depth, frame.K, T)
         return frame, seen
 
     def _integrate(self, depth, frame, T) -> None:

@@ -57,6 +57,7 @@ from .perception import Perception, PerceptionResult
 from .sources import GOAL_RULES, FrontierSource, ImageSource, MapSource, Method
 from .vacuum import VacuumMoves
 
+
 @dataclass
 class MethodContext:
     """What a method is built with: one per run, shared with the explorer that runs it.
@@ -72,6 +73,9 @@ class MethodContext:
             ``default_rng(conf.run.seed)``.
         map: the robot's :class:`~frontiernet.mapping.OccupancyMap`, which the explorer fills
             each frame and map methods read; None: an empty map over `voxels` (``conf.map``).
+        score: the run's :class:`~frontiernet.exploration.score.GroundTruthScore`, which the explorer
+            keeps and only a reference that knows the truth reads (``omniscient``); None: built on
+            first use (:meth:`ground_truth`).
     """
 
     conf: Any
@@ -81,6 +85,7 @@ class MethodContext:
     voxels: Any = None
     rng: np.random.Generator | None = None
     map: Any = None
+    score: Any = None
 
     def __post_init__(self) -> None:
         if self.rng is None:
@@ -89,6 +94,15 @@ class MethodContext:
             from ..mapping import OccupancyMap
 
             self.map = OccupancyMap.like(self.voxels, self.conf.map)
+
+    def ground_truth(self):
+        """The run's :class:`~frontiernet.exploration.score.GroundTruthScore` over `scene` and
+        `voxels` (built on first use: one per run, shared by the explorer and the methods)."""
+        if self.score is None:
+            from .score import GroundTruthScore
+
+            self.score = GroundTruthScore(self.scene, self.voxels, self.conf)
+        return self.score
 
 
 def image_method(name: str, perception: Perception, context: MethodContext, uses_model: bool = False) -> Method:

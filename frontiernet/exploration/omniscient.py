@@ -33,7 +33,6 @@ from scipy import ndimage
 from ..errors import InputError, positive_number
 from ..frontiers.anchoring import FrontierObservation
 from ..geometry import poses_from_headings
-from ..mapping import OccupancyMap
 from ..mapping.traversal import frustum_volume
 from ..planning.grid import geodesic_distance
 from ..planning.planner import PlanningGrid
@@ -80,16 +79,16 @@ class OmniscientSource(FrontierSource):
         voxels: the scene's :class:`~frontiernet.simulator.voxels.VoxelGrid` (true occupancy and
             explorable volume).
         occupancy: the robot's map (:attr:`MethodContext.map`): where views are reachable.
-        conf: the run config (``omniscient``, ``planner``, ``map``, ``motion.pitch_deg``).
+        seen: the map of what ground-truth rays have observed: the run's coverage map
+            (:attr:`GroundTruthScore.coverage_map <frontiernet.exploration.score.GroundTruthScore>`),
+            which the explorer fills before the method proposes.
+        conf: the run config (``omniscient``, ``planner``, ``motion.pitch_deg``).
         camera: the sim config's ``camera`` (field of view and range of the views).
     """
 
-    def __init__(self, voxels, occupancy, conf, camera) -> None:
-        if voxels is None or occupancy is None:
-            raise InputError("the omniscient method needs the scene's voxels and the run's map")
+    def __init__(self, voxels, occupancy, seen, conf, camera) -> None:
         settings = conf.omniscient
-        self.voxels, self.map, self.conf = voxels, occupancy, conf
-        self.seen = OccupancyMap.like(voxels, conf.map)  # what ground-truth rays observed (the metric's map)
+        self.voxels, self.map, self.seen, self.conf = voxels, occupancy, seen, conf
         self.width = int(positive_number(settings.view_width_px, "omniscient.view_width_px"))
         self.focal = float(camera.focal_px) * self.width / float(camera.width)  # the camera's field of view
         self.max_depth = float(camera.max_depth)
@@ -113,8 +112,6 @@ class OmniscientSource(FrontierSource):
         self.ring_m = float(conf.planner.clearance_m) + float(conf.planner.height_band_m) / np.tan(lowest)
 
     def __call__(self, frame, depth, stopwatch):
-        with stopwatch("perception"):  # the truth's "perception": what the camera has really seen
-            self.seen.integrate(frame.depth, frame.K, frame.T_world_cam)
         with stopwatch("anchoring"):
             if self._stale(frame.T_world_cam):
                 self.cached, self.frames_since = self.candidates(frame.T_world_cam), 0
@@ -185,7 +182,10 @@ class OmniscientSource(FrontierSource):
 def make_omniscient(context):
     """The ``omniscient`` method (:data:`~frontiernet.exploration.methods.METHODS`): candidate views
     proposed afresh each frame, goals by the ``rate`` rule (gain / path length)."""
-    source = OmniscientSource(context.voxels, context.map, context.conf, context.sim_conf.camera)
+    if context.voxels is None or context.map is None:
+        raise InputError("the omniscient method needs the scene's voxels and the run's map")
+    source = OmniscientSource(context.voxels, context.map, context.ground_truth().coverage_map, context.conf,
+                              context.sim_conf.camera)
     return Method("omniscient", source, "rate", fresh_frontiers=True)
 
 
