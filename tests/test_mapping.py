@@ -313,6 +313,35 @@ def test_slice_2d_follows_every_map_update(renderer):
     assert occupancy.slice_2d(1.0, 1.4)[0][i, j]  # ... freed by the robot's footprint
 
 
+def test_slice_2d_patched_after_updates_equals_a_fresh_map_and_never_changes_what_it_gave(renderer):
+    poses = surround_poses() + surround_poses((3.0, 1.0, 1.2))
+
+    def apply(occupancy, step):  # one map update: a frame, every fifth step the robot's footprint
+        if step % 5 == 4:
+            occupancy.clear_sphere(poses[step][:3, 3], 0.3)
+        else:
+            frame = renderer.render(poses[step])
+            occupancy.integrate(frame.depth, frame.K, poses[step])
+
+    kept = OccupancyMap.from_bounds(BOUNDS, map_conf())
+    apply(kept, 0)
+    bands = [(1.0, 1.4), (0.6, 1.8), (1.2, 1.2), (0.0, 0.1)]  # views kept between updates, then patched
+    given = [kept.slice_2d(*band) for band in bands]
+    first = [[view.copy() for view in pair] for pair in given]
+    for step in range(1, len(poses)):
+        apply(kept, step)
+        fresh = OccupancyMap.from_bounds(BOUNDS, map_conf())
+        for earlier in range(step + 1):  # the same updates, no view asked for in between
+            apply(fresh, earlier)
+        for band in bands:
+            for patched, whole in zip(kept.slice_2d(*band), fresh.slice_2d(*band)):
+                np.testing.assert_array_equal(patched, whole)
+    for pair, before in zip(given, first):  # what a caller was given stays as it was
+        for view, copy in zip(pair, before):
+            np.testing.assert_array_equal(view, copy)
+    assert not np.array_equal(kept.slice_2d(*bands[0])[0], first[0][0])
+
+
 def test_state_at_off_the_grid_and_save_load(renderer, tmp_path):
     occupancy = integrated(renderer, [pose_from_heading(*CAMERA, yaw=0.0)])
     far = occupancy.state_at(np.array([[100.0, 0, 0], [np.nan, 1.0, 1.0], [-5.0, 1.5, 1.2]]))

@@ -29,6 +29,7 @@ from ..errors import InputError, positive_number
 from ..io import atomic_path
 from ..simulator.voxels import VoxelGrid
 from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
+from .bands import BandViews, read_only
 from .checks import MapSettings, depth_edges, depth_image, finite_number, scalar
 from .traversal import apply_marks, frustum_volume, mark_depth_rays
 
@@ -74,7 +75,7 @@ class OccupancyMap:
         self._observed = np.zeros(dims, bool)
         self._known_voxels = 0
         self._latest_frame: tuple[np.ndarray, np.ndarray] | None = None  # (box lo, voxels seen)
-        self._slices: dict = {}  # (k0, k1) -> (free, occupied) of slice_2d's bands, until an update
+        self._bands = BandViews(self._band_columns)  # slice_2d's views, patched where the map changes
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
@@ -106,12 +107,12 @@ class OccupancyMap:
     @property
     def log_odds(self) -> np.ndarray:
         """(X, Y, Z) float32 log-odds of occupancy (read-only view; 0 where unknown)."""
-        return _read_only(self._log_odds)
+        return read_only(self._log_odds)
 
     @property
     def observed(self) -> np.ndarray:
         """(X, Y, Z) bool, voxels updated at least once (read-only view)."""
-        return _read_only(self._observed)
+        return read_only(self._observed)
 
     def occupied_mask(self) -> np.ndarray:
         """(X, Y, Z) bool, observed voxels with log-odds above ``occupied_threshold``."""
@@ -239,7 +240,8 @@ class OccupancyMap:
                         np.ascontiguousarray(T[:3, 3]), s.max_range_m, s.invalid_depth == "free",
                         self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip, rays.hit_range_m,
                         rays.free_fraction, far)
-        self._latest_frame, self._slices = (lo, passed | hit | far if weak else passed | hit), {}
+        self._latest_frame = (lo, passed | hit | far if weak else passed | hit)
+        self._bands.changed(lo, hi)
         self._known_voxels += apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                           np.float32(s.log_odds_hit), np.float32(rays.log_odds_miss),
                                           np.float32(s.log_odds_min), np.float32(s.log_odds_max), far,
@@ -249,7 +251,7 @@ class OccupancyMap:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
         as free (observed, log-odds at most ``log_odds_miss``): where the robot stands is free."""
         box, inside = self._sphere(centre, radius_m, "clear_sphere")
-        self._slices = {}
+        self._bands.changed(np.array([b.start for b in box]), np.array([b.stop for b in box]))
         self._known_voxels += int(np.count_nonzero(inside & ~self._observed[box]))
         self._observed[box] |= inside
         miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
@@ -320,20 +322,21 @@ class OccupancyMap:
         The band holds the voxel layers overlapping it (at least the one holding z_min).
         Returns (free, occupied), both (X, Y) bool: a column is occupied when any of its
         band voxels is occupied, free when all of them are free; a band off the grid
-        gives all False (unknown). The arrays are read-only: each band's slice is kept until the
-        map changes (map frontiers, the planner and the video take the same bands each step).
+        gives all False (unknown). The arrays are read-only: each band's view is kept (map frontiers,
+        the planner and the video take the same bands each step) and patched where the map changes
+        (:class:`~frontiernet.mapping.bands.BandViews`).
         """
         k0, k1 = self._band_layers(z_min, z_max, "slice_2d")
         if k1 <= k0:
             empty = np.zeros(self.shape[:2], bool)
             return empty, empty.copy()
-        if (k0, k1) not in self._slices:
-            band = slice(k0, k1)
-            observed = self._observed[:, :, band]
-            occupied = self._log_odds[:, :, band] > self.settings.occupied_threshold
-            self._slices[k0, k1] = (_read_only(np.all(observed & ~occupied, axis=2)),
-                                    _read_only(np.any(observed & occupied, axis=2)))
-        return self._slices[k0, k1]
+        return self._bands.view(k0, k1)
+
+    def _band_columns(self, k0: int, k1: int, window: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """(free, occupied) bool columns of layers [k0, k1) over the (X, Y) `window` (two slices)."""
+        observed = self._observed[window + (slice(k0, k1),)]
+        occupied = self._log_odds[window + (slice(k0, k1),)] > self.settings.occupied_threshold
+        return np.all(observed & ~occupied, axis=2), np.any(observed & occupied, axis=2)
 
     # -- files -----------------------------------------------------------------------------------
 
@@ -424,12 +427,6 @@ class OccupancyMap:
             camera = PinholeCamera(width, width, focal, focal, centre, centre, np.inf)  # directions only: no range
             self._view_directions[key] = camera.ray_directions().reshape(-1, 3).astype(np.float64)
         return self._view_directions[key]
-
-
-def _read_only(array: np.ndarray) -> np.ndarray:
-    view = array.view()
-    view.flags.writeable = False
-    return view
 
 
 def _image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarray:

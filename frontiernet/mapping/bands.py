@@ -1,0 +1,54 @@
+"""The 2D band views of an occupancy map (:meth:`~frontiernet.mapping.occupancy.OccupancyMap.slice_2d`),
+kept between map updates: after an update only the columns of the box it changed are computed
+again, so a large map's step costs what its frame changes, not its whole band."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+Columns = Callable[[int, int, tuple], tuple[np.ndarray, np.ndarray]]
+"""``(k0, k1, window) -> (free, occupied)``: (X', Y') bool columns of layers [k0, k1) over the
+(X, Y) `window` (a tuple of two slices) of the map."""
+
+
+class BandViews:
+    """(free, occupied) (X, Y) bool views per layer range [k0, k1), returned read-only.
+
+    A view is computed whole once, then patched: :meth:`changed` records the index box a map
+    update touched, and the next :meth:`view` of a band whose layers it overlaps recomputes the
+    box's columns into a copy (a view handed out earlier never changes under its holder)."""
+
+    def __init__(self, columns: Columns) -> None:
+        self._columns = columns
+        self._views: dict[tuple[int, int], list] = {}  # (k0, k1) -> [free, occupied, stale box or None]
+
+    def view(self, k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
+        entry = self._views.get((k0, k1))
+        if entry is None:
+            free, occupied = self._columns(k0, k1, (slice(None), slice(None)))
+        elif entry[2] is not None:
+            window = tuple(slice(a, b) for a, b in zip(*entry[2]))
+            free, occupied = entry[0].copy(), entry[1].copy()
+            free[window], occupied[window] = self._columns(k0, k1, window)
+        else:
+            return entry[0], entry[1]
+        self._views[k0, k1] = entry = [read_only(free), read_only(occupied), None]
+        return entry[0], entry[1]
+
+    def changed(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """The map's voxels in the index box [lo, hi) ((3,) int, (X, Y, Z)) may have changed."""
+        lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
+        for (k0, k1), entry in self._views.items():
+            if lo[2] < k1 and hi[2] > k0:
+                stale = entry[2]
+                entry[2] = (lo[:2], hi[:2]) if stale is None else (np.minimum(stale[0], lo[:2]),
+                                                                   np.maximum(stale[1], hi[:2]))
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """A view of `array` that cannot be written through."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
