@@ -276,3 +276,23 @@ def test_benchmarks_planned_before_the_account_read_its_settings_as_shipped():
     from frontiernet.benchmark.plan import KEYS_ADDED_AFTER_PLANS
 
     assert KEYS_ADDED_AFTER_PLANS["steps"] == OmegaConf.to_container(CONF.steps)
+
+
+def test_coverage_kept_frame_by_frame_equals_a_count_over_the_whole_map(two_room_scene, two_room_voxels):
+    from frontiernet.exploration.score import GroundTruthScore
+    from frontiernet.geometry import pose_from_heading
+    from frontiernet.simulator.camera import PinholeCamera, Renderer
+
+    camera = PinholeCamera(64, 48, 40.0, 40.0, 31.5, 23.5, 3.5)
+    renderer = Renderer(two_room_scene, camera, (0, 0, 0))
+    score = GroundTruthScore(two_room_scene, two_room_voxels, CONF)
+    explorable = two_room_voxels.explorable
+    seen = []
+    for x, yaw in [(1.0, 0), (1.0, 90), (2.0, 200), (4.5, 0), (4.5, 135), (1.0, 0)]:  # the last one again
+        T = pose_from_heading(x, 2.0, 1.2, yaw=np.deg2rad(yaw), pitch=-0.3)
+        frame = renderer.render(T)
+        score.observe(frame.depth, frame.K, T)
+        whole = np.count_nonzero(score.coverage_map.observed & explorable) / explorable.sum()
+        assert score.coverage() == pytest.approx(whole, abs=1e-12)
+        seen.append(score.coverage())
+    assert 0 < seen[0] < seen[-2] == seen[-1]  # both rooms add; the first view again adds nothing

@@ -31,18 +31,26 @@ class GroundTruthScore:
         self.surface = SurfaceCoverage(scene, conf, int(conf.surface.seed), voxels=voxels)
         self.surface_seen = np.zeros(self.surface.num_samples, bool)  # once seen, a surface point stays seen
         self.surface_coverage = 0.0
+        self.counted = np.zeros(voxels.shape, bool)  # explorable voxels observed: coverage, kept per frame
+        self._num_counted = 0
 
     def observe(self, depth: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray) -> None:
         """Count one camera frame: (H, W) float32 ground-truth z-depth in metres (NaN no hit),
         (3, 3) intrinsics, (4, 4) pose."""
         self.coverage_map.integrate(depth, K, T_world_cam)
+        frame = self.coverage_map.latest_frame
+        if frame is not None:  # only the frame's box can change: a large scene's step costs what it sees
+            lo, seen = frame
+            box = tuple(slice(a, a + n) for a, n in zip(lo, seen.shape))
+            new = seen & self.voxels.explorable[box] & ~self.counted[box]
+            self.counted[box] |= new
+            self._num_counted += int(np.count_nonzero(new))
         self.surface_seen |= self.surface.covered_mask(self.coverage_map)
         self.surface_coverage = float(self.surface_seen.mean()) if len(self.surface_seen) else 0.0
 
     def coverage(self) -> float:
         """Fraction of the scene's explorable volume observed so far."""
-        observed = self.coverage_map.observed & self.voxels.explorable
-        return float(observed.sum()) / max(int(self.voxels.num_explorable), 1)
+        return self._num_counted / max(int(self.voxels.num_explorable), 1)
 
     def unseen_in(self, columns: np.ndarray, band: slice) -> float:
         """Fraction of the scene's explorable volume not observed so far in the columns of `columns`

@@ -110,6 +110,12 @@ class OccupancyMap:
         return read_only(self._log_odds)
 
     @property
+    def latest_frame(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(lo, seen) of the latest integrated frame: (3,) int64 index box corner and the box's
+        (bool) mask of the voxels that frame observed (nothing else sets them observed); None before."""
+        return None if self._latest_frame is None else (self._latest_frame[0].copy(), read_only(self._latest_frame[1]))
+
+    @property
     def observed(self) -> np.ndarray:
         """(X, Y, Z) bool, voxels updated at least once (read-only view)."""
         return read_only(self._observed)
