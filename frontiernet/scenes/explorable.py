@@ -17,14 +17,24 @@ robot can reach and see, not what the outside cannot flood into:
    the outside's (:func:`near_open_air`: eaves, a ledge outside a
    wall, the mouth of a wide door; as the ``enclosed`` rule has it at doors). A ``?bounds=`` box
    of the scene spec cuts the envelope and drops the structure outside it (surroundings).
-2. **Navigable floor.** A free envelope voxel right above an occupied one (or on the grid's
-   bottom layer) where a robot fits: ``floor_headroom_m`` of free envelope voxels above it, and
-   ``floor_clearance_m`` in-plane to the nearest voxel without that headroom.
+2. **Navigable floor.** A free envelope voxel right above an occupied one (a surface the robot
+   stands on: the grid's bottom layer is no floor) where a robot fits: ``floor_headroom_m`` of
+   free envelope voxels above it, and ``floor_clearance_m`` in-plane to the nearest voxel
+   without that headroom.
 3. **Explorable** = the face-connected component of free envelope voxels that holds the seed:
    the navigable floor voxel nearest the spec's ``?seed=x,y[,z]`` (within ``seed_search_m``; with
-   a z, the highest floor at or below it), else, automatically, the component with the most
-   navigable floor (the building's interior, not a cabinet or a wall's hollow; with no
-   navigable floor at all, the largest component).
+   a z, the highest floor at or below it, without one the lowest), else, automatically, the
+   component with the most navigable floor (the building's interior, not a cabinet or a wall's
+   hollow), seeded at the centre of its largest walkable floor (:func:`walkable_floors`:
+   navigable voxels joined through steps of one voxel, a ramp or a threshold; a stair's treads
+   or a table top are floors of their own). With no navigable floor at all: the largest
+   component, no seed, and step 4 is skipped.
+4. **Not under the building** (:func:`under_floor`). Voxels of that component below the surface
+   under the seed's walkable floor with no surface anywhere below them in their column (no
+   pose can stand there) are the void under the building: neither explorable nor enclosed. A
+   thin floor over nothing, or a stairwell going down to a storey the mesh leaves out, does not
+   let the void under it in; space over a stair flight stands on it and stays, and so does a
+   room's patch without a floor mesh level with the floor (KTH plans).
 
 Everything else free inside the envelope (wall interiors, closed cabinets, rooms with no way in)
 is *enclosed*, not explorable: it tells "inside an obstacle" from "outside the building".
@@ -181,9 +191,9 @@ def envelope(occupied: np.ndarray, voxel_size: float, wall_gap_m: float,
 
 def navigable_floor(free: np.ndarray, occupied: np.ndarray, voxel_size: float, headroom_m: float,
                     clearance_m: float) -> np.ndarray:
-    """(X, Y, Z) bool: free voxels on a support (occupied voxel below, or the bottom layer) with
-    `headroom_m` of `free` voxels above them (the voxel included) and `clearance_m` (in-plane)
-    to the nearest voxel of their layer without that headroom."""
+    """(X, Y, Z) bool: free voxels on a support (an occupied voxel right below; none on the grid's
+    bottom layer) with `headroom_m` of `free` voxels above them (the voxel included) and
+    `clearance_m` (in-plane) to the nearest voxel of their layer without that headroom."""
     import cv2
 
     need = max(int(math.ceil(headroom_m / voxel_size - 1e-9)), 1)
@@ -193,7 +203,6 @@ def navigable_floor(free: np.ndarray, occupied: np.ndarray, voxel_size: float, h
         run = np.where(free[:, :, k], run + 1, 0)
         room[:, :, k] = run >= need
     support = np.zeros(free.shape, bool)
-    support[:, :, 0] = True
     support[:, :, 1:] = occupied[:, :, :-1]
     floor = room & support
     radius = clearance_m / voxel_size
@@ -223,6 +232,67 @@ def _seed_voxel(navigable: np.ndarray, origin: np.ndarray, voxel_size: float, se
     height = centres[candidates, 2] * (-1.0 if len(seed) == 3 else 1.0)
     best = candidates[np.lexsort((height, np.round(horizontal[candidates], 6)))[0]]
     return index[best]
+
+
+def walkable_floors(navigable: np.ndarray) -> tuple[np.ndarray, int]:
+    """The walkable floors: navigable floor voxels joined through steps of one voxel (26-connected:
+    a ramp or a threshold; a stair's treads, a riser and the robot's clearance apart, stay apart).
+
+    Args:
+        navigable: (X, Y, Z) bool navigable floor voxels (:func:`navigable_floor`).
+    Returns:
+        (labels, low): (X, Y, n) int32 floor labels (0: no floor) of the n grid layers from
+        layer `low` on that hold navigable voxels (n = 0 when there are none).
+    """
+    layers = np.flatnonzero(navigable.any(axis=(0, 1)))
+    if len(layers) == 0:
+        return np.zeros(navigable.shape[:2] + (0,), np.int32), 0
+    low, high = int(layers[0]), int(layers[-1]) + 1
+    labels, _ = ndimage.label(navigable[:, :, low:high], structure=np.ones((3, 3, 3), bool))
+    return labels, low
+
+
+def _floor_seed(floors: np.ndarray, low: int) -> np.ndarray:
+    """(3,) int64 voxel index of the automatic seed: the voxel of the largest walkable floor nearest
+    its centroid (`floors`, `low`: :func:`walkable_floors`)."""
+    sizes = np.bincount(floors.ravel())
+    sizes[0] = 0
+    cells = np.argwhere(floors == int(np.argmax(sizes)))
+    best = cells[np.argmin(((cells - cells.mean(axis=0)) ** 2).sum(axis=1))]
+    return best + np.array([0, 0, low])
+
+
+def floor_layer(floors: np.ndarray, low: int, seed_index: np.ndarray) -> int:
+    """Layer index of the surface under the lowest voxel of the seed's walkable floor (`floors`,
+    `low`: :func:`walkable_floors`; `seed_index`: (3,) int index of a navigable voxel)."""
+    region = floors == floors[seed_index[0], seed_index[1], seed_index[2] - low]
+    return low + int(np.flatnonzero(region.any(axis=(0, 1)))[0]) - 1
+
+
+def under_floor(occupied: np.ndarray, floor: int) -> np.ndarray:
+    """(X, Y, floor) bool over the layers below `floor`: voxels with no occupied voxel at or below
+    them in their column (step 4 of the module docstring: the void under a building, where no
+    pose can stand). `occupied`: (X, Y, Z) bool; `floor`: a layer index (0: no layer below)."""
+    return ~np.logical_or.accumulate(occupied[:, :, :max(floor, 0)], axis=2)
+
+
+def _seed_and_void(occupied: np.ndarray, navigable: np.ndarray, explorable: np.ndarray,
+                   seed_index: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Steps 3 and 4 of the module docstring on the chosen component.
+
+    Args:
+        occupied, navigable, explorable: (X, Y, Z) bool; `navigable` within the component
+            `explorable` and not empty.
+        seed_index: (3,) int index of the spec's seed voxel, or None (automatic).
+    Returns:
+        (seed_index, void): the seed's (3,) index, and (X, Y, F) bool over the layers below its
+        floor's surface F: the component's voxels under the building.
+    """
+    floors, low = walkable_floors(navigable)
+    if seed_index is None:
+        seed_index = _floor_seed(floors, low)
+    floor = floor_layer(floors, low, seed_index)
+    return seed_index, explorable[:, :, :floor] & under_floor(occupied, floor)
 
 
 def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float, conf, *,
@@ -255,6 +325,7 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
     enclosed = free & inside & ~(covered & near_open_air(free, ~inside, voxel_size, footprint_gap))
     navigable = navigable_floor(enclosed, occupied, voxel_size, headroom, clearance)
     labels, count = ndimage.label(enclosed)  # face-connected
+    seed_index = None
     if seed is not None:
         seed_index = _seed_voxel(navigable, origin, voxel_size, np.asarray(seed, np.float64), search, where)
         chosen = labels[tuple(seed_index)]
@@ -262,15 +333,17 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
         floor_counts = np.bincount(labels[navigable], minlength=count + 1)
         floor_counts[0] = 0
         chosen = int(np.argmax(floor_counts))
-        cells = np.argwhere(navigable & (labels == chosen))
-        seed_index = cells[np.argmin(((cells - cells.mean(axis=0)) ** 2).sum(axis=1))]  # nearest their centroid
     else:
         sizes = np.bincount(labels.ravel(), minlength=count + 1)
         sizes[0] = 0
-        chosen, seed_index = int(np.argmax(sizes)), None
+        chosen = int(np.argmax(sizes))
     explorable = labels == chosen if chosen > 0 else np.zeros(occupied.shape, bool)
-    return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=navigable & explorable,
-                          seed=seed_index)
+    navigable &= explorable
+    if navigable.any():  # the void under the building is neither explorable nor enclosed
+        seed_index, void = _seed_and_void(occupied, navigable, explorable, seed_index)
+        explorable[:, :, :void.shape[2]] &= ~void
+        enclosed[:, :, :void.shape[2]] &= ~void
+    return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=navigable, seed=seed_index)
 
 
 EXPLORABLE_RULES = ("reachable", "enclosed")

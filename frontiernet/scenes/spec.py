@@ -21,7 +21,8 @@ Every source also takes two options about the space exploration is scored on
 (frontiernet/scenes/explorable.py, docs/exploration.md):
 
   shop.glb?seed=2.5,4                 a point (x,y or x,y,z, metres) on the floor inside the
-                                      building: the explorable space is grown from there
+                                      building: the explorable space is grown from there (x,y:
+                                      the lowest floor there; x,y,z: the highest at or below z)
   site.glb?bounds=-5,-5,0,20,15,4     a box xmin,ymin,zmin,xmax,ymax,zmax (metres): nothing
                                       outside it is explorable (meshes with surroundings)
 
