@@ -1,6 +1,8 @@
-"""Every command of README.md and docs/*.md works as written: each ``frontiernet ...`` line of a
-command block parses through the real command line (``frontiernet.cli.main.build_parser``), and
-the cheap ones run (scene info / topdown, render, predict; shared data where they name it)."""
+"""Every command of README.md, docs/*.md and the results log (docs/results/*.md) works as written:
+each ``frontiernet ...`` line of a command block parses through the real command line
+(``frontiernet.cli.main.build_parser``), and the cheap ones run (scene info / topdown, render,
+predict; shared data where they name it). The results log's long benchmark commands are parsed
+only, as every page's are."""
 
 from __future__ import annotations
 
@@ -15,7 +17,8 @@ import pytest
 from conftest import REPO_ROOT
 from frontiernet.cli.main import build_parser, main
 
-PAGES = [REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md"))]
+PAGES = [REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md")),
+         *sorted((REPO_ROOT / "docs" / "results").glob("*.md"))]
 RUN = {("scene", "info"), ("scene", "topdown"), ("render",), ("predict",)}
 """Commands cheap enough to run here (seconds); the others are parsed only."""
 SHARED = "../shared/data/"
@@ -56,7 +59,7 @@ COMMANDS = documented_commands()
 
 def test_the_pages_hold_the_commands_users_copy():
     pages = {where.split(":")[0] for where, _ in COMMANDS}
-    assert {"README.md", "docs/benchmark.md", "docs/datagen.md", "docs/sequences.md"} <= pages
+    assert {"README.md", "docs/benchmark.md", "docs/datagen.md", "docs/sequences.md", "docs/usage.md"} <= pages
     render = [argv for _, argv in COMMANDS if argv[0] == "render"]
     assert ["--pose", "-4.5,-0.5,1.2,0"] == render[0][2:4]  # the README's view of the house, negative x first
 

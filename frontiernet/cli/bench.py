@@ -59,8 +59,9 @@ def _exploration_options(parser) -> None:
                             "protocol: configs/bench.yaml budget, from each scene's explorable floor area)")
     group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
     group.add_argument("--report", action="store_true",
-                       help="with --out only: rebuild results.csv, table.md and the plots from the runs finished "
-                            "so far, running nothing (safe while the benchmark runs)")
+                       help="with --out only: rebuild results.csv, table.md, table_readme.md (the README's results "
+                            "table) and the plots from the runs finished so far, running nothing (safe while the "
+                            "benchmark runs)")
     group.add_argument("--pack", action="store_true",
                        help="with --out only: move the finished runs' metrics.json into one compressed file per "
                             "scene and method (runs/<scene>/<method>.jsonl.gz), which --report and a resumed "
@@ -77,6 +78,7 @@ def _exploration_options(parser) -> None:
 
 def run_exploration_benchmark(args) -> int:
     from ..benchmark import main, pack, report
+    from ..benchmark.readme_table import write_readme_table
     from ..errors import InputError
     from ..exploration.run import load_run_config
 
@@ -93,9 +95,11 @@ def run_exploration_benchmark(args) -> int:
         if not args.out:
             raise InputError("--report needs --out DIR, the benchmark folder")
         result = report(args.out)
+        readme = write_readme_table(args.out, result["rows"])  # the pages' results table (docs/benchmark.md)
         print(Path(result["table"]).read_text())
+        written = f"{result['table']}, {readme}" if readme else result["table"]
         print(f"bench: report of {len(result['rows'])} finished runs ({result['pending']} not yet): {result['results']}, "
-              f"{result['table']}, {len(result['plots'])} coverage plot(s) in {args.out}")
+              f"{written}, {len(result['plots'])} coverage plot(s) in {args.out}")
         return 0
     if not args.scenes:  # (a benchmark subcommand sets its own func)
         raise InputError("give a benchmark (render, map, explore, ...) or --scenes for the exploration benchmark")
