@@ -38,17 +38,20 @@ def test_the_pages_show_the_published_table(page, published_table):
 
 
 def test_the_table_holds_the_reports_own_figures(published_table):
-    """Each method's means and ratios are cells of the folder's table.md (the report's summary
-    and its comparison with classic), and every method appears once per depth source."""
+    """Each method's means and its Vox@50 ratio to classic (with the interval) are cells of the
+    folder's table.md (the report's summary and its comparison with classic), and every method
+    appears once per depth source."""
     report = (published_folder(REPO_ROOT) / "table.md").read_text()
-    rows = [line.split(" | ") for line in published_table.splitlines()[2:] if line.startswith("| ")]
-    plan_methods = {row[0].strip("| ") for row in rows}
-    assert "classic" in plan_methods and "frontiernet" in plan_methods
+    header, _, *rows = [line.strip("| ").split(" | ") for line in published_table.splitlines() if line.startswith("| ")]
+    to_classic = header.index("to classic, Vox@25 / @50 / @100")
+    methods = [row[0] for row in rows]
+    assert "classic" in methods and "frontiernet" in methods
+    assert len(methods) == len(set(methods)) * len({row[1] for row in rows})
     for row in rows:
-        vox25, vox50 = row[5], row[6]
-        if row[0].strip("| ") != "classic":
-            assert f"{vox25} (" in report and f"{vox50} (" in report, row
-        assert f"| {row[2]} +- " in report, row  # the summary's mean
+        if row[0] != "classic":
+            vox50 = row[to_classic].split(" / ")[1]
+            assert "[" in vox50 and f"| {vox50} (" in report, row
+        assert f"| {row[3]} +- " in report and f"| {row[4]} +- " in report, row  # the summary's means
 
 
 def test_the_block_is_replaced_whole():
@@ -75,3 +78,40 @@ def test_bench_report_writes_the_table(tmp_path, capsys):
     written = (folder / FILE).read_text()
     assert written == readme_markdown(folder_rows(folder), folder)
     assert written.count("| classic |") == 2 and "| random-frontier | emulated |" in written
+
+
+def test_the_bound_and_nbvp_columns_are_ratios_of_paired_means(tmp_path):
+    """A folder with the bound and nbvp gets their columns: each method's mean Vox@k over the
+    bound's (its share) and over nbvp's, on the runs both finished, the interval at Vox@50."""
+    import json
+
+    import numpy as np
+
+    methods = ["classic", "nbvp", "omniscient", "frontiernet"]
+    scale = {"classic": 0.5, "nbvp": 0.6, "omniscient": 1.0, "frontiernet": 0.8}
+    runs, rows = [], []
+    for scene in ("procedural:1", "procedural:2"):
+        for start in range(3):
+            for method in methods:
+                runs.append({"scene": scene, "method": method, "start": start, "repeat": 0})
+                if method == "frontiernet" and start == 2:
+                    continue  # not finished: its pair is left out of every ratio
+                base = 0.2 + 0.1 * start
+                rows.append({"scene": scene, "method": method, "start": start, "repeat": 0, "depth": None,
+                             "status": "done", "vox25_shared": scale[method] * base,
+                             "vox50_shared": scale[method] * base * 1.5, "vox100": scale[method] * base * 2})
+    plan = {"settings": {"budget": {"steps_per_m2": 6.5}, "vox_steps": "coverage"},
+            "start_poses": {"procedural:1": [], "procedural:2": []}, "runs": runs}
+    (tmp_path / "plan.json").write_text(json.dumps(plan))
+    table = readme_markdown(rows, tmp_path)
+    header, _, *lines = [line.strip("| ").split(" | ") for line in table.splitlines() if line.startswith("| ")]
+    assert header[6:] == ["share of the bound, Vox@25 / @50 / @100", "to classic, Vox@25 / @50 / @100",
+                          "to nbvp, Vox@25 / @50 / @100"]
+    row = {line[0]: line for line in lines}
+    assert row["frontiernet"][2] == "4" and row["omniscient"][6] == row["classic"][7] == row["nbvp"][8] == "1.00x"
+    share, to_classic, to_nbvp = (cell.split(" / ") for cell in row["frontiernet"][6:9])
+    assert [part[:5] for part in share] == ["0.80x"] * 3  # 0.8 of the bound at every start
+    assert [part[:5] for part in to_classic] == ["1.60x"] * 3 and [part[:5] for part in to_nbvp] == ["1.33x"] * 3
+    assert share[1].startswith("0.80x [0.80, 0.80]")  # a constant ratio: a point interval
+    assert row["classic"][6].split(" / ")[0] == "0.50x" and np.isclose(float(row["classic"][3]), 15.0)
+    assert "scene-sized step budgets" in table and "Interim: 22 of 24" in table

@@ -1,10 +1,11 @@
 """The results table that README.md and docs/benchmark.md show, built from a benchmark folder.
 
 One Markdown table, rows methods per depth source: each method's mean Vox@25 / @50 / @100 over
-all scenes (the "all scenes" summary of the folder's ``table.md``, :func:`.report.summary_markdown`)
-and its ratio to ``classic``'s over paired runs with the bootstrap interval (the report's
-"Against classic" table with Vox@100 added, :func:`.report.versus_markdown`). The cells are the
-report's own, taken from its tables, so the pages cannot show other figures than the data gives.
+the finished runs, its share of the all-knowing bound (``omniscient``) and its ratios to
+``classic`` (the paper's Table I baseline) and to ``nbvp`` (its strongest), of the means over
+paired runs, with the bootstrap interval of :func:`.report.ratio_interval` at Vox@50. The
+figures are those of the folder's report (``table.md``: its summary, "Against classic" and
+"Share of the bound" sections compute the same means and ratios from the same rows).
 
 ``frontiernet bench --report --out DIR`` writes it to ``DIR/table_readme.md``
 (:func:`write_readme_table`); the pages include it between :data:`BEGIN` and :data:`END`, and
@@ -21,7 +22,7 @@ import numpy as np
 
 from ..config import load_config
 from ..io import write_text
-from .report import REFERENCE, VOX_FIELDS, add_shared_vox, summary_markdown, versus_markdown
+from .report import BOUND, REFERENCE, VOX_FIELDS, add_shared_vox, ratio_interval
 from .runner import finished_row, with_copies
 from .store import FinishedRuns, read_plan
 
@@ -29,6 +30,7 @@ BEGIN = "<!-- results-table:begin -->"
 END = "<!-- results-table:end -->"
 FILE = "table_readme.md"
 """What ``bench --report`` writes beside ``table.md``."""
+NBVP = "nbvp"  # the paper's strongest baseline (Table I), the second reference of the table
 
 
 def published_folder(root: str | Path | None = None) -> Path:
@@ -52,58 +54,72 @@ def folder_rows(out: str | Path) -> list[dict]:
     return rows
 
 
-def _cells(line: str) -> list[str]:
-    return [cell.strip() for cell in line.strip().strip("|").split("|")]
+def _paired(done: list[dict], method: str, reference: str) -> list[tuple[dict, dict]]:
+    """(method's row, reference's row) of the runs both finished: same scene, start and repeat."""
+    theirs = {(r["scene"], r["start"], r["repeat"]): r for r in done if r["method"] == reference}
+    return [(r, theirs[key]) for r in done if r["method"] == method
+            and (key := (r["scene"], r["start"], r["repeat"])) in theirs]
 
 
-def _last_table(lines: list[str]) -> dict[str, list[str]]:
-    """Method -> cells of the last row block of a report section (`lines`: one section's table)."""
-    rows = [_cells(line) for line in lines if line.startswith("| ") and not line.startswith("| method ")]
-    return {cells[0]: cells[1:] for cells in rows}
+def ratios_cell(pairs: list[tuple[dict, dict]], interval) -> str:
+    """Ratios of the mean Vox@25, Vox@50 and Vox@100 of the first rows of `pairs` to the second's,
+    ``a / b [lo, hi] / c``: Vox@50's with its bootstrap interval over (scene, start) clusters
+    (:func:`~.report.ratio_interval`, the paper's headline column); ``--`` without pairs."""
+    cells = []
+    for field in VOX_FIELDS:
+        ours = np.array([float(a[field]) for a, _ in pairs])
+        theirs = np.array([float(b[field]) for _, b in pairs])
+        if not len(pairs) or theirs.mean() <= 0:
+            return "--"
+        cell = f"{ours.mean() / theirs.mean():.2f}x"
+        if field == "vox50_shared":
+            bounds = ratio_interval(ours, theirs, [(a["scene"], a["start"]) for a, _ in pairs], interval)
+            cell += f" [{bounds[0]:.2f}, {bounds[1]:.2f}]" if bounds is not None else ""
+        cells.append(cell)
+    return " / ".join(cells)
 
 
 def readme_markdown(rows: list[dict], out: str | Path, source: str | None = None) -> str | None:
     """The results table of benchmark folder `out` (its plan gives the scenes, methods and depth
     sources) from its finished `rows` (with shared Vox@k: :func:`folder_rows` or the rows
     ``bench --report`` returns); `source`: how the caption names the folder (default `out`).
+
+    Per depth source and method: the mean Vox@25 / @50 / @100 over all finished runs, then, over
+    paired runs (:func:`ratios_cell`), the share of the all-knowing bound (:data:`~.report.BOUND`),
+    the ratio to ``classic`` and to ``nbvp``, each column only when that method is in the folder.
     None when ``classic`` is not among the methods."""
     plan = read_plan(Path(out))
     scenes = list(plan["start_poses"])
     methods = list(dict.fromkeys(run["method"] for run in plan["runs"]))
     if REFERENCE not in methods:
         return None
+    references = [(name, title) for name, title in ((BOUND, "share of the bound"), (REFERENCE, "to classic"),
+                                                      (NBVP, "to nbvp")) if name in methods]
     depths = list(dict.fromkeys(run.get("depth") for run in plan["runs"]))
     interval = load_config("bench").report.interval
     done = [row for row in rows if row["status"] == "done"]
-    fields = tuple(VOX_FIELDS)
-    lines = ["| method | depth | Vox@25 (%) | Vox@50 (%) | Vox@100 (%) | Vox@25 to classic | Vox@50 to classic "
-             "| Vox@100 to classic |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
-    counts = set()
+    lines = ["| method | depth | runs | Vox@25 (%) | Vox@50 (%) | Vox@100 (%) | " +
+             " | ".join(f"{title}, Vox@25 / @50 / @100" for _, title in references) + " |",
+             "| --- | --- | --- | --- | --- | --- |" + " --- |" * len(references)]
     for depth in depths:
         own = [row for row in done if row.get("depth") == depth]
-        summary = summary_markdown(own, scenes, methods)
-        last = max(i for i, line in enumerate(summary) if line.startswith("### Summary"))
-        means = _last_table(summary[last:])  # all scenes (or the one source): runs, Vox@25/50/100, success
-        versus = _last_table(versus_markdown(own, scenes, methods, interval, fields=fields))
         name = (depth or str(plan["settings"].get("depth") or "--")).replace("_", " ")
         for method in methods:
-            runs, *vox = means[method][:4]
-            counts.add(runs)
-            ratios = ["1.00x"] * len(fields) if method == REFERENCE else \
-                [re.sub(r" \(\d+-\d+\)$", "", cell) for cell in versus[method][-len(fields):]]
-            lines.append(f"| {method} | {name} | " + " | ".join(value.split(" +- ")[0] for value in vox) +
-                         " | " + " | ".join(ratios) + " |")
+            runs = [row for row in own if row["method"] == method]
+            means = [f"{100 * np.mean([float(r[field]) for r in runs]):.1f}" if runs else "--" for field in VOX_FIELDS]
+            ratios = ["1.00x" if method == reference else ratios_cell(_paired(own, method, reference), interval)
+                      for reference, _ in references]
+            lines.append(f"| {method} | {name} | {len(runs)} | " + " | ".join(means + ratios) + " |")
     protocol = plan["settings"].get("budget")
     budget = f", {protocol} steps a run" if isinstance(protocol, int) else \
-        ", scene-sized step budgets" if isinstance(protocol, dict) else ""
+        ", scene-sized step budgets (configs/bench.yaml)" if isinstance(protocol, dict) else ""
     vox = ("the coverage at 25 / 50 / 100 % of each run's budget" if plan["settings"].get("vox_steps", "budget") ==
-           "budget" else "the coverage at the step where the methods on average reach 25 / 50 %, and at the end")
-    interim = f"Interim: {len(rows)} of {len(plan['runs'])} runs finished. " if len(rows) < len(plan["runs"]) else ""
-    caption = (f"{interim}`{Path(source or out).as_posix()}`: {len(scenes)} scenes, {' or '.join(sorted(counts))} "
-               f"runs a method and depth{budget}. Vox@k: {vox}, mean over all runs (%). To classic: ratio of the "
-               "mean to classic's over paired runs (same scene, start, repeat and depth), with its "
-               f"{float(interval.confidence):.0%} bootstrap interval over (scene, start) clusters. Generated by "
-               f"`frontiernet bench --report` (`{FILE}`).")
+           "budget" else "the coverage at the step where the methods on average first reach 25 / 50 %, and at the end")
+    interim = f"Interim: {len(done)} of {len(plan['runs'])} runs finished. " if len(done) < len(plan["runs"]) else ""
+    caption = (f"{interim}`{Path(source or out).as_posix()}`: {len(scenes)} scenes{budget}. Vox@k: {vox}, mean over "
+               "the runs (%). Ratios: of the means over paired runs (same scene, start, repeat and depth), Vox@50's "
+               f"with its {float(interval.confidence):.0%} bootstrap interval over (scene, start) clusters. "
+               f"Generated by `frontiernet bench --report` (`{FILE}`).")
     return "\n".join(lines + ["", caption]) + "\n"
 
 
