@@ -5,6 +5,8 @@
 * :mod:`.images`: image and depth files, with the depth encodings of TUM, NYU, SUN, Redwood.
 * :mod:`.readers`: TUM RGB-D (:func:`read_tum`) and Redwood (:func:`read_redwood`) folders.
 * :mod:`.colmap`: COLMAP sparse models (:func:`read_colmap`).
+* :mod:`.rosbag`: robot recordings, rosbag1, rosbag2 and MCAP (:func:`~.rosbag.read_rosbag`, through
+  ``rosbags``); :mod:`.ros_out` writes the run's frontiers back as ROS messages.
 * :func:`open_sequence`: any of them, the format detected from the folder's contents.
 """
 
@@ -17,11 +19,15 @@ from .colmap import find_model, read_colmap, sequence_from_reconstruction
 from .frames import Camera, Sequence, SequenceFrame
 from .images import DEPTH_ENCODINGS, read_depth, read_rgb
 from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, read_redwood, read_tum
+from .ros_extract import is_recording
 
 FORMATS = ("tum", "redwood", "colmap", "images")
+"""The folder formats; a recording (``.bag``, ``.mcap``, ``.db3``, a rosbag2 folder) is format ``rosbag``."""
+READERS = (*FORMATS, "rosbag")
 
-__all__ = ["DEPTH_ENCODINGS", "FORMATS", "Camera", "Sequence", "SequenceFrame", "detect_format", "open_sequence",
-           "read_colmap", "read_depth", "read_redwood", "read_rgb", "read_tum", "sequence_from_reconstruction"]
+__all__ = ["DEPTH_ENCODINGS", "FORMATS", "READERS", "Camera", "Sequence", "SequenceFrame", "detect_format",
+           "is_recording", "open_sequence", "read_colmap", "read_depth", "read_redwood", "read_rgb", "read_tum",
+           "sequence_from_reconstruction"]
 
 
 def _only_images(folder: Path) -> bool:
@@ -31,12 +37,17 @@ def _only_images(folder: Path) -> bool:
 
 
 def detect_format(path: str | Path) -> str:
-    """The format of the sequence folder `path` (one of :data:`FORMATS`); InputError if none fits.
+    """The format of the sequence at `path` (one of :data:`READERS`); InputError if none fits.
 
-    ``rgb.txt``: tum; a ``*.log`` trajectory and a colour folder: redwood; ``cameras.bin`` or
+    A ``.bag``, ``.mcap`` or ``.db3`` file or a folder with ``metadata.yaml``: rosbag; ``rgb.txt``:
+    tum; a ``*.log`` trajectory and a colour folder: redwood; ``cameras.bin`` or
     ``cameras.txt`` (directly, in ``sparse/0`` or ``sparse``): colmap; only image files: images.
     """
     path = Path(path)
+    if is_recording(path):
+        return "rosbag"
+    if path.is_file():
+        raise InputError(f"{path}: a file; a sequence is a folder, or a recording (.bag, .mcap, .db3)")
     if not path.is_dir():
         raise InputError(f"{path}: sequence folder not found")
     if (path / "rgb.txt").is_file():
@@ -49,17 +60,19 @@ def detect_format(path: str | Path) -> str:
         return "images"
     raise InputError(f"{path}: unknown sequence format; looked for rgb.txt (tum), a *.log trajectory with a "
                      f"{'/, '.join(REDWOOD_COLOUR_FOLDERS)}/ folder (redwood), cameras.bin or cameras.txt in ., "
-                     f"sparse/0 or sparse (colmap), a folder of only images (images)")
+                     f"sparse/0 or sparse (colmap), a folder of only images (images), metadata.yaml (a rosbag2 "
+                     f"recording)")
 
 
 def open_sequence(path: str | Path, format: str = "auto", camera: Camera | None = None, **options) -> Sequence:
     """The sequence at `path` read by the reader of `format` (``auto``: :func:`detect_format`).
 
     `camera` overrides the intrinsics (not for colmap, whose model has its own); `options` go to
-    the reader (e.g. ``max_time_difference_s`` for tum, ``image_dir`` / ``depth_dir`` for colmap).
+    the reader (e.g. ``max_time_difference_s`` for tum, ``image_dir`` / ``depth_dir`` for colmap,
+    ``conf``, ``topics``, ``work_dir`` for rosbag: :func:`~.rosbag.read_rosbag`).
     """
-    if format != "auto" and format not in FORMATS:
-        raise InputError(f"sequence format '{format}' is unknown; valid: auto, {', '.join(FORMATS)}")
+    if format != "auto" and format not in READERS:
+        raise InputError(f"sequence format '{format}' is unknown; valid: auto, {', '.join(READERS)}")
     if format == "auto":
         format = detect_format(path)
     if format == "tum":
@@ -70,6 +83,10 @@ def open_sequence(path: str | Path, format: str = "auto", camera: Camera | None 
         if camera is not None:
             raise InputError(f"{path}: a COLMAP model has its own cameras; a camera cannot be given for it")
         return read_colmap(path, **options)
+    if format == "rosbag":
+        from .rosbag import read_rosbag  # imported here: rosbags is only needed for recordings
+
+        return read_rosbag(path, camera, **options)
     # imported here: the image-folder reader (structure from motion) is heavier and optional
     from .sfm import read_image_folder
 

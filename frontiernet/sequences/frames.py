@@ -101,18 +101,38 @@ class SequenceFrame:
 
 
 @dataclass
+class RosFrames:
+    """Where the frames of a ROS recording sit, so outputs can use its own frame ids and stamps.
+
+    Attributes:
+        fixed_frame: the frame the poses are given in (the camera's tf root, or a pose topic's
+            ``header.frame_id``); ``map`` when pycolmap posed the frames (``posed`` False).
+        camera_frame: the colour images' ``header.frame_id`` (an optical frame: x right, y down,
+            z forward).
+        stamps_ns: frame name -> the colour image's ``header.stamp`` in integer nanoseconds.
+        posed: whether the poses come from the recording (tf or a pose topic).
+    """
+
+    fixed_frame: str
+    camera_frame: str
+    stamps_ns: dict
+    posed: bool = True
+
+
+@dataclass
 class Sequence:
     """A posed image sequence.
 
     Attributes:
         frames: the frames in order.
-        format: the reader that produced it (``tum``, ``redwood``, ``colmap``, ``images``).
+        format: the reader that produced it (``tum``, ``redwood``, ``colmap``, ``images``, ``rosbag``).
         root: the folder (or file) it was read from.
         metric: whether poses are in metres (False: up to one unknown scale, e.g. COLMAP
             without depth).
         notes: what the reader wants the user to know (registration rate, skipped frames).
         reconstruction: the ``pycolmap.Reconstruction`` the poses came from (COLMAP models and
             image folders), whose points give an up-to-scale sequence its metric scale; else None.
+        ros: :class:`RosFrames` of a ROS recording (``rosbag``), else None.
     """
 
     frames: list
@@ -121,6 +141,7 @@ class Sequence:
     metric: bool = True
     notes: list = field(default_factory=list)
     reconstruction: object = None
+    ros: RosFrames | None = None
 
     def __len__(self) -> int:
         return len(self.frames)

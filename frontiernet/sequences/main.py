@@ -1,8 +1,9 @@
 """``frontiernet sequence``: offline frontier proposals on a captured image sequence (hloc-style
 ``main(conf, ...)``).
 
-1. Read the sequence (:func:`~frontiernet.sequences.open_sequence`: TUM, Redwood, COLMAP, or a
-   folder of images that pycolmap reconstructs), keep every ``frames.stride``-th frame.
+1. Read the sequence (:func:`~frontiernet.sequences.open_sequence`: TUM, Redwood, COLMAP, a
+   folder of images that pycolmap reconstructs, or a robot recording: :mod:`.rosbag`), keep
+   every ``frames.stride``-th frame.
 2. Pass 1 (:mod:`.perceive`): depth (the sensor's, or a monocular model's) and the network's 2D
    outputs per frame, cached in ``<out>/cache`` (a re-run resumes).
 3. Metric scale for up-to-scale poses (COLMAP): the median ratio of the frames' metric depth to
@@ -11,11 +12,13 @@
    map fused from the frames.
 5. Outputs (:mod:`.outputs`): ``frontiers.json``, ``map.ply`` (fused coloured points),
    ``frontiers.ply`` (arrows coloured by gain), ``poses.json``, ``occupancy.npz``,
-   ``overlay.mp4`` (per frame: frontier pixels and tracked frontiers | the map from above).
+   ``overlay.mp4`` (per frame: frontier pixels and tracked frontiers | the map from above);
+   :mod:`.ros_out`: ``frontiers.mcap`` (and a ``rosbag2/`` folder) with the same as ROS messages.
 """
 
 from __future__ import annotations
 
+import shutil
 import time
 from pathlib import Path
 
@@ -68,12 +71,12 @@ def metric_poses(sequence, cache_paths, conf) -> tuple[np.ndarray, float, list[s
 
 
 class _Pictures:
-    """Per-frame video pictures and the fused point cloud (pass 2's ``on_frame``)."""
+    """Per-frame video pictures, ROS messages and the fused point cloud (pass 2's ``on_frame``)."""
 
-    def __init__(self, sequence, conf, labels, writer) -> None:
+    def __init__(self, sequence, conf, labels, writer, ros=None) -> None:
         from ..exploration.drawing import gain_colour_map
 
-        self.sequence, self.conf, self.labels, self.writer = sequence, conf, labels, writer
+        self.sequence, self.conf, self.labels, self.writer, self.ros = sequence, conf, labels, writer, ros
         self.colour = gain_colour_map(labels["bin_edges"], float(labels["bin_unit_m3"]))
         threshold = conf.anchoring.frontier_threshold_px
         self.threshold = float(labels["frontier_threshold_px"] if threshold is None else threshold)
@@ -85,17 +88,24 @@ class _Pictures:
         T = tracked.poses[index]
         full_depth = arrays["full_depth"].astype(np.float32)
         self.cloud.add(full_depth, frame.rgb(), frame.camera.K, T)
+        if self.writer is None and self.ros is None:
+            return
+        frontiers = list(tracked.tracker)
+        camera = camera_picture(arrays, frontiers, T, self.labels, self.threshold, self.colour)
+        if self.ros is not None:
+            self.ros.add_frame(index, T, frontiers, camera, arrays["K"], self.cloud.cloud)
         if self.writer is not None:
-            self.writer.add(self.picture(index, arrays, tracked))
+            self.writer.add(self.picture(index, camera, tracked))
 
-    def picture(self, index, arrays, tracked) -> np.ndarray:
+    def picture(self, index, camera, tracked) -> np.ndarray:
+        """The video picture: the `camera` picture (:func:`~.outputs.camera_picture`) beside the map
+        from above."""
         import cv2
 
         from ..exploration.drawing import TopDown, label
         from ..exploration.motion import yaw_of
 
         frontiers = list(tracked.tracker)
-        camera = camera_picture(arrays, frontiers, tracked.poses[index], self.labels, self.threshold, self.colour)
         height = camera.shape[0]
         occupancy = tracked.map
         if self.topdown is None:  # the part of the map the frames see, in map cells
@@ -115,18 +125,62 @@ class _Pictures:
         return cv2.hconcat([camera, top])
 
 
+def reader_options(format: str, conf, out: Path, progress: bool, recording: dict | None) -> dict:
+    """The options of the reader of `format`: pycolmap's work folder ``<out>/colmap`` for images;
+    for a recording also ``<out>/recording`` (its images) and `recording` (``topics``,
+    ``intrinsics``: :func:`~.rosbag.read_rosbag`), which only a recording takes."""
+    if format == "rosbag":
+        return {"work_dir": out / "recording", "conf": conf.rosbag, "sfm": conf.sfm, "colmap_dir": out / "colmap",
+                "progress": progress, **(recording or {})}
+    if recording and any(value is not None and value != {} for value in recording.values()):
+        raise InputError(f"--topics applies to recordings (.bag, .mcap, .db3, a rosbag2 folder), not to format "
+                         f"{format}")
+    return {"work_dir": out / "colmap", "conf": conf.sfm, "progress": progress} if format == "images" else {}
+
+
+def _remove_if_empty(folder: Path) -> None:
+    """Remove `folder` when no file lies anywhere under it (what a run stopped by bad input left)."""
+    if folder.is_dir() and not any(path.is_file() for path in folder.rglob("*")):
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto", depth: str = "sensor",
-         model: str | Path | None = None, camera=None, video: bool = True, progress: bool = True) -> dict:
+         model: str | Path | None = None, camera=None, video: bool = True, progress: bool = True,
+         recording: dict | None = None, mcap: bool = True, rosbag2: bool = False) -> dict:
     """Run the whole offline pipeline; returns the summary written to ``<out>/summary.json``.
 
     Args:
         conf: ``configs/sequence.yaml`` (with ``anchoring``, ``tracking`` and ``map`` from
             ``configs/explore.yaml``; see :func:`load_sequence_config`).
-        format: a reader of :data:`~frontiernet.sequences.FORMATS` or ``auto``.
+        format: a reader of :data:`~frontiernet.sequences.READERS` or ``auto``.
         depth: ``sensor`` (the sequence's depth files) or a depth source of ``configs/depth.yaml``.
         model: model file (None: the shipped model).
         camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
+        recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
+        mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
+    Bad input (an :class:`InputError`) leaves no empty `out` folder behind that was not there before.
     """
+    out = Path(out)
+    existed = out.exists()
+    try:
+        return _run(conf, input_path, out, format=format, depth=depth, model=model, camera=camera, video=video,
+                    progress=progress, recording=recording, mcap=mcap, rosbag2=rosbag2)
+    except InputError:
+        if not existed:
+            _remove_if_empty(out)
+        raise
+
+
+def _ros_outputs(sequence, out: Path, conf, gain_colour, T_aligned_input, scale: float, mcap: bool, rosbag2: bool):
+    """The :class:`~.ros_out.RosOutputs` of a run (frames without stamps 1 / ``outputs.video_fps`` apart)."""
+    from .ros_out import RosOutputs, output_frames
+
+    frames = output_frames(sequence, T_aligned_input, scale, 1.0 / float(conf.outputs.video_fps))
+    return RosOutputs(out, frames, gain_colour, conf.outputs.ros, len(sequence), mcap=mcap, rosbag2=rosbag2)
+
+
+def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, progress, recording, mcap,
+         rosbag2) -> dict:
     from ..depth import make_depth_source
     from ..model import open_runtime
     from . import detect_format, open_sequence
@@ -134,7 +188,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     started = time.perf_counter()
     out = ensure_dir(out)
     format = detect_format(input_path) if format == "auto" else format
-    options = {"work_dir": out / "colmap", "conf": conf.sfm, "progress": progress} if format == "images" else {}
+    options = reader_options(format, conf, out, progress, recording)
     sequence = open_sequence(input_path, format, camera=camera, **options)
     sequence = select_frames(sequence, conf.frames.stride, conf.frames.max_frames)
     if not sequence.has_poses:
@@ -158,8 +212,16 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
 
         writer = VideoWriter(out / "overlay.mp4", float(conf.outputs.video_fps))
     pictures = _Pictures(sequence, conf, labels, writer)
-    tracked = track_frontiers(sequence, poses, cache_paths, conf, labels, on_frame=pictures, progress=progress,
-                              monocular=depth_source is not None and depth_source.flying_pixels)
+    if mcap or rosbag2:
+        pictures.ros = _ros_outputs(sequence, out, conf, pictures.colour, T_aligned_input, scale, mcap, rosbag2)
+    try:
+        tracked = track_frontiers(sequence, poses, cache_paths, conf, labels, on_frame=pictures, progress=progress,
+                                  monocular=depth_source is not None and depth_source.flying_pixels)
+    except BaseException:
+        if pictures.ros is not None:
+            pictures.ros.abort()
+        raise
+    ros_outputs = [] if pictures.ros is None else [path.name for path in pictures.ros.close()]
     names = [frame.name for frame in sequence]
     summary = {
         "input": str(input_path), "format": sequence.format, "frames": len(sequence), "depth": depth,
@@ -178,6 +240,8 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     tracked.map.save(out / "occupancy.npz")
     if writer is not None:
         writer.close()
+    if ros_outputs:
+        summary["ros_outputs"] = ros_outputs
     summary["seconds"]["total"] = round(time.perf_counter() - started, 2)
     write_json(out / "summary.json", summary)
     return summary

@@ -88,9 +88,19 @@ def frontier_arrows(frontiers, gain_colour, length_m: float = 0.5):
     return arrows
 
 
+EMPTY_PLY = ("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 0\nproperty list uchar int vertex_indices\nend_header\n")
+"""A mesh with no vertices (Open3D refuses to write one): ``frontiers.ply`` with no live frontier."""
+
+
 def write_arrows(path: Path, frontiers, gain_colour) -> Path:
     import open3d as o3d
 
+    from ..io import write_text
+
+    frontiers = list(frontiers)
+    if not frontiers:
+        return write_text(path, EMPTY_PLY)
     mesh = frontier_arrows(frontiers, gain_colour)
     mesh.compute_vertex_normals()
     with atomic_path(path) as tmp:
