@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Resume the published benchmark under the paper's protocol (issue 54, "Know the limit"): scene-sized
+# step budgets (configs/bench.yaml `budget`), Vox@25/@50 at the step where the methods on average
+# first reach 25 / 50 % coverage, both depth regimes, the all-knowing bound (omniscient) and NBVP
+# beside classic, random-frontier, frontiernet and oracle. Run from anywhere; finished runs are kept.
+#   STARTS=1 (the default) is pass 1: every scene from its first start, one repeat (15 scenes x
+#   6 methods x 2 regimes = 180 runs, 24,600 steps a method and regime; about 15 worker-hours on
+#   2 cores). STARTS=3 is pass 2 (the same first poses, two more each); REPEATS=3 pass 3, the full
+#   protocol (runs that would repeat exactly are copied, not run).
+# FRONTIERNET: the command (default: the code this folder's runs were made with, pinned with
+# scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
+# sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
+# Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
+set -euo pipefail
+cd "$(dirname "$0")/../../.."
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 879b58d ../pinned_scene_budgets_879b58d}
+OUT_DIR=docs/benchmark/scene_budgets
+mkdir -p runs
+[ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
+    --format onnx --out runs/shipped.onnx
+KTH=../shared/data/floorplans/kth
+$FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural:1000-1009 \
+    "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
+    --methods "${METHODS:-classic,random-frontier,nbvp,omniscient,frontiernet,oracle}" \
+    --starts "${STARTS:-1}" --repeats "${REPEATS:-1}" --scene-starts --model runs/shipped.onnx \
+    --depth gt,emulated --workers "${WORKERS:-2}" --out "$OUT_DIR"
+exec $FRONTIERNET bench --pack --out "$OUT_DIR"
