@@ -20,7 +20,9 @@ is strong and honest:
 
 Cost: one frustum integration per (cell, heading) at a coarse raster (``view_width_px``; the volume
 is integrated along each ray, so the raster sets noise, not bias), numba-compiled; cells farther
-than the sensor's reach from any unseen explorable voxel are skipped without a ray.
+than the sensor's reach from any unseen explorable voxel are skipped without a ray, and a cell's
+gains are kept until a voxel within its reach is seen (a frame changes a few metres of a large
+scene, so most views are not integrated again).
 """
 
 from __future__ import annotations
@@ -104,6 +106,9 @@ class OmniscientSource(FrontierSource):
         self.directions = self.seen._pixel_directions(self.width, self.focal)
         self.refresh_every = int(positive_number(settings.get("refresh_every_steps", 1), "omniscient.refresh_every_steps"))
         self.cached, self.frames_since = None, 0
+        # gains of earlier scorings per grid cell, and the unseen voxels and camera height they saw
+        self._gains: dict[tuple[int, int], np.ndarray] = {}
+        self._scored_unseen, self._scored_z = None, None
         # The camera never sees the planning band right under itself: its lowest ray (half the
         # vertical field of view below the pitch) reaches the band's bottom this far out, and the
         # grid keeps planner.clearance_m from that unknown. Within the ring the explorer leaves
@@ -146,6 +151,34 @@ class OmniscientSource(FrontierSource):
         """(X, Y, Z) bool: explorable voxels no ground-truth ray has observed yet."""
         return self.voxels.explorable & ~self.seen.observed
 
+    def _view_gains(self, cells: np.ndarray, centres: np.ndarray, z: float, unseen: np.ndarray) -> np.ndarray:
+        """(N, yaw_count) float64 unseen volume (m^3) the views at the (N, 2) grid `cells` (world
+        `centres`, camera height `z`) see in each heading. A view's gain changes only when a voxel
+        within its rays' reach is seen: the gains of earlier calls are kept for cells no newly seen
+        column lies within :attr:`reach_cells` of, and only the others are integrated again (the
+        same values: each view's integral is its own)."""
+        if self._scored_unseen is not None and self._scored_z == z:
+            seen_since = (self._scored_unseen & ~unseen).any(axis=2)
+            if seen_since.any() and self._gains:
+                kept = np.array(list(self._gains))
+                for cell in kept[near_unseen(seen_since, kept, self.reach_cells)]:
+                    del self._gains[tuple(cell)]
+        else:
+            self._gains = {}
+        self._scored_unseen, self._scored_z = unseen, z
+        missing = [k for k, cell in enumerate(cells) if tuple(cell) not in self._gains]
+        if missing:
+            yaws = np.tile(self.yaws, len(missing))
+            poses = poses_from_headings(np.column_stack([np.repeat(centres[missing], len(self.yaws), axis=0),
+                                                         np.full(len(yaws), z)]), yaws, self.pitch)
+            fresh = np.zeros(len(poses))
+            frustum_volume(np.ascontiguousarray(poses[:, :3, 3]), np.ascontiguousarray(poses[:, :3, :3]),
+                           self.directions, self.max_depth, self.focal, self.voxels.origin, self.voxels.voxel_size,
+                           self.passable, unseen, fresh)
+            for k, gains in zip(missing, fresh.reshape(len(missing), len(self.yaws))):
+                self._gains[tuple(cells[k])] = gains
+        return np.array([self._gains[tuple(cell)] for cell in cells]).reshape(len(cells), len(self.yaws))
+
     def candidates(self, T_world_cam: np.ndarray) -> ViewCandidates:
         """The reachable lattice views from the robot at `T_world_cam` ((4, 4), world frame) whose
         best heading sees at least ``tracking.min_gain_m3``, the ``omniscient.max_candidates``
@@ -164,14 +197,7 @@ class OmniscientSource(FrontierSource):
         if not len(cells):
             return empty
         centres = grid.centres(cells)
-        yaws = np.tile(self.yaws, len(cells))
-        poses = poses_from_headings(np.column_stack([np.repeat(centres, len(self.yaws), axis=0),
-                                                     np.full(len(yaws), z)]), yaws, self.pitch)
-        gains = np.zeros(len(poses))
-        frustum_volume(np.ascontiguousarray(poses[:, :3, 3]), np.ascontiguousarray(poses[:, :3, :3]), self.directions,
-                       self.max_depth, self.focal, self.voxels.origin, self.voxels.voxel_size, self.passable, unseen,
-                       gains)
-        gains = gains.reshape(len(cells), len(self.yaws))
+        gains = self._view_gains(cells, centres, z, unseen)
         best = np.argmax(gains, axis=1)
         gain = gains[np.arange(len(cells)), best]
         keep = np.flatnonzero(gain >= float(self.conf.tracking.min_gain_m3))
