@@ -547,3 +547,35 @@ def test_other_inputs_get_map_and_camera_frames_and_a_tf(runs):
     poses = np.asarray(json.loads((folder / "poses.json").read_text())["T_world_cam"])
     last = transforms[-1].transform.translation
     assert np.allclose([last.x, last.y, last.z], poses[-1][:3, 3], atol=1e-5)
+
+
+@pytest.mark.slow
+def test_explore_writes_the_same_messages_from_the_simulator(plan_spec, tmp_path):
+    out = tmp_path / "explore"
+    assert main(["explore", "--scene", plan_spec, "--max-steps", "20", "--no-video", "--mcap", "--out", str(out)]) == 0
+    topics = _decoded(out / "exploration.mcap")
+    assert {topic: messages[0][1] for topic, messages in topics.items()} == {
+        "/frontiernet/frontiers": "visualization_msgs/msg/MarkerArray",
+        "/frontiernet/frontier_poses": "geometry_msgs/msg/PoseArray",
+        "/frontiernet/overlay": "sensor_msgs/msg/Image",
+        "/frontiernet/overlay/camera_info": "sensor_msgs/msg/CameraInfo",
+        "/frontiernet/map": "sensor_msgs/msg/PointCloud2",
+        "/tf": "tf2_msgs/msg/TFMessage"}
+    trajectory = json.loads((out / "trajectory.json").read_text())
+    iterations = [step["iteration"] for step in trajectory["steps"]]
+    fps = 10.0  # configs/explore.yaml run.video_fps: one message per iteration on the video's clock
+    for topic in ("/frontiernet/frontiers", "/frontiernet/frontier_poses", "/frontiernet/overlay", "/tf"):
+        assert [time for time, _, _ in topics[topic]] == [round(i / fps * 1e9) for i in iterations]
+    # the robot's pose as map -> camera, the last one where the run ended
+    transform = topics["/tf"][-1][2].transforms[0]
+    assert (transform.header.frame_id, transform.child_frame_id) == ("map", "camera")
+    end = np.asarray(trajectory["T_world_cam"][-1])
+    t, q = transform.transform.translation, transform.transform.rotation
+    assert np.allclose([t.x, t.y, t.z], end[:3, 3], atol=1e-6)
+    assert np.allclose(Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), end[:3, :3], atol=1e-6)
+    # the last markers are the frontiers alive at the end, with the tracker's ids, and the map its occupied voxels
+    alive = {frontier["id"] for frontier in json.loads((out / "frontiers.json").read_text())["frontiers"]}
+    markers = topics["/frontiernet/frontiers"][-1][2].markers
+    assert {m.id for m in markers if m.ns == "frontiers" and m.action == 0} == alive
+    maps = topics["/frontiernet/map"]
+    assert maps[-1][0] == topics["/tf"][-1][0] and maps[-1][2].header.frame_id == "map" and maps[-1][2].width > 100

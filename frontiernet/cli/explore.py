@@ -2,7 +2,8 @@
 
 Writes to ``--out``: ``metrics.json`` (coverage per step, Vox@25/50/100, path length,
 collisions, time per stage), ``trajectory.json``, ``frontiers.json``, ``coverage.png`` and
-``exploration.mp4`` (camera view with frontier pixels beside the robot's map from above).
+``exploration.mp4`` (camera view with frontier pixels beside the robot's map from above); with
+``--mcap`` ``exploration.mcap`` (ROS 2 messages, :mod:`frontiernet.sequences.ros_explore`).
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")
     parser.add_argument("--rerun", action="store_true", help="also write recording.rrd for the Rerun viewer "
                                                              "(needs rerun-sdk)")
+    parser.add_argument("--mcap", action="store_true",
+                        help="also write exploration.mcap: the frontiers, the camera overlay, the map and the "
+                             "camera's tf as ROS 2 messages for Foxglove and RViz (as frontiernet sequence writes)")
     options.config_file(parser, options.EXPLORE_CONFIG)
     options.output_folder(parser, force=True)
     options.config_overrides(parser, "planner.clearance_m=0.3 sim.camera.max_depth=5 depth.emulated.fill_depth=20 "
@@ -46,7 +50,8 @@ def summary_line(record: dict, out) -> str:
             f"{record['coverage']:.1%} after {record['steps']} steps (Vox@25/50/100 {vox['25']:.1%} / {vox['50']:.1%} "
             f"/ {vox['100']:.1%}), path {record['path_length_m']:.1f} m, {record['collisions']} collisions, "
             f"{timing['step_ms_without_motion']:.0f} ms per step; stopped: {record['stop_reason']}. "
-            f"Outputs in {out}/ (metrics.json, coverage.png{', exploration.mp4' if 'video' in record else ''}{', recording.rrd' if 'rerun' in record else ''})")
+            f"Outputs in {out}/ (metrics.json, coverage.png{', exploration.mp4' if 'video' in record else ''}"
+            f"{', recording.rrd' if 'rerun' in record else ''}{', exploration.mcap' if 'mcap' in record else ''})")
 
 
 def run(args) -> int:
@@ -55,8 +60,17 @@ def run(args) -> int:
 
     check_output_folder(args.out, args.force)
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # --map-free wins
+    mcap = []
+    if args.mcap:  # the ROS messages of frontiernet sequence (a layer above the explorer)
+        from pathlib import Path
+
+        from ..sequences.ros_explore import ExplorationMcap
+
+        mcap = [ExplorationMcap(Path(args.out) / "exploration.mcap")]
     record = explore(args.scene, args.out, args.config, overrides, method=args.method, model=args.model,
                      depth=args.depth, max_steps=args.max_steps, start=args.start, seed=args.seed,
-                     video=not args.no_video, rerun=args.rerun)
+                     video=not args.no_video, rerun=args.rerun, step_outputs=mcap)
+    if mcap:
+        record["mcap"] = str(mcap[0].path)
     print(summary_line(record, args.out))
     return 0

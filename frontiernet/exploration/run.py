@@ -94,7 +94,7 @@ def explore(scene: str, out: str | Path, user_file=None, overrides=(), **options
 
 def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
          max_steps: int | None = None, start: str | None = None, seed: int | None = None, video: bool = True,
-         rerun: bool = False, progress: bool = True) -> dict:
+         rerun: bool = False, progress: bool = True, step_outputs=()) -> dict:
     """Explore `scene` (a scene spec) and write the run's outputs to `out`; returns the metrics.
 
     Beside the outputs of :func:`~frontiernet.exploration.outputs.write_run`, ``config.yaml`` holds
@@ -114,6 +114,9 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         start: ``"x,y,z,yaw"`` (metres; yaw in degrees or with a ``rad`` suffix, see
             :func:`~frontiernet.geometry.parse_pose_text`; None: sampled with the seed).
         video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
+        step_outputs: more per-iteration outputs, ``on_step`` consumers of the explorer with a
+            ``close()`` called after the run (``explore --mcap``'s
+            :class:`~frontiernet.sequences.ros_explore.ExplorationMcap`, from a layer above).
     """
     from ..depth import make_depth_source
     from ..io import ensure_dir, write_text
@@ -152,7 +155,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
     pictures = StepPictures(voxels, conf, writer, budget, progress=progress)
-    on_step = (pictures,) if recorder is None else (pictures, recorder)
+    on_step = ((pictures,) if recorder is None else (pictures, recorder)) + tuple(step_outputs)
     explorer = Explorer(context, world.renderer, exploration_method, depth_source, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock
     try:
@@ -163,6 +166,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
             writer.close()
         if recorder is not None:
             recorder.close()
+        for output in step_outputs:
+            output.close()
     info = {"scene": scene, "method": method, "depth": depth_name, "planner_mode": str(conf.planner.mode),
             "model": str(model or "shipped") if exploration_method.uses_model else None, "seed": seed,
             "start": np.round(T_start, 5).tolist(), "setup_s": round(setup_s, 2),

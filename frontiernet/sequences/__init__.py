@@ -7,6 +7,8 @@
 * :mod:`.colmap`: COLMAP sparse models (:func:`read_colmap`).
 * :mod:`.rosbag`: robot recordings, rosbag1, rosbag2 and MCAP (:func:`~.rosbag.read_rosbag`, through
   ``rosbags``); :mod:`.ros_out` writes the run's frontiers back as ROS messages.
+* :mod:`.stream`: :class:`~.stream.FrontierStream`, the per-frame pipeline (``frontiernet sequence``
+  loops over it; a robot's node calls it per frame).
 * :func:`open_sequence`: any of them, the format detected from the folder's contents.
 """
 

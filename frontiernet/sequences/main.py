@@ -5,11 +5,12 @@
    folder of images that pycolmap reconstructs, or a robot recording: :mod:`.rosbag`), keep
    every ``frames.stride``-th frame.
 2. Pass 1 (:mod:`.perceive`): depth (the sensor's, or a monocular model's) and the network's 2D
-   outputs per frame, cached in ``<out>/cache`` (a re-run resumes).
+   outputs per frame (:meth:`FrontierStream.perceive <.stream.FrontierStream.perceive>`), cached
+   in ``<out>/cache`` (a re-run resumes).
 3. Metric scale for up-to-scale poses (COLMAP): the median ratio of the frames' metric depth to
    the reconstruction's depths (:func:`~frontiernet.sequences.sfm.metric_scale`).
 4. A Z-up world (:mod:`.gravity`), then pass 2 (:mod:`.tracking`): 3D frontiers tracked over a
-   map fused from the frames.
+   map fused from the frames (:meth:`FrontierStream.track <.stream.FrontierStream.track>` per frame).
 5. Outputs (:mod:`.outputs`): ``frontiers.json``, ``map.ply`` (fused coloured points),
    ``frontiers.ply`` (arrows coloured by gain), ``poses.json``, ``occupancy.npz``,
    ``overlay.mp4`` (per frame: frontier pixels and tracked frontiers | the map from above);
@@ -27,8 +28,9 @@ import numpy as np
 from ..errors import InputError
 from ..io import ensure_dir, write_json
 from .gravity import gravity_alignment
-from .outputs import PointCloudFusion, camera_picture, write_arrows, write_frontiers
+from .outputs import write_arrows, write_frontiers
 from .perceive import perceive_frames
+from .stream import FrontierStream, load_sequence_config
 from .tracking import track_frontiers
 
 
@@ -71,29 +73,18 @@ def metric_poses(sequence, cache_paths, conf) -> tuple[np.ndarray, float, list[s
 
 
 class _Pictures:
-    """Per-frame video pictures, ROS messages and the fused point cloud (pass 2's ``on_frame``)."""
+    """Per-frame video pictures and ROS messages (pass 2's ``on_frame``), of the run's `stream`."""
 
-    def __init__(self, sequence, conf, labels, writer, ros=None) -> None:
-        from ..exploration.drawing import gain_colour_map
-
-        self.sequence, self.conf, self.labels, self.writer, self.ros = sequence, conf, labels, writer, ros
-        self.colour = gain_colour_map(labels["bin_edges"], float(labels["bin_unit_m3"]))
-        threshold = conf.anchoring.frontier_threshold_px
-        self.threshold = float(labels["frontier_threshold_px"] if threshold is None else threshold)
-        self.cloud = PointCloudFusion(conf.outputs.point_voxel_m, conf.map.max_range_m, conf.outputs.point_stride_px)
+    def __init__(self, sequence, conf, stream, writer, ros=None) -> None:
+        self.sequence, self.conf, self.stream, self.writer, self.ros = sequence, conf, stream, writer, ros
         self.topdown = self.cells = None
 
     def __call__(self, index, arrays, tracked) -> None:
-        frame = self.sequence.frames[index]
-        T = tracked.poses[index]
-        full_depth = arrays["full_depth"].astype(np.float32)
-        self.cloud.add(full_depth, frame.rgb(), frame.camera.K, T)
         if self.writer is None and self.ros is None:
             return
-        frontiers = list(tracked.tracker)
-        camera = camera_picture(arrays, frontiers, T, self.labels, self.threshold, self.colour)
-        if self.ros is not None:
-            self.ros.add_frame(index, T, frontiers, camera, arrays["K"], self.cloud.cloud)
+        camera = self.stream.overlay()
+        if self.ros is not None:  # the map every outputs.ros.map_every_frames frames and at the last
+            self.ros.write(self.stream.ros_messages(map=True if index == len(self.sequence) - 1 else None))
         if self.writer is not None:
             self.writer.add(self.picture(index, camera, tracked))
 
@@ -119,7 +110,7 @@ class _Pictures:
         free, occupied = (cells[self.cells] for cells in occupancy.slice_2d(low, high))
         T = tracked.poses[index]
         top = self.topdown.draw(self.topdown.background(free, occupied), tracked.poses[:index + 1, :2, 3], T[:2, 3],
-                                yaw_of(T), frontiers, None, self.colour)
+                                yaw_of(T), frontiers, None, self.stream.colour)
         name = self.sequence.frames[index].name
         camera = label(camera, f"{name}: {len(frontiers)} frontiers")
         return cv2.hconcat([camera, top])
@@ -151,7 +142,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
 
     Args:
         conf: ``configs/sequence.yaml`` (with ``anchoring``, ``tracking`` and ``map`` from
-            ``configs/explore.yaml``; see :func:`load_sequence_config`).
+            ``configs/explore.yaml``; see :func:`~.stream.load_sequence_config`; None: the shipped one).
         format: a reader of :data:`~frontiernet.sequences.READERS` or ``auto``.
         depth: ``sensor`` (the sequence's depth files) or a depth source of ``configs/depth.yaml``.
         model: model file (None: the shipped model).
@@ -160,6 +151,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
     Bad input (an :class:`InputError`) leaves no empty `out` folder behind that was not there before.
     """
+    conf = load_sequence_config() if conf is None else conf
     out = Path(out)
     existed = out.exists()
     try:
@@ -171,19 +163,10 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         raise
 
 
-def _ros_outputs(sequence, out: Path, conf, gain_colour, T_aligned_input, scale: float, mcap: bool, rosbag2: bool):
-    """The :class:`~.ros_out.RosOutputs` of a run (frames without stamps 1 / ``outputs.video_fps`` apart)."""
-    from .ros_out import RosOutputs, output_frames
-
-    frames = output_frames(sequence, T_aligned_input, scale, 1.0 / float(conf.outputs.video_fps))
-    return RosOutputs(out, frames, gain_colour, conf.outputs.ros, len(sequence), mcap=mcap, rosbag2=rosbag2)
-
-
 def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, progress, recording, mcap,
          rosbag2) -> dict:
-    from ..depth import make_depth_source
-    from ..model import open_runtime
     from . import detect_format, open_sequence
+    from .ros_out import RosWriter, output_frames
 
     started = time.perf_counter()
     out = ensure_dir(out)
@@ -197,37 +180,36 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
         missing = next(frame.name for frame in sequence if frame.depth_path is None)
         raise InputError(f"{input_path}: frame {missing} has no depth file: choose a depth model with --depth "
                          f"(depth_anything_v2 or metric3d_v2)")
-    runtime = open_runtime(model, threads=conf.network.threads)
-    depth_source = None if depth == "sensor" else make_depth_source(depth, conf.depth)
-    cache_paths = perceive_frames(sequence, runtime, depth_source, out / "cache", model_identity(model),
-                                  conf.network, progress)
+    stream = FrontierStream(conf=conf, model=model, depth=depth)
+    cache_paths = perceive_frames(sequence, stream, out / "cache", model_identity(model), progress)
     perceived = time.perf_counter()
     poses, scale, notes = metric_poses(sequence, cache_paths, conf)
     T_aligned_input = gravity_alignment(poses, str(conf.gravity))
     poses = T_aligned_input @ poses
-    labels = dict(runtime.labels)
+    # the ROS outputs' frames and stamps (frames without stamps 1 / outputs.video_fps apart)
+    stream.ros_frames = output_frames(sequence, T_aligned_input, scale, 1.0 / float(conf.outputs.video_fps))
     writer = None
     if video:
         from ..exploration.outputs import VideoWriter
 
         writer = VideoWriter(out / "overlay.mp4", float(conf.outputs.video_fps))
-    pictures = _Pictures(sequence, conf, labels, writer)
-    if mcap or rosbag2:
-        pictures.ros = _ros_outputs(sequence, out, conf, pictures.colour, T_aligned_input, scale, mcap, rosbag2)
+    ros = RosWriter(out, mcap=mcap, rosbag2=rosbag2) if mcap or rosbag2 else None
+    pictures = _Pictures(sequence, conf, stream, writer, ros)
     try:
-        tracked = track_frontiers(sequence, poses, cache_paths, conf, labels, on_frame=pictures, progress=progress,
-                                  monocular=depth_source is not None and depth_source.flying_pixels)
+        tracked = track_frontiers(sequence, poses, cache_paths, stream, on_frame=pictures, progress=progress,
+                                  stamps_ns=stream.ros_frames.stamps_ns)
     except BaseException:
-        if pictures.ros is not None:
-            pictures.ros.abort()
+        if ros is not None:
+            ros.abort()
         raise
-    ros_outputs = [] if pictures.ros is None else [path.name for path in pictures.ros.close()]
+    ros_outputs = [] if ros is None else [path.name for path in ros.close()]
     names = [frame.name for frame in sequence]
     summary = {
         "input": str(input_path), "format": sequence.format, "frames": len(sequence), "depth": depth,
         "model": str(model or "shipped"), "world_frame": "gravity-aligned (+z up), metres, first camera at the origin",
         "T_world_input": np.round(T_aligned_input, 6).tolist(), "scale_to_metres": scale,
         "frontiers_alive": len(tracked.tracker), "frontiers_removed": dict(tracked.tracker.removed),
+        "map_bounds_m": stream.bounds.tolist(), "view_z_m": stream.view_z,  # FrontierStream.start's, to repeat it
         "notes": [*sequence.notes, *notes],
         "seconds": {"reading_and_perception": round(perceived - started, 2),
                     **{stage: round(value, 2) for stage, value in tracked.seconds.items()}, "total": None},
@@ -235,8 +217,8 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
     write_frontiers(out / "frontiers.json", tracked, names, {key: summary[key] for key in
                                                               ("world_frame", "T_world_input", "scale_to_metres")})
     write_json(out / "poses.json", {"frames": names, "T_world_cam": np.round(poses, 6).tolist()})
-    pictures.cloud.write(out / "map.ply")
-    write_arrows(out / "frontiers.ply", list(tracked.tracker), pictures.colour)
+    stream.cloud.write(out / "map.ply")
+    write_arrows(out / "frontiers.ply", list(tracked.tracker), stream.colour)
     tracked.map.save(out / "occupancy.npz")
     if writer is not None:
         writer.close()
@@ -245,19 +227,3 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
     summary["seconds"]["total"] = round(time.perf_counter() - started, 2)
     write_json(out / "summary.json", summary)
     return summary
-
-
-def load_sequence_config(user_file=None, overrides=()):
-    """``configs/sequence.yaml`` with the ``anchoring``, ``tracking`` and ``map`` sections of
-    ``configs/explore.yaml`` and a ``depth`` section (``configs/depth.yaml`` less its ``source``:
-    the sequence's is ``--depth``) underneath (sequence.yaml's keys win), then a user file and
-    overrides."""
-    from omegaconf import OmegaConf
-
-    from ..config import load_config, merge_user
-    from ..depth import source_options
-
-    explore = load_config("explore")
-    base = OmegaConf.create({**{key: explore[key] for key in ("anchoring", "tracking", "map")},
-                             "depth": source_options()})
-    return merge_user(OmegaConf.merge(base, load_config("sequence")), user_file, overrides)

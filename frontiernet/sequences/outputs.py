@@ -54,6 +54,11 @@ class PointCloudFusion:
         frame.colors = o3d.utility.Vector3dVector(colours.astype(np.float64) / 255.0)
         self.cloud = (self.cloud + frame).voxel_down_sample(self.voxel_m)
 
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(points (N, 3) float64 world metres, colours (N, 3) uint8) of the cloud so far."""
+        colours = np.clip(np.asarray(self.cloud.colors) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        return np.asarray(self.cloud.points, np.float64), colours
+
     def write(self, path: Path) -> Path:
         import open3d as o3d
 

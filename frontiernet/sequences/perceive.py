@@ -26,19 +26,18 @@ from ..errors import InputError
 from ..io import ensure_dir, write_bytes
 
 
-def frame_depth(frame, rgb: np.ndarray, depth_source) -> np.ndarray:
-    """(H, W) float32 metres, NaN invalid: the frame's sensor depth (`depth_source` None) or a
-    depth source's estimate (given the sensor depth as its ground truth when it needs one)."""
-    sensor = frame.depth()
+def image_depth(rgb: np.ndarray, sensor: np.ndarray | None, K: np.ndarray, depth_source, name: str) -> np.ndarray:
+    """(H, W) float32 metres, NaN invalid: the sensor depth `sensor` (`depth_source` None) or a
+    depth source's estimate (given the sensor depth as its ground truth when it needs one);
+    `name` names the frame in errors."""
     if depth_source is None:
         if sensor is None:
-            raise InputError(f"frame {frame.name} has no depth file: choose a depth model with --depth "
+            raise InputError(f"frame {name} has no depth file: choose a depth model with --depth "
                              f"(depth_anything_v2 or metric3d_v2)")
         return sensor
     if depth_source.requires_ground_truth and sensor is None:
-        raise InputError(f"depth source '{depth_source.name}' degrades a sensor depth, but frame {frame.name} "
-                         f"has none")
-    return depth_source.estimate(rgb, frame.camera.K, sensor)
+        raise InputError(f"depth source '{depth_source.name}' degrades a sensor depth, but frame {name} has none")
+    return depth_source.estimate(rgb, K, sensor)
 
 
 def cache_key(frame, model_name: str, depth_name: str, conf) -> str:
@@ -69,8 +68,11 @@ def cached_full_depth(path: Path) -> np.ndarray:
         return data["full_depth"].astype(np.float32)
 
 
-def perceive_frame(frame, runtime, depth_source, conf) -> dict:
-    """Depth and network outputs of one frame (the arrays of a cache file, see the module doc).
+def perceive_image(rgb: np.ndarray, sensor: np.ndarray | None, K: np.ndarray, runtime, depth_source, conf,
+                  name: str) -> dict:
+    """Depth and network outputs of one image (the arrays of a cache file, see the module doc):
+    `rgb` (H, W, 3) uint8, `sensor` (H, W) float32 metres (NaN invalid) or None, `K` its (3, 3)
+    intrinsics.
 
     The image is resized so its short side is ``conf.size`` px (null: the model's) and, with
     ``conf.crop``, centre-cropped to a square as the public demo does (without: the network sees
@@ -78,38 +80,38 @@ def perceive_frame(frame, runtime, depth_source, conf) -> dict:
     from the nearest valid pixel first (the map keeps them as no return)."""
     from ..model.predictor import beyond_range_invalid, fill_invalid_nearest
 
-    rgb = frame.rgb()
-    depth = frame_depth(frame, rgb, depth_source)
+    depth = image_depth(rgb, sensor, K, depth_source, name)
     network_depth = fill_invalid_nearest(depth) if conf["fill_invalid_depth"] else depth
     network_depth = beyond_range_invalid(network_depth, runtime.conf["input"]["max_depth_m"])
-    result, K = runtime.predict_frame(rgb, network_depth, frame.camera.K, size=conf["size"] or None,
-                                      crop=bool(conf["crop"]))
-    return {"rgb": result["rgb"], "depth": result["depth"], "K": K,
+    result, K_network = runtime.predict_frame(rgb, network_depth, K, size=conf["size"] or None,
+                                              crop=bool(conf["crop"]))
+    return {"rgb": result["rgb"], "depth": result["depth"], "K": K_network,
             "distance_field": result["distance_field"].astype(np.float16),
             "gain_class": result["gain_class"].astype(np.uint8), "full_depth": depth.astype(np.float16)}
 
 
-def perceive_frames(sequence, runtime, depth_source, cache_dir: Path, model_name: str, conf, progress: bool = True
-                    ) -> list[Path]:
-    """Run :func:`perceive_frame` on every frame not cached yet; returns the cache files in order.
+def perceive_frame(frame, stream) -> dict:
+    """Pass 1 of one sequence frame: :meth:`FrontierStream.perceive <.stream.FrontierStream.perceive>`
+    of its undistorted image, sensor depth (or None) and intrinsics."""
+    return stream.perceive(frame.rgb(), frame.depth(), frame.camera.K, name=frame.name)
 
-    Args:
-        conf: the ``network`` section of ``configs/sequence.yaml`` (``size``, ``crop``,
-            ``fill_invalid_depth``; see :func:`perceive_frame`).
-    """
+
+def perceive_frames(sequence, stream, cache_dir: Path, model_name: str, progress: bool = True) -> list[Path]:
+    """Run :func:`perceive_frame` with `stream` (a :class:`~.stream.FrontierStream`) on every frame
+    not cached yet; returns the cache files in order."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     cache_dir = ensure_dir(cache_dir)
-    depth_name = "sensor" if depth_source is None else depth_source.name
+    depth_name = "sensor" if stream.depth_source is None else stream.depth_source.name
     paths = []
     columns = (TextColumn("perceiving"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
     with Progress(*columns, transient=True, disable=not progress) as bar:
         task = bar.add_task("frames", total=len(sequence))
         for frame in sequence:
             path = cache_dir / f"{frame.index:05d}.npz"
-            key = cache_key(frame, model_name, depth_name, conf)
+            key = cache_key(frame, model_name, depth_name, stream.conf.network)
             if load_cached(path, key) is None:
-                arrays = perceive_frame(frame, runtime, depth_source, conf)
+                arrays = perceive_frame(frame, stream)
                 buffer = io.BytesIO()
                 np.savez_compressed(buffer, key=np.array(key), **arrays)
                 write_bytes(path, buffer.getvalue())

@@ -20,6 +20,9 @@ markers are deleted. The overlay is the network's input with its frontier pixels
 frontiers in view (the video's left half). The map is the fused point cloud so far (x, y, z,
 rgb), every ``outputs.ros.map_every_frames`` frames and at the last one.
 
+:class:`RosMessages` builds a frame's messages (for a run, for a :class:`~.stream.FrontierStream`'s
+``ros_messages`` and for ``explore --mcap``, :mod:`.ros_explore`), :class:`RosWriter` writes them.
+
 Frames and stamps (:func:`output_frames`): a ROS recording's own fixed frame (the poses' frame:
 tf root or pose topic frame), its camera's optical frame and the colour images' stamps, so the
 output plays beside the recording; other inputs get ``map`` (the run's gravity-aligned world)
@@ -31,6 +34,7 @@ from __future__ import annotations
 import os
 import shutil
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +57,7 @@ class OutputFrames:
     Attributes:
         fixed_frame, camera_frame: frame ids of the 3D messages and of the overlay.
         T_out_world: (4, 4) float64 from the run's world (gravity-aligned, metres) to the fixed frame.
-        stamps_ns: (N,) int64 stamp per frame.
+        stamps_ns: (N,) int64 stamp per frame of a sequence (None: each frame brings its own).
         publish_tf: write ``fixed_frame -> camera_frame`` on ``/tf`` (not for ROS recordings,
             whose own tf places the camera).
     """
@@ -61,8 +65,36 @@ class OutputFrames:
     fixed_frame: str
     camera_frame: str
     T_out_world: np.ndarray
-    stamps_ns: np.ndarray
+    stamps_ns: np.ndarray | None
     publish_tf: bool
+
+
+@dataclass
+class RosMessage:
+    """One output message, ready to publish or to write.
+
+    Attributes:
+        topic, msgtype: e.g. ``/frontiernet/frontiers``, ``visualization_msgs/msg/MarkerArray``.
+        stamp_ns: its header's stamp (and log time), integer nanoseconds.
+        message: the message object (``rosbags``' types, ROS 2 Humble definitions; the fields
+            are ROS's).
+        data: its CDR serialisation with the 4-byte encapsulation header: what rosbag2 and MCAP
+            store and what ``rclpy``'s ``Publisher.publish(bytes)`` sends as it is.
+    """
+
+    topic: str
+    msgtype: str
+    stamp_ns: int
+    message: object
+    data: bytes
+
+
+@lru_cache(maxsize=1)
+def typestore():
+    """``rosbags``' ROS 2 Humble type store (message classes, CDR, message definitions)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)
 
 
 def output_frames(sequence, T_aligned_input: np.ndarray, scale: float, frame_period_s: float) -> OutputFrames:
@@ -84,10 +116,10 @@ def output_frames(sequence, T_aligned_input: np.ndarray, scale: float, frame_per
 class _McapSink:
     """ROS 2 messages (CDR, ``ros2msg`` schemas) into one MCAP file, zstd chunks, streamed."""
 
-    def __init__(self, path: Path, typestore) -> None:
+    def __init__(self, path: Path, store) -> None:
         from mcap.writer import CompressionType, Writer
 
-        self.path, self.partial, self.typestore = path, path.with_name(f".{path.name}.partial"), typestore
+        self.path, self.partial, self.typestore = path, path.with_name(f".{path.name}.partial"), store
         self.stream = open(self.partial, "wb")
         self.writer = Writer(self.stream, compression=CompressionType.ZSTD)
         self.writer.start(profile="ros2", library="frontiernet")
@@ -114,10 +146,10 @@ class _McapSink:
 class _Rosbag2Sink:
     """The same messages into a rosbag2 folder (sqlite3 storage, ``ros2 bag play`` reads it)."""
 
-    def __init__(self, path: Path, typestore) -> None:
+    def __init__(self, path: Path, store) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
-        self.path, self.partial, self.typestore = path, path.with_name(f".{path.name}.partial"), typestore
+        self.path, self.partial, self.typestore = path, path.with_name(f".{path.name}.partial"), store
         shutil.rmtree(self.partial, ignore_errors=True)
         self.writer = Writer(self.partial, version=8, storage_plugin=StoragePlugin.SQLITE3)
         self.writer.open()
@@ -141,35 +173,21 @@ class _Rosbag2Sink:
         shutil.rmtree(self.partial, ignore_errors=True)
 
 
-class RosOutputs:
-    """Writes the per-frame messages (module doc) of a run to ``frontiers.mcap`` (with `mcap`) and
-    the folder ``rosbag2/`` (with `rosbag2`) in `out`; :meth:`close` puts them in place,
-    :meth:`abort` removes what was written.
+class RosWriter:
+    """Writes :class:`RosMessage` lists to an MCAP file ``<out>/<name>`` (with `mcap`) and the
+    folder ``<out>/rosbag2/`` (with `rosbag2`), streamed; :meth:`close` puts them in place,
+    :meth:`abort` removes what was written."""
 
-    Args:
-        frames: :func:`output_frames`; gain_colour: ``gain_m3 -> (r, g, b)`` 0-255 (the overlay's).
-        conf: the ``outputs.ros`` section of ``configs/sequence.yaml``; count: the frames in the run.
-    """
-
-    def __init__(self, out: Path, frames: OutputFrames, gain_colour, conf, count: int, *, mcap: bool = True,
-                 rosbag2: bool = False) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
-        self.typestore = get_typestore(Stores.ROS2_HUMBLE)
-        self.types = self.typestore.types
-        self.frames, self.colour, self.count = frames, gain_colour, int(count)
-        self.every = max(1, int(conf.map_every_frames))
-        self.arrow_m = float(conf.arrow_length_m)
+    def __init__(self, out: Path, *, mcap: bool = True, rosbag2: bool = False, name: str = "frontiers.mcap") -> None:
         out = ensure_dir(out)
-        self.sinks = [_McapSink(out / "frontiers.mcap", self.typestore)] if mcap else []
+        self.sinks = [_McapSink(out / name, typestore())] if mcap else []
         if rosbag2:
-            self.sinks.append(_Rosbag2Sink(out / "rosbag2", self.typestore))
-        self.alive: set[int] = set()
+            self.sinks.append(_Rosbag2Sink(out / "rosbag2", typestore()))
 
-    def _write(self, topic: str, stamp: int, message) -> None:
-        data = bytes(self.typestore.serialize_cdr(message, TOPICS[topic]))
-        for sink in self.sinks:
-            sink.write(topic, TOPICS[topic], stamp, data)
+    def write(self, messages) -> None:
+        for message in messages:
+            for sink in self.sinks:
+                sink.write(message.topic, message.msgtype, message.stamp_ns, message.data)
 
     def close(self) -> list[Path]:
         for sink in self.sinks:
@@ -179,6 +197,56 @@ class RosOutputs:
     def abort(self) -> None:
         for sink in self.sinks:
             sink.abort()
+
+
+class RosMessages:
+    """Builds the messages of one frame (module doc) for a run or a :class:`~.stream.FrontierStream`.
+
+    It remembers the frontier ids whose markers it last sent, so that the markers of a dropped
+    frontier are deleted in the next message.
+
+    Args:
+        frames: where the outputs sit (:func:`output_frames`; its ``stamps_ns`` are not read here).
+        gain_colour: ``gain_m3 -> (r, g, b)`` 0-255 (the overlay's).
+        arrow_length_m: length of the frontier arrows (``outputs.ros.arrow_length_m``).
+    """
+
+    def __init__(self, frames: OutputFrames, gain_colour, arrow_length_m: float = 0.5) -> None:
+        self.typestore = typestore()
+        self.types = self.typestore.types
+        self.frames, self.colour, self.arrow_m = frames, gain_colour, float(arrow_length_m)
+        self.alive: set[int] = set()
+
+    def frame(self, stamp: int, T_world_cam: np.ndarray, frontiers, overlay: np.ndarray, K_overlay: np.ndarray,
+              cloud=None) -> list[RosMessage]:
+        """The messages of one frame stamped `stamp` (ns): its pose ``T_world_cam`` (run world),
+        the `frontiers` tracked after it, its `overlay` (h, w, 3) uint8 with intrinsics
+        `K_overlay`, and with `cloud` = (points (N, 3) run world metres, colours (N, 3) uint8) the
+        map; in the order tf (when ``publish_tf``), markers, poses, overlay, camera info, map."""
+        stamp = int(stamp)
+        fixed = self._header(stamp, self.frames.fixed_frame)
+        camera = self._header(stamp, self.frames.camera_frame)
+        frontiers = list(frontiers)
+        placed = self.frontier_poses(frontiers)
+        messages = [(TF_TOPIC, self._tf(fixed, T_world_cam))] if self.frames.publish_tf else []
+        messages += [(MARKERS, self._markers(fixed, frontiers, placed)),
+                     (POSES, self.types["geometry_msgs/msg/PoseArray"](
+                         header=fixed, poses=[self._pose(position, R) for position, R in placed])),
+                     (OVERLAY, self._image(camera, overlay)),
+                     (OVERLAY_INFO, self._camera_info(camera, K_overlay, overlay.shape[1], overlay.shape[0]))]
+        messages = [self._message(topic, stamp, message) for topic, message in messages]
+        return messages if cloud is None else [*messages, self.map_message(stamp, *cloud)]
+
+    def map_message(self, stamp: int, points: np.ndarray, colours: np.ndarray) -> RosMessage:
+        """The map message: (N, 3) run-world `points` (metres) and their (N, 3) uint8 `colours`."""
+        T = self.frames.T_out_world
+        points = np.asarray(points, np.float64).reshape(-1, 3) @ T[:3, :3].T + T[:3, 3]
+        header = self._header(int(stamp), self.frames.fixed_frame)
+        return self._message(MAP, int(stamp), self._cloud(header, points, np.asarray(colours, np.uint8).reshape(-1, 3)))
+
+    def _message(self, topic: str, stamp: int, message) -> RosMessage:
+        data = bytes(self.typestore.serialize_cdr(message, TOPICS[topic]))
+        return RosMessage(topic, TOPICS[topic], stamp, message, data)
 
     # ------------------------------------------------------------------ messages
 
@@ -277,26 +345,3 @@ class RosOutputs:
         stamped = t["geometry_msgs/msg/TransformStamped"](header=header, child_frame_id=self.frames.camera_frame,
                                                           transform=transform)
         return t["tf2_msgs/msg/TFMessage"](transforms=[stamped])
-
-    def add_frame(self, index: int, T_world_cam: np.ndarray, frontiers, overlay: np.ndarray, K_overlay: np.ndarray,
-                  cloud=None) -> None:
-        """The messages of frame `index`: `frontiers` tracked after it, its `overlay` (h, w, 3)
-        uint8 with intrinsics `K_overlay`, its pose (run world), and `cloud` (an Open3D point
-        cloud in the run's world, written every ``map_every_frames`` frames and at the last)."""
-        stamp = int(self.frames.stamps_ns[index])
-        fixed = self._header(stamp, self.frames.fixed_frame)
-        camera = self._header(stamp, self.frames.camera_frame)
-        frontiers = list(frontiers)
-        placed = self.frontier_poses(frontiers)
-        if self.frames.publish_tf:
-            self._write(TF_TOPIC, stamp, self._tf(fixed, T_world_cam))
-        self._write(MARKERS, stamp, self._markers(fixed, frontiers, placed))
-        self._write(POSES, stamp, self.types["geometry_msgs/msg/PoseArray"](
-            header=fixed, poses=[self._pose(position, R) for position, R in placed]))
-        self._write(OVERLAY, stamp, self._image(camera, overlay))
-        self._write(OVERLAY_INFO, stamp, self._camera_info(camera, K_overlay, overlay.shape[1], overlay.shape[0]))
-        if cloud is not None and (index % self.every == 0 or index == self.count - 1):
-            T = self.frames.T_out_world
-            points = np.asarray(cloud.points, np.float64) @ T[:3, :3].T + T[:3, 3]
-            colours = np.clip(np.asarray(cloud.colors) * 255.0 + 0.5, 0, 255).astype(np.uint8)
-            self._write(MAP, stamp, self._cloud(fixed, points, colours))

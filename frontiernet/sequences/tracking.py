@@ -1,12 +1,10 @@
 """Pass 2 of ``frontiernet sequence``: the frames' frontiers lifted to 3D and tracked across the
-sequence with the online pipeline's bookkeeping (paper III-E, III-F).
+sequence with the online pipeline's bookkeeping (paper III-E, III-F), a loop of
+:meth:`FrontierStream.track <.stream.FrontierStream.track>` over the cached frames.
 
-Per frame, in order: anchor the cached network outputs (:func:`~frontiernet.frontiers.anchoring.
-anchor_prediction`), integrate the frame's depth into an occupancy map fused from the frames so
-far, fold the frontiers into a :class:`~frontiernet.frontiers.FrontierTracker` (merge), reduce
-their gains by the known volume the map shows around them, drop the invalidated ones (low gain,
-looked at from a frame's pose, inside occupied space). Poses are gravity-aligned and scaled to
-metres first (:mod:`.gravity`). The tracker's gain views sit at the median camera height.
+The map spans what all frames see and the tracker's gain views sit at the median camera height
+(an offline run knows every pose in advance; a robot's stream takes a box around its first
+pose). Poses are gravity-aligned and scaled to metres first (:mod:`.gravity`).
 """
 
 from __future__ import annotations
@@ -16,7 +14,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..frontiers import FrontierTracker
-from ..frontiers.anchoring import anchor_prediction
 from ..mapping import OccupancyMap
 from ..timing import Stopwatch
 from .perceive import cached_full_depth, load_cached
@@ -43,7 +40,7 @@ class TrackedSequence:
     per_frame: list = field(default_factory=list)
     view_z: float = 0.0
     seen_bounds: np.ndarray | None = None
-    seconds: dict = field(default_factory=dict)  # per stage (anchoring, map, tracking, point_cloud_and_video), all frames
+    seconds: dict = field(default_factory=dict)  # per stage over all frames (FrontierStream.seconds, pictures)
 
 
 def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, stride_px: int = 8) -> np.ndarray:
@@ -60,53 +57,39 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
     return np.stack([points.min(0), points.max(0)])
 
 
-def track_frontiers(sequence, poses: np.ndarray, cache_paths, conf, labels: dict, on_frame=None,
-                    progress: bool = True, monocular: bool = False) -> TrackedSequence:
-    """Run pass 2 over the cached frames.
+def track_frontiers(sequence, poses: np.ndarray, cache_paths, stream, on_frame=None, progress: bool = True,
+                    stamps_ns=None) -> TrackedSequence:
+    """Run pass 2 over the cached frames with `stream`.
 
     Args:
         sequence: the :class:`~frontiernet.sequences.Sequence` (names and intrinsics).
         poses: (N, 4, 4) float64 aligned, metric ``T_world_cam`` per frame.
         cache_paths: pass 1's cache file per frame (:mod:`.perceive`).
-        conf: the whole sequence config (sections ``anchoring``, ``tracking``, ``map``).
-        labels: the model's label encoding.
-        on_frame: optional ``callback(index, cached arrays, tracked)`` after each frame (video).
-        monocular: the depth is a depth model's (its flying pixels,
-            :attr:`~frontiernet.depth.base.DepthSource.flying_pixels`): the map integrates it as
-            such (``OccupancyMap.integrate``'s `monocular`: ``map.depth_edge_rtol``, ``map.monocular_*``).
+        stream: the run's :class:`~.stream.FrontierStream` (its config: sections ``anchoring``,
+            ``tracking``, ``map``, ``bounds_margin_m``); restarted here over the frames' map.
+        on_frame: optional ``callback(index, cached arrays, tracked)`` after each frame (video, ROS
+            messages; timed as ``pictures``).
+        stamps_ns: (N,) int stamps of the frames (the ROS outputs'), or None.
     """
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
+    conf = stream.conf
     view_z = float(np.median(poses[:, 2, 3]))
     seen = seen_bounds(sequence, poses, cache_paths, float(conf.map.max_range_m))
     margin = float(conf.bounds_margin_m)
-    occupancy = OccupancyMap.from_bounds(seen + np.array([[-margin], [margin]]), conf.map)
-    tracker = FrontierTracker(conf.tracking, view_z=view_z)
-    result = TrackedSequence(poses, tracker, occupancy, view_z=view_z, seen_bounds=seen)
-    rng = np.random.default_rng(int(conf.seed))
+    stream.start(seen + np.array([[-margin], [margin]]), view_z)
+    result = TrackedSequence(poses, stream.tracker, stream.map, stream.per_frame, view_z=view_z, seen_bounds=seen,
+                             seconds=stream.seconds)
     columns = (TextColumn("tracking"), BarColumn(), MofNCompleteColumn())
     stopwatch = Stopwatch(result.seconds)  # all frames' seconds per stage
     with Progress(*columns, transient=True, disable=not progress) as bar:
         task = bar.add_task("frames", total=len(poses))
         for index, (frame, path) in enumerate(zip(sequence, cache_paths)):
             arrays = load_cached(path)
-            T = poses[index]
-            with stopwatch("anchoring"):
-                observations = anchor_prediction(arrays["distance_field"].astype(np.float32), arrays["gain_class"],
-                                                 arrays["depth"], arrays["K"], T, conf.anchoring, labels, rng)
-            with stopwatch("map"):
-                occupancy.integrate(arrays["full_depth"].astype(np.float32), frame.camera.K, T, monocular)
-            with stopwatch("tracking"):
-                ids = tracker.add(observations, index, index)
-                tracker.update_gains(occupancy)
-                removed_before = len(tracker.removed_log)
-                tracker.prune(poses[:index + 1], occupancy)
-                for record in tracker.removed_log[removed_before:]:
-                    record["removed_frame"] = index
-                result.per_frame.append({"frame": frame.name, "observations": len(observations),
-                                         "frontier_ids": [i for i in ids if i is not None], "alive": len(tracker)})
+            stream.track(arrays, poses[index], frame.camera.K, rgb=frame.rgb() if stream.point_cloud else None,
+                         name=frame.name, stamp_ns=None if stamps_ns is None else int(stamps_ns[index]))
             if on_frame is not None:
-                with stopwatch("point_cloud_and_video"):
+                with stopwatch("pictures"):
                     on_frame(index, arrays, result)
             bar.advance(task)
     return result
