@@ -19,6 +19,9 @@ DIR=${2:?usage: scripts/pinned.sh COMMIT DIR [frontiernet arguments ...]}
 shift 2
 PYTHON=${PYTHON:-$REPO/.venv/bin/python}
 SHA=$(git -C "$REPO" rev-parse --verify --quiet "$COMMIT^{commit}") || { echo "pinned.sh: $COMMIT is not a commit of $REPO" >&2; exit 2; }
+# one preparation at a time: two commands started together on a new DIR would both make it
+exec 9>"$DIR.lock"
+flock 9
 if [ ! -e "$DIR" ]; then
     git -C "$REPO" worktree add --detach --quiet "$DIR" "$SHA"
     cp -r "$DIR/configs" "$DIR/frontiernet/configs"
@@ -40,6 +43,7 @@ if project.get("scripts"):
     for group, entries in groups.items()))
 EOF
 fi
+flock -u 9
 HELD=$(git -C "$DIR" rev-parse HEAD 2>/dev/null) || { echo "pinned.sh: $DIR is not a worktree (remove it or pick another DIR)" >&2; exit 2; }
 if [ "$HELD" != "$SHA" ]; then
     echo "pinned.sh: $DIR holds ${HELD:0:7}, not ${SHA:0:7} (remove it with git worktree remove, or pick another DIR)" >&2

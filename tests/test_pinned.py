@@ -55,3 +55,14 @@ def test_bad_commit_or_worktree_is_one_line_exit_2(worktree):
     assert _pinned("HEAD", str(worktree)).returncode == 0
     other = _pinned(_git("rev-parse", "HEAD~1"), str(worktree))
     assert other.returncode == 2 and other.stderr.count("\n") == 1 and str(worktree) in other.stderr
+
+
+def test_two_commands_started_together_on_a_new_worktree_both_run(worktree):
+    """Two benchmarks started at once on the same new DIR: one prepares it, the other waits for it."""
+    head = _git("rev-parse", "HEAD")
+    env = {"PATH": "/usr/bin:/bin", "PYTHON": sys.executable, "NICE": "0"}
+    both = [subprocess.Popen([str(SCRIPT), head, str(worktree)], cwd=REPO_ROOT, env=env, stderr=subprocess.PIPE,
+                             text=True) for _ in range(2)]
+    results = [(process.wait(timeout=300), process.stderr.read()) for process in both]
+    assert [code for code, _ in results] == [0, 0], results
+    assert (worktree / "frontiernet" / "configs" / "explore.yaml").is_file()
