@@ -195,7 +195,7 @@ def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, 
 @pytest.mark.parametrize("args, message", [
     (["--methods", "classic,no-such-method"], "unknown method 'no-such-method'; valid: classic"),
     (["--max-steps", "3"], "at least 4 steps"),
-    (["--starts", "0"], "at least 1"),
+    (["--starts", "0"], "--starts must be an integer in [1, 1000], got 0"),
     (["--backend", "slurm"], "--backend must be one of local, ray"),
     (["--scenes", "procedural:9-2"], "seed range must satisfy 0 <= FIRST <= LAST"),
     (["--model", "no/such/model.onnx"], "no/such/model.onnx: model file not found"),  # not a failed run each
@@ -258,15 +258,18 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
         # (docs/benchmark/published/resume.sh adds --set planner.gain_exponent=1: the plan ran with 1,
         # the default since 2026-11-27 is 2)
-        overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", *overrides)
+        overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", "planner.approach_radius_m=0",
+                     *overrides)
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 
     assert resumable_plan(published, protocol())["start_poses"] == stored["start_poses"]
     # today's default exponent is a change of settings for this plan: refused, naming the key
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
-        resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(None, ["planner.forgive_before_stop=false"]), resolve=True)})
-    assert "--set planner.forgive_before_stop=false $SETTINGS" in (published / "resume.sh").read_text()
+        resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(
+            None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0"]), resolve=True)})
+    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 $SETTINGS" in \
+        (published / "resume.sh").read_text()
     assert "SETTINGS=${SETTINGS-planner.gain_exponent=1}" in (published / "resume.sh").read_text()
     with pytest.raises(InputError, match=r"\(conf.planner.approach_radius_m: 0.0 in the plan, 1.5 now\)"):
         resumable_plan(published, protocol("planner.approach_radius_m=1.5"))
@@ -321,7 +324,8 @@ def test_the_two_regime_plan_resumes_with_todays_defaults():
     from frontiernet.exploration.run import load_run_config
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
-        overrides = ("planner.forgive_before_stop=false", *overrides)  # published/resume.sh sets it for all
+        overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", *overrides)  # published/
+        # resume.sh sets both for all
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 

@@ -14,7 +14,8 @@
 # SETTINGS (`--set` KEY=VALUE pairs; unset: planner.gain_exponent=1, the exponent this folder's plan
 # ran with before 2 became the default on 2026-11-27; a new folder sets it empty: today's defaults).
 # Every folder of this fixed-budget protocol ran before planner.forgive_before_stop existed (on
-# since 2026-12-05): its runs stop as they did, so the command always sets it false.
+# since 2026-12-05) and with planner.approach_radius_m 0 (1.5 since 2026-12-05): its runs go and
+# stop as they did, so the command always sets both back.
 set -euo pipefail
 SETTINGS=${SETTINGS-planner.gain_exponent=1}
 cd "$(dirname "$0")/../../.."
@@ -28,5 +29,5 @@ $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods "${METHODS:-frontiernet,oracle,classic,gain-distance,df-uniform,discontinuity-gain,discontinuity-uniform,random-frontier,vacuum}" \
     --starts 3 --repeats "${REPEATS:-3}" --max-steps 500 --scene-starts --model runs/shipped.onnx \
-    ${DEPTH:+--depth "$DEPTH"} --set planner.forgive_before_stop=false $SETTINGS --workers "${WORKERS:-2}" --out "$OUT_DIR"
+    ${DEPTH:+--depth "$DEPTH"} --set planner.forgive_before_stop=false planner.approach_radius_m=0 $SETTINGS --workers "${WORKERS:-2}" --out "$OUT_DIR"
 exec $FRONTIERNET bench --pack --out "$OUT_DIR"
