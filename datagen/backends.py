@@ -106,12 +106,12 @@ def run_shard_task(task: dict, conf_dict: dict, info: dict) -> dict:
                 "seconds": time.perf_counter() - start, "load_seconds": loaded - start, "timings": timings,
                 "pid": os.getpid(), "raycast_backend": raycast}
     except InputError as error:
-        message = str(error)
+        message, bad_input = str(error), True
     except Exception as error:  # a failing scene is reported, never kills the run
         log.debug("shard %s failed", name, exc_info=True)
-        message = f"{type(error).__name__}: {error}"
+        message, bad_input = f"{type(error).__name__}: {error}", False
     return {"task": name, "spec": task["spec"], "ok": False, "error": message.splitlines()[0] if message else "",
-            "seconds": time.perf_counter() - start}
+            "bad_input": bad_input, "seconds": time.perf_counter() - start}
 
 
 def _init_worker(progress_queue, threads: int) -> None:

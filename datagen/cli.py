@@ -8,12 +8,12 @@ point (``frontiernet`` itself never imports ``datagen``).
   frontiernet datagen preview DIR [--n 16] [--out DIR/preview]
   frontiernet datagen bench [--scene SPEC] [--views N] [--raycast ENGINE ...]
   frontiernet datagen consistency --scenes SPEC [SPEC ...] [--views-per-scene N] [--json FILE]
+  frontiernet mapgen --scenes SPEC [SPEC ...] --out DIR [...]   (datagen/mapgen_cli.py)
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from frontiernet.cli import options
@@ -61,6 +61,9 @@ def add_parser(subparsers) -> None:
     options.config_overrides(consistency, "consistency.translation_m=0.2", option=True)
     options.json_file(consistency, "the figures (confusion matrices too)")
     consistency.set_defaults(func=run_consistency)
+    from .mapgen_cli import add_parser as add_mapgen_parser
+
+    add_mapgen_parser(subparsers)  # frontiernet mapgen: the map predictors' data (docs/mapprediction.md)
 
 
 def run_generate(args) -> int:
@@ -68,6 +71,7 @@ def run_generate(args) -> int:
 
     from .config import load_datagen_config
     from .generate import generate
+    from .summary import failed_scenes_exit
 
     missing = [flag for flag, value in (("--scenes", args.scenes), ("--views-per-scene", args.views_per_scene),
                                         ("--out", args.out)) if value is None]
@@ -77,7 +81,8 @@ def run_generate(args) -> int:
     summary = generate(args.scenes, args.views_per_scene, args.out, conf, seed=args.seed, workers=args.workers,
                        backend=args.backend, resume=args.resume, progress=not args.no_progress)
     print_summary(summary, Path(args.out))
-    return 1 if summary["failed_scenes"] else 0
+    return failed_scenes_exit(summary["failed_scenes"], "datagen",
+                              f"no view was made of it, the other scenes' views are in {args.out}")
 
 
 def print_summary(summary: dict, out: Path) -> None:
@@ -93,8 +98,8 @@ def print_summary(summary: dict, out: Path) -> None:
           f"{100 * summary['frontier_pixel_ratio']:.2f} % of all, {summary['candidates_per_view']:.2f} "
           "candidates per view")
     print(f"  gain classes 1-{max(len(hist) - 1, 1)} (% of gain pixels): {shares}")
-    for failure in summary["failed_scenes"]:  # on stderr, where a log or a terminal shows errors
-        print(f"frontiernet datagen: FAILED {failure['scene']}: {failure['error']}", file=sys.stderr)
+    for failure in summary["failed_scenes"]:  # (the first is also the error line on stderr: run_generate)
+        print(f"  failed: {failure['scene']}: {failure['error']}")
 
 
 def run_preview(args) -> int:
@@ -152,10 +157,12 @@ def run_bench(args) -> int:
 def run_consistency(args) -> int:
     from rich.progress import Progress
 
-    from frontiernet.io import write_json
+    from frontiernet.io import check_output_file, write_json
 
     from .consistency import format_consistency, label_consistency, load_consistency_config
 
+    if args.json:
+        check_output_file(args.json)  # a folder given as --json fails now, not after the labelling
     conf = load_consistency_config(args.config, args.set)
     with Progress(transient=True) as bar:
         task = bar.add_task("labelling", total=None)

@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from frontiernet.errors import InputError, positive_number
+from frontiernet.errors import InputError, positive_number, whole_number
 from frontiernet.frontiers.gain import class_confusion, class_offsets, dice_per_class, mean_dice
 
 KINDS = ("resampled", "consensus", "nearby")
@@ -215,8 +215,9 @@ def label_consistency(specs: list[str], views_per_scene: int, conf, seed: int = 
     """
     from frontiernet.scenes.spec import expand_specs
 
-    if not isinstance(views_per_scene, int) or views_per_scene < 1:
-        raise InputError(f"--views-per-scene must be a positive integer, got {views_per_scene!r}")
+    from .generate import MAX_VIEWS
+
+    whole_number(views_per_scene, "--views-per-scene", 1, MAX_VIEWS)
     settings = _settings(conf)
     specs = expand_specs(specs)
     if not specs:

@@ -210,6 +210,9 @@ def open_dataset(path: str | Path, truncation_px: float | None = None) -> Fronti
     meta.json) raise :class:`DatasetError` here; damaged members raise at ``ds[i]``.
     """
     path = Path(path)
+    if path.is_file() and path.suffix.lower() != ".zip":
+        raise DatasetError(f"{path}: is a file, expected a dataset folder (made by frontiernet datagen) or one of "
+                           "its shards (.zip)")
     if path.is_file():
         shards = [path]
         root = path.parent.parent

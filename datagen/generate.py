@@ -21,7 +21,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from frontiernet import __version__
-from frontiernet.errors import InputError
+from frontiernet.errors import InputError, whole_number
 from frontiernet.io import write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
 from frontiernet.simulator.raycast import resolve_backend
@@ -33,6 +33,9 @@ from .shards import (CACHE_DIR, INFO_NAME, SHARDS_DIR, read_dataset_info, remove
 
 GENERATOR_VERSION = f"frontiernet-datagen/{__version__}/gt1"
 """Names the ground-truth algorithm; bump the ``gt`` number when the labels change."""
+MAX_VIEWS = 10_000_000
+"""The most views one run makes (scenes x ``--views-per-scene``): 500 times the paper's dataset; more
+would take minutes only to plan."""
 
 log = logging.getLogger(__name__)
 
@@ -79,15 +82,16 @@ def plan_shards(specs: list[str], views_per_scene: int, shard_size: int, seed: i
 def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[str], int]:
     if not specs:
         raise InputError("no scenes given (--scenes SPEC ...)")
-    if not isinstance(views_per_scene, int) or views_per_scene < 1:
-        raise InputError(f"--views-per-scene must be a positive integer, got {views_per_scene!r}")
-    if not isinstance(seed, int) or seed < 0:
-        raise InputError(f"--seed must be an integer >= 0, got {seed!r}")
+    whole_number(views_per_scene, "--views-per-scene", 1, MAX_VIEWS)
+    whole_number(seed, "--seed")
     resolve_backend(conf.raycast.backend)  # an unknown or absent ray-cast engine fails before any work
     shard_size = conf.writer.shard_size
     if not isinstance(shard_size, int) or shard_size < 1:
         raise InputError(f"writer.shard_size must be a positive integer, got {shard_size!r}")
     expanded = expand_specs(specs)
+    if len(expanded) * views_per_scene > MAX_VIEWS:
+        raise InputError(f"{len(expanded):,} scenes x {views_per_scene:,} views is more than {MAX_VIEWS:,} views "
+                         "in one run; split the scenes over several datasets")
     for spec in expanded:
         parsed = parse_spec(spec)  # a malformed or missing scene fails before any work starts
         if parsed.source != "procedural" and not Path(parsed.argument).exists():

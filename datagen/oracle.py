@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from frontiernet.exploration.ablations import GainFrom, uniform_gain
-from frontiernet.exploration.methods import Method, MethodContext, image_method, model_perception
+from frontiernet.exploration.methods import Method, MethodContext, image_method, model_perception, runs_model
 from frontiernet.exploration.perception import Perception, PerceptionResult
 
 from .config import load_datagen_config
@@ -77,6 +77,7 @@ def oracle_uniform(context: MethodContext) -> Method:
     return image_method("oracle-uniform", uniform_gain(_oracle_perception(context), context.conf), context)
 
 
+@runs_model
 def frontiernet_oracle_gain(context: MethodContext) -> Method:
     """``frontiernet-oracle-gain``: the model's frontier pixels (the context's model file, None =
     the shipped one), ground-truth gain classes (a ``frontiernet.methods`` factory)."""

@@ -305,7 +305,9 @@ def shard_complete(path: str | Path) -> bool:
 # (used by shard_complete here and by the reader in datagen.dataset)
 
 def _corrupt(shard: Path, what: str) -> DatasetError:
-    return DatasetError(f"{shard}: corrupt shard ({what}); delete it and rerun with --resume")
+    """The error of a corrupt shard; a dataset's own (in its shards/ folder) is remade by a resumed run."""
+    remedy = "; delete it and rerun with --resume" if shard.parent.name == SHARDS_DIR else ""
+    return DatasetError(f"{shard}: corrupt shard ({what}){remedy}")
 
 
 def _parse_meta(archive: zipfile.ZipFile, shard: Path) -> dict:

@@ -37,7 +37,8 @@ def summarise(out, tasks, results: list[dict], elapsed_s: float, done_before: in
     failures = {}
     for result in results:
         if not result["ok"]:
-            failures.setdefault(result["spec"], result["error"])
+            failures.setdefault(result["spec"], {"scene": result["spec"], "error": result["error"],
+                                                 "bad_input": bool(result.get("bad_input"))})
     stages: dict[str, float] = {}
     for result in made:
         for stage, seconds in result.get("timings", {}).items():
@@ -52,7 +53,7 @@ def summarise(out, tasks, results: list[dict], elapsed_s: float, done_before: in
         "frontier_pixel_ratio": frontier_pixels / pixels if pixels else 0.0,
         "candidates_per_view": candidates / views if views else 0.0,
         "gain_class_pixels": histogram.tolist() if histogram is not None else [],
-        "failed_scenes": [{"scene": spec, "error": error} for spec, error in failures.items()],
+        "failed_scenes": list(failures.values()),
         "failed_shards": len(results) - len(made),
         "views_this_run": made_views,
         "seconds": elapsed_s,
@@ -60,3 +61,23 @@ def summarise(out, tasks, results: list[dict], elapsed_s: float, done_before: in
         "seconds_per_stage_per_view": {k: v / made_views for k, v in stages.items()} if made_views else {},
         "raycast_backends": sorted({r["raycast_backend"] for r in made if "raycast_backend" in r}),
     }
+
+
+def failed_scenes_exit(failed: list[dict], command: str, kept: str) -> int:
+    """A run's exit code after its report: 0 without `failed` scenes (``failed_scenes`` of a
+    summary); else one line naming the first failed scene, what became of the rest (`kept`, e.g.
+    ``the other scenes' views are in DIR``) and what to do: an InputError (exit 2) when every
+    failure is bad input, else the line on stderr and exit 1 (a fault of ours in a scene)."""
+    import sys
+
+    from frontiernet.errors import InputError
+
+    if not failed:
+        return 0
+    others = f" (and {len(failed) - 1} more scene(s), listed above and in summary.json)" if len(failed) > 1 else ""
+    text = (f"{failed[0]['scene']}: {failed[0]['error']}{others}; {kept}: fix it and rerun with --resume, or leave "
+            f"it out (with another --out)")
+    if all(failure.get("bad_input") for failure in failed):
+        raise InputError(text)
+    print(f"frontiernet {command}: failed: {text}", file=sys.stderr)
+    return 1

@@ -188,14 +188,15 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from frontiernet.errors import InputError
+    from frontiernet.errors import InputError, whole_number
+    from frontiernet.model.files import is_export
+    from frontiernet.model.predictor import input_size
 
-    if args.repeats < 1 or min(args.sizes) < 8:
-        raise InputError("--repeats must be >= 1 and --sizes >= 8")
-    from frontiernet.model.predictor import RUNTIMES
+    whole_number(args.repeats, "--repeats", 1)
+    for size in args.sizes:
+        input_size(size, "--sizes")
 
-    exports = set(RUNTIMES.plugins())  # onnx, pt, ...: exported files
-    if args.model is not None and Path(args.model).suffix.lower().lstrip(".") in exports:
+    if args.model is not None and is_export(args.model):
         raise InputError(f"{args.model}: bench inference times a torch model against its own ONNX and TorchScript "
                          "exports, so it needs the model file (.safetensors) or a training checkpoint (.ckpt), "
                          "not an export")

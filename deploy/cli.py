@@ -44,8 +44,9 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--size", type=int, metavar="PX", help="network input size: the short side is resized "
                                                                 "to PX and centre-cropped (default: the model's, "
                                                                 "320; 0 keeps the image as is)")
-    predict.add_argument("--depth-scale", type=float, default=1000.0,
-                         help="integer depth units per metre (default 1000: millimetres; TUM: 5000)")
+    predict.add_argument("--depth-scale", type=float,
+                         help="integer depth units per metre (default 1000: millimetres; TUM: 5000); float depth "
+                              "(.npy, float images) is metres and takes none")
     predict.add_argument("--depth-encoding", default="scale", choices=("scale", "sun", "nyu"),
                          help="depth file encoding: scale (integer units, see --depth-scale; float = metres), sun "
                               "(SUN3D/SUN RGB-D bit-rotated mm), nyu (NYU Depth V2 raw Kinect PGM)")
@@ -55,7 +56,8 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--intrinsics", metavar="FX,FY,CX,CY",
                          help="pinhole intrinsics of the image in pixels: also write 3D frontiers (frontiers.json, "
                               "in a level camera frame and the camera frame; needs --depth)")
-    predict.add_argument("--threads", type=int, help="CPU threads for the network (>= 1; default: torch's)")
+    predict.add_argument("--threads", type=int, help="CPU threads for the network (1 to 4 per core; default: "
+                                                     "torch's)")
     options.config_file(predict, "configs/depth.yaml under section depth: (the monocular models), and "
                                  "configs/explore.yaml's anchoring: (the 3D frontiers)")
     options.config_overrides(predict, "depth.depth_anything_v2.path=weights/da2 anchoring.hdbscan.min_cluster_size=30")
@@ -75,24 +77,33 @@ def run_export(args) -> int:
 
 
 def run_predict(args) -> int:
-    from frontiernet.errors import InputError, positive_number, whole_number
+    from frontiernet.errors import cpu_count_option, positive_number
+    from frontiernet.io import check_output_folder, claim_output_folder, input_file
+    from frontiernet.model.predictor import input_size
 
-    from .predict import load_predict_config, predict_files
+    from .predict import depth_model_name, load_predict_config, predict_files
 
-    if args.size is not None and args.size < 0:
-        raise InputError(f"--size must be >= 0, got {args.size}")
-    positive_number(args.depth_scale, "--depth-scale")
+    if args.size:  # (0 keeps the image as is)
+        input_size(args.size, "--size (or 0: the image's own size)")
+    if args.depth_scale is not None:
+        positive_number(args.depth_scale, "--depth-scale")
     if args.threads is not None:
-        whole_number(args.threads, "--threads", 1)
+        cpu_count_option(args.threads, "--threads")
+    check_output_folder(args.out, force=True)  # predict writes over its own outputs
+    for path, what in ((args.image, "image"), (args.model, "model file"),
+                       (None if depth_model_name(args.depth) else args.depth, "depth file")):
+        if path is not None:  # before the model loads
+            input_file(path, what)
     conf = load_predict_config(args.config, args.overrides)
     intrinsics = None
     if args.intrinsics:
         from frontiernet.geometry import parse_intrinsics_text
 
         intrinsics = parse_intrinsics_text(args.intrinsics)
-    result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
-                           depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
-                           depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth, conf=conf)
+    with claim_output_folder(args.out, force=True):
+        result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
+                               depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
+                               depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth, conf=conf)
     frontier = result["frontier_mask"]
     frontiers = result.get("frontiers")
     print(f"{int(frontier.sum())} frontier pixels ({100 * frontier.mean():.2f} % of the image)"

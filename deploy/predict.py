@@ -68,13 +68,12 @@ def estimate_depth(name: str, rgb: np.ndarray, K_image: np.ndarray | None, depth
         InputError: a source that needs ground truth (none here), absent intrinsics for a source
             that reads them, absent or corrupt weights.
     """
-    from frontiernet.depth import DEPTH_SOURCES, make_depth_source
+    from frontiernet.depth import DEPTH_SOURCES, make_depth_source, monocular_sources
 
     source_class = DEPTH_SOURCES.get(name)
     if source_class.requires_ground_truth:
-        monocular = [key for key in DEPTH_SOURCES.names() if not DEPTH_SOURCES.get(key).requires_ground_truth]
         raise InputError(f"--depth {name}: that source reads a sensor's depth (the simulator's), and predict has "
-                         f"none; give a depth map file, or a monocular model: {', '.join(monocular)}")
+                         f"none; give a depth map file, or a monocular model: {', '.join(monocular_sources())}")
     if K_image is None and source_class.uses_intrinsics:
         raise InputError(f"--depth {name}: the model reads the camera's focal length; give --intrinsics FX,FY,CX,CY")
     if K_image is None:
@@ -84,7 +83,7 @@ def estimate_depth(name: str, rgb: np.ndarray, K_image: np.ndarray | None, depth
 
 
 def predict_files(image: str | Path | None, depth: str | Path | None, model: str | Path | None, out: str | Path,
-                  size: int | None = None, depth_scale: float = 1000.0, threads: int | None = None,
+                  size: int | None = None, depth_scale: float | None = None, threads: int | None = None,
                   intrinsics: tuple | None = None, depth_encoding: str = "scale", fill_invalid: bool = False,
                   conf=None) -> dict:
     """Run the model on image/depth files and write the pictures and arrays to `out`.
@@ -94,7 +93,8 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
             from `image` (:func:`depth_model_name`, :func:`estimate_depth`).
         size: network input size (None: the model's inference size, 320; 0: the image's own size).
         depth_scale, depth_encoding: how the depth file is decoded
-            (:func:`frontiernet.sequences.read_depth`).
+            (:func:`frontiernet.sequences.read_depth`); a `depth_scale` given (not None: 1000, millimetres)
+            refuses float depth, which it does not apply to.
         fill_invalid: fill the depth's holes from the nearest valid pixel (real sensors; see
             :func:`frontiernet.model.predictor.fill_invalid_nearest`). Off for rendered depth, whose 0
             means beyond range.
@@ -105,6 +105,10 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         The arrays (see :meth:`frontiernet.model.Runtime.predict_frame`), with ``frontiers``
         when `intrinsics` were given.
     """
+    depth_model = depth_model_name(depth)
+    rgb = read_rgb(image) if image is not None else None  # the files first: a bad one fails before the model loads
+    depth_read = None if depth is None or depth_model is not None else read_depth(
+        depth, 1000.0 if depth_scale is None else depth_scale, depth_encoding, scale_given=depth_scale is not None)
     if model is None:  # the shipped model that takes what was given: RGB + depth, or an RGB photo alone
         from frontiernet.model import shipped_model_path
 
@@ -119,15 +123,10 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     if intrinsics is not None and depth is None:
         raise InputError("--intrinsics anchors frontiers in 3D, which needs --depth")
     conf = load_predict_config() if conf is None else conf
-    depth_model = depth_model_name(depth)
     if depth_model is not None and image is None:
         raise InputError(f"--depth {depth_model} estimates the depth from the image: give --image")
-    rgb = read_rgb(image) if image is not None else None
     K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
-    if depth_model is not None:
-        depth_m = estimate_depth(depth_model, rgb, K_image, conf.depth)
-    else:
-        depth_m = read_depth(depth, depth_scale, depth_encoding) if depth is not None else None
+    depth_m = depth_read if depth_model is None else estimate_depth(depth_model, rgb, K_image, conf.depth)
     if depth_m is not None and not np.any(depth_m > 0):
         raise InputError(f"{depth}: no valid depth (every pixel is 0, negative or NaN)")
     if depth_m is not None:  # as the simulated sensor the network learnt from: nothing beyond its range

@@ -89,8 +89,9 @@ def default_config_path(name: str) -> Path:
 
 
 def _read_yaml(path: Path) -> DictConfig:
-    if not path.is_file():
-        raise InputError(f"{path}: config file not found")
+    from .io import input_file
+
+    input_file(path, "config file")
     import yaml
 
     try:

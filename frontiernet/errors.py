@@ -3,7 +3,8 @@
 The CLI turns an :class:`InputError` into a single line on stderr and exit code 2,
 with no traceback. Library code raises it whenever a file, value or spec given by
 the user is wrong, and names that input in the message. The checks here are the shared
-ones: numbers (:func:`positive_number`, :func:`number_range`, :func:`whole_number`) and keys
+ones: numbers (:func:`positive_number`, :func:`number_range`, :func:`whole_number`,
+:func:`cpu_count_option`) and keys
 (:func:`check_keys`, for config files, overrides and scene-spec options alike).
 """
 
@@ -59,6 +60,24 @@ def whole_number(value, name: str, minimum: int = 0, maximum: float = math.inf) 
         bound = f">= {minimum}" if maximum == math.inf else f"in [{minimum}, {maximum}]"
         raise InputError(f"{name} must be an integer {bound}, got {value!r}")
     return int(value)
+
+
+PER_CORE = 4
+"""At most this many threads or local worker processes per core of the machine (:func:`cpu_count_option`):
+more only slows a run, and a huge count crashes the libraries that start them (torch)."""
+
+
+def cpu_count_option(value, name: str, minimum: int = 1) -> int:
+    """`value` (threads, local worker processes) as an int in [`minimum`, :data:`PER_CORE` x this
+    machine's cores]; otherwise InputError naming `name`, e.g. ``"--threads must be an integer in
+    [1, 8] (at most 4 per core of this machine), got 99999"``."""
+    import os
+
+    most = PER_CORE * (os.cpu_count() or 1)
+    try:
+        return whole_number(value, name, minimum, most)
+    except InputError as error:
+        raise InputError(f"{error} (at most {PER_CORE} per core of this machine)") from None
 
 
 def _kind(value) -> str | None:

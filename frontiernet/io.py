@@ -1,4 +1,7 @@
-"""Writing outputs atomically, so an interrupted run never leaves a half-written file."""
+"""Reading inputs and writing outputs: an input file or folder checked for what it is
+(:func:`input_file`, :func:`input_folder`, :func:`read_npy`), an output folder claimed for one run
+(:func:`claim_output_folder`) and outputs written atomically, so an interrupted run never leaves a
+half-written file."""
 
 from __future__ import annotations
 
@@ -26,6 +29,62 @@ def ensure_dir(path: str | Path) -> Path:
     return path
 
 
+def input_file(path: str | Path, what: str = "file", *, empty_ok: bool = True) -> Path:
+    """`path` as a Path if it is a file; InputError naming it otherwise: ``<path>: <what> not
+    found``, ``<path>: is a folder, expected a file`` (``<what>``: ``config file``, ``model
+    file``, ...), and with `empty_ok` off ``<path>: empty file (0 bytes)``."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, expected a file ({what})")
+    if not path.exists():
+        raise InputError(f"{path}: {what} not found")
+    if not path.is_file():
+        raise InputError(f"{path}: not a regular file, expected a file ({what})")
+    if not empty_ok and path.stat().st_size == 0:
+        raise InputError(f"{path}: empty file (0 bytes), expected a {what}")
+    return path
+
+
+def input_folder(path: str | Path, what: str = "input") -> Path:
+    """`path` as a Path if it is a folder; InputError naming it otherwise: ``<path>: <what>
+    folder not found``, or ``<path>: is a file, expected a folder (<what>)``."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: is a file, expected a folder ({what})")
+    if not path.is_dir():
+        raise InputError(f"{path}: {what} folder not found")
+    return path
+
+
+NPY_MAGIC = b"\x93NUMPY"
+"""The first bytes of every .npy file."""
+OTHER_FORMATS = {b"\x89PNG": "a PNG image", b"\xff\xd8\xff": "a JPEG image", b"PK\x03\x04": "a zip archive (.npz?)",
+                 b"II*\x00": "a TIFF image", b"MM\x00*": "a TIFF image"}
+"""Signatures of files that are named .npy by mistake, and what they are."""
+
+
+def read_npy(path: str | Path, mmap_mode: str | None = None) -> np.ndarray:
+    """The array of .npy file `path` (memory-mapped with `mmap_mode`; never unpickled); InputError
+    naming the file when it is missing, empty, another format named .npy (a PNG renamed) or an
+    array of Python objects."""
+    path = input_file(path, ".npy array")
+    with open(path, "rb") as handle:
+        head = handle.read(len(NPY_MAGIC))
+    if not head.startswith(NPY_MAGIC):
+        kind = next((name for magic, name in OTHER_FORMATS.items() if head.startswith(magic)), None)
+        reason = ("empty file" if not head else f"the file is {kind}, named .npy" if kind
+                  else "no .npy header: another format named .npy?")
+        raise InputError(f"{path}: not a readable .npy array ({reason})")
+    try:
+        return np.load(path, mmap_mode=mmap_mode, allow_pickle=False)
+    except ValueError as error:
+        if "pickle" in str(error):  # numpy's advice is to unpickle it: code could run
+            raise InputError(f"{path}: not a readable .npy array (it holds Python objects, not numbers)") from None
+        raise InputError(f"{path}: not a readable .npy array ({error})") from None
+    except (OSError, EOFError) as error:  # EOFError: a truncated file
+        raise InputError(f"{path}: not a readable .npy array ({error or 'truncated file'})") from None
+
+
 FORCE = "--force"
 """The option of every command that replaces earlier outputs (export, render, explore, scene topdown)."""
 
@@ -42,15 +101,79 @@ def check_output_file(path: str | Path, force: bool = True) -> Path:
 
 
 def check_output_folder(path: str | Path, force: bool = False) -> Path:
-    """Before the work: InputError when output folder `path` is a file, or already holds files
-    and `force` is off (a command's earlier outputs are not replaced unless asked: :data:`FORCE`)."""
+    """Before the work: InputError when output folder `path` is a file or lies under one, or
+    already holds files and `force` is off (a command's earlier outputs are not replaced unless
+    asked: :data:`FORCE`; the lock of :func:`claim_output_folder` is no output)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: output path exists and is not a folder")
-    if path.is_dir() and not force and any(path.iterdir()):
+    blocking = next((parent for parent in path.parents if parent.exists() and not parent.is_dir()), None)
+    if blocking is not None:
+        raise InputError(f"{path}: cannot create the output folder: {blocking} is a file")
+    if path.is_dir() and not force and any(entry.name != LOCK_NAME for entry in path.iterdir()):
         raise InputError(f"{path}: folder already holds files (earlier outputs?); pass {FORCE} to write over "
                          f"them, or choose another --out")
     return path
+
+
+LOCK_NAME = ".frontiernet.lock"
+"""The lock file of :func:`claim_output_folder` in an output folder while a run writes there."""
+
+
+@contextmanager
+def claim_output_folder(path: str | Path, force: bool = False) -> Iterator[Path]:
+    """Output folder `path` for one run, for the ``with`` block: checked
+    (:func:`check_output_folder`), created, and locked for the block, so that a second run
+    started on it meanwhile is refused at once (an exclusive lock on :data:`LOCK_NAME` there,
+    held by this process: the system drops it when the process dies). A folder this call
+    created is removed when the block fails and left nothing in it (a run refused after its
+    setup leaves no empty folder behind).
+
+    Raises:
+        InputError: as :func:`check_output_folder`; another run holds the folder.
+    """
+    import fcntl
+
+    path = check_output_folder(path, force)
+    made = [folder for folder in (path, *path.parents) if not folder.exists()]
+    ensure_dir(path)
+    lock = path / LOCK_NAME
+    while True:
+        handle = open(lock, "a+")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.seek(0)
+            owner = handle.read().strip()
+            handle.close()
+            raise InputError(f"{path}: another run{f' (process {owner})' if owner else ''} is writing there; "
+                             f"wait for it to end, or choose another --out") from None
+        if lock.exists() and os.path.samestat(os.fstat(handle.fileno()), lock.stat()):
+            break
+        handle.close()  # the holder ended and removed the file between our open and lock: lock the new one
+    try:
+        handle.truncate(0)
+        handle.write(f"{os.getpid()}\n")
+        handle.flush()
+        check_output_folder(path, force)  # under the lock: what a run that ended just now wrote counts
+        yield path
+    except BaseException:
+        lock.unlink(missing_ok=True)
+        handle.close()
+        for folder in made:  # innermost first
+            remove_if_empty(folder)
+        raise
+    lock.unlink(missing_ok=True)
+    handle.close()
+
+
+def remove_if_empty(folder: str | Path) -> None:
+    """Remove `folder` when no file lies anywhere under it (what a run stopped by bad input left)."""
+    import shutil
+
+    folder = Path(folder)
+    if folder.is_dir() and not any(path.is_file() for path in folder.rglob("*")):
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 @contextmanager

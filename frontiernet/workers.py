@@ -24,7 +24,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
-from .errors import InputError
+from .errors import InputError, cpu_count_option, whole_number
 
 log = logging.getLogger(__name__)
 
@@ -44,14 +44,15 @@ def import_ray():
 
 def check_backend(backend: str, workers) -> int:
     """`workers` as an int after checking `backend` is ``local`` or ``ray`` (Ray importable) and
-    `workers` >= 1; InputError naming the bad option otherwise."""
+    `workers` >= 1 (local processes: at most :data:`~frontiernet.errors.PER_CORE` per core of this
+    machine, :func:`~frontiernet.errors.cpu_count_option`); InputError naming the bad option otherwise."""
     if backend not in BACKENDS:
         raise InputError(f"--backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise InputError(f"--workers must be an integer >= 1, got {workers!r}")
     if backend == "ray":
+        whole_number(workers, "--workers", 1)
         import_ray()
-    return workers
+        return workers
+    return cpu_count_option(workers, "--workers")
 
 
 @contextlib.contextmanager

@@ -63,6 +63,21 @@ SMALL_DATAGEN = ["--views-per-scene", "2", "--no-progress", "--set", "camera.wid
     (["bench", "--scenes", "procedural:3", "--depth", "sonar", "--max-steps", "4"], "depth source 'sonar'"),
     (["bench", "--scenes", "procedural:3", "--workers", "0", "--max-steps", "4"], "--workers must be"),
     (["bench", "--scenes", "procedural:3", "--backend", "spark", "--max-steps", "4"], "--backend must be"),
+    # issue 55: nonsense that ran (a method twice, a model no method runs, starts without end)
+    (["bench", "--scenes", "procedural:3", "--methods", "classic,classic", "--max-steps", "4"],
+     "--methods names classic twice"),
+    (["bench", "--scenes", "procedural:3", "--methods", "classic", "--model", "m.safetensors", "--max-steps", "4"],
+     "none of the methods classic runs a model"),
+    (["bench", "--scenes", "procedural:3", "--starts", "100000000", "--max-steps", "4"],
+     "--starts must be an integer in [1, 1000], got 100000000"),
+    (["bench", "--scenes", "procedural:3", "--workers", "99999", "--max-steps", "4"],
+     "--workers must be an integer in"),
+    (["explore", "--scene", "procedural:3", "--method", "oracle", "--model", "m.safetensors", "--max-steps", "1"],
+     "--model m.safetensors: method oracle runs no model, so --model would be ignored"),
+    (["datagen", "--scenes", "procedural:0-99999999", "--views-per-scene", "2"],
+     "a seed range of 100,000,000 scenes; at most 100,000"),
+    (["datagen", "--scenes", "procedural:3", "--views-per-scene", "1000000000"],
+     "--views-per-scene must be an integer in [1, 10000000]"),
     (["datagen", "--scenes", "procedural:3", *SMALL_DATAGEN, "--workers", "0"], "--workers must be"),
 ])
 def test_bad_run_settings_are_refused_before_anything_is_written(argv, message, tmp_path, one_line_error):
@@ -109,9 +124,9 @@ def test_sigterm_to_datagen_ends_its_workers(tmp_path):
     (["--cut-height", "-5"], "cut height (--cut-height) must be a positive number"),
 ])
 def test_bad_top_view_settings_are_one_line(plan_spec, tmp_path, one_line_error, option, message):
-    assert main(["scene", "topdown", plan_spec, "--out", str(tmp_path / "top.png"), *option]) == 2
+    assert main(["scene", "topdown", plan_spec, "--out", str(tmp_path / "new" / "top.png"), *option]) == 2
     assert message in one_line_error()
-    assert not (tmp_path / "top.png").exists()
+    assert not (tmp_path / "new").exists()  # issue 55: the folder of --out was made before the refusal
 
 
 def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_line_error):
@@ -139,10 +154,25 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["export", "{model}", "--format", "onnx", "--out", "{tmp}"], "is a folder; give the output's file name"),
     (["export", "{model}", "--format", "onnx", "--half", "--out", "{tmp}/m.onnx"], "--half writes float16 safetensors"),
     (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads=-2", "--out", "{tmp}/p"],
-     "--threads must be an integer >= 1, got -2"),
+     "--threads must be an integer in [1, "),
     (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads", "0", "--out", "{tmp}/p"],
      "got 0"),
-    (["evaluate", "{model}", "--data", "{tmp}", "--size=-64"], "--size must be an integer >= 8, got -64"),
+    (["evaluate", "{model}", "--data", "{tmp}", "--size=-64"], "--size must be an integer in [8, 2048], got -64"),
+    # issue 55: a size, a thread or worker count past what the machine can hold was an internal error
+    # (MemoryError, "Overflow when unpacking long") or a segfault (exit 139, torch with 99999 threads)
+    (["evaluate", "{model}", "--data", "{tmp}", "--size", "100000"],
+     "--size must be an integer in [8, 2048], got 100000"),
+    (["evaluate", "{model}", "--data", "{tmp}", "--workers", "99999"], "--workers must be an integer in [0, "),
+    (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads", "99999", "--out", "{tmp}/p"],
+     "--threads must be an integer in [1, "),
+    (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads", "100000000000", "--out",
+      "{tmp}/p"], "got 100000000000 (at most 4 per core of this machine)"),
+    (["predict", "--image", "{tmp}/rgb.png", "--size", "100000", "--out", "{tmp}/p"], "--size (or 0: the image's own "
+                                                                                      "size) must be an integer in [8"),
+    (["bench", "inference", "--sizes", "320", "100000"], "--sizes must be an integer in [8, 2048], got 100000"),
+    (["evaluate", "{tmp}", "--data", "{tmp}"], "is a folder, expected a file (model file)"),
+    (["datagen", "consistency", "--scenes", "procedural:12", "--views-per-scene", "1", "--json", "{tmp}"],
+     "is a folder; give the output's file name"),  # was after the labelling
     (["evaluate", "{model}", "--data", "{tmp}", "--json", "{tmp}"], "is a folder"),
     (["evaluate", "{model}", "--data", "{tmp}", "--all", "--scenes", "procedural:1"], "--all and --scenes exclude"),
     (["bench", "render", "--scene", "procedural:0", "--repeats=-1"], "--repeats must be an integer >= 1, got -1"),
@@ -220,3 +250,206 @@ def test_an_internal_error_is_one_line_naming_the_log_with_its_traceback(monkeyp
     log.unlink()
     with pytest.raises(ZeroDivisionError):  # -v: the traceback on the terminal
         main(["-v", *argv])
+
+
+# --------------------------------------------------------------------------- issue 55's probe
+
+def test_a_camera_too_large_to_render_is_refused_before_the_scene_loads(tmp_path, one_line_error):
+    # was: internal error (MemoryError: Unable to allocate 7.28 TiB ...)
+    config = tmp_path / "big.yaml"
+    config.write_text("camera:\n  width: 1000000\n  height: 1000000\n")
+    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--config", str(config),
+                 "--out", str(tmp_path / "view")]) == 2
+    assert "camera.width must be an integer in [1, 4096], got 1000000" in one_line_error()
+    assert not (tmp_path / "view").exists()
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (["trainer.max_epochs=-1"], "trainer.max_epochs (-1: no limit, with trainer.max_steps > 0) must be an integer"),
+    (["augment.crop_size=0"], "augment.crop_size (or null) must be an integer in [8, 2048], got 0"),
+    (["augment.hflip=1.5"], "augment.hflip is a probability, between 0 and 1; got 1.5"),
+    (["trainer.threads=99999"], "trainer.threads (or null) must be an integer in [1, "),
+])
+def test_nonsense_training_settings_are_refused_before_anything_is_written(tmp_path, overrides, message,
+                                                                             one_line_error):
+    # trainer.max_epochs=-1 was an internal error (OverflowError) after the run folder was made, and
+    # augment.crop_size=0 trained without crops
+    runs = tmp_path / "runs"
+    assert main(["train", f"data.path={tmp_path / 'no_data'}", f"out={runs}", "name=tiny", *overrides]) == 2
+    assert message in one_line_error()
+    assert not runs.exists()  # no runs/tiny left behind
+
+
+def test_a_training_run_folder_under_a_file_is_refused_at_once(tmp_path, one_line_error):
+    # was: internal error (NotADirectoryError) after the data was read
+    (tmp_path / "afile").write_text("")
+    assert main(["train", f"data.path={tmp_path / 'no_data'}", f"out={tmp_path / 'afile'}", "name=tiny"]) == 2
+    assert f"{tmp_path / 'afile' / 'tiny'}: cannot create the output folder: {tmp_path / 'afile'} is a file" \
+        in one_line_error()
+
+
+def test_a_second_config_file_is_refused_not_dropped(one_line_error, capsys):
+    # argparse kept the last --config and dropped the first without a word
+    for argv in (["explore", "--scene", "s", "--config", "a.yaml", "--config", "b.yaml", "--out", "o"],
+                 ["train", "--config", "a.yaml", "--config", "b.yaml"]):
+        with pytest.raises(SystemExit) as stop:
+            build_parser().parse_args(argv)
+        assert stop.value.code == 2
+        assert "--config given twice (a.yaml, then b.yaml): give one" in one_line_error()
+
+
+def test_demo_takes_the_config_keys_of_explore(tmp_path, one_line_error):
+    # docs/usage.md said demo takes sim.*, depth.*, scenes.* keys; it took none ("unrecognized arguments")
+    args = build_parser().parse_args(["demo", "sim.camera.max_depth=5", "depth.emulated.fill_depth=20"])
+    assert args.overrides == ["sim.camera.max_depth=5", "depth.emulated.fill_depth=20"]
+    assert main(["demo", "--out", str(tmp_path / "demo"), "tracking.min_gain=2"]) == 2
+    assert "unknown config key 'tracking.min_gain'" in one_line_error()
+    assert not (tmp_path / "demo").exists()
+
+
+@pytest.fixture
+def no_setup(monkeypatch):
+    """Fails a command that loads its scene: what it refuses must be refused before its setup."""
+    import frontiernet.simulator.world as world
+
+    def build_world(*args, **kwargs):
+        raise AssertionError("the scene was loaded before the bad input was refused")
+
+    monkeypatch.setattr(world, "build_world", build_world)
+
+
+def test_demo_refuses_a_file_as_out_before_its_setup(tmp_path, no_setup, one_line_error):
+    (tmp_path / "afile").write_text("mine")
+    assert main(["demo", "--out", str(tmp_path / "afile")]) == 2  # was refused after 22 s of setup
+    assert "afile: output path exists and is not a folder" in one_line_error()
+    assert (tmp_path / "afile").read_text() == "mine"
+
+
+@pytest.fixture
+def files(tmp_path):
+    """A folder, an image, a float depth map, a PNG renamed .npy, an empty .glb, a (fake) ONNX file."""
+    import cv2
+
+    (tmp_path / "adir").mkdir()
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.full((48, 64, 3), 128, np.uint8))
+    np.save(tmp_path / "depth.npy", np.full((48, 64), 2.0, np.float32))
+    (tmp_path / "fake.npy").write_bytes((tmp_path / "rgb.png").read_bytes())
+    (tmp_path / "empty.glb").write_bytes(b"")
+    (tmp_path / "model.onnx").write_bytes(b"\x08\x07")  # what matters is the suffix: an export
+    return tmp_path
+
+
+@pytest.mark.parametrize("argv, message", [
+    # a folder where a file is expected was "not found"
+    (["render", "procedural:3", "--pose", "3,3,1.2,0", "--config", "{d}/adir", "--out", "{d}/o"],
+     "adir: is a folder, expected a file (config file)"),
+    (["explore", "--scene", "procedural:3", "--model", "{d}/adir", "--out", "{d}/o"],
+     "adir: is a folder, expected a file (model file)"),
+    (["predict", "--image", "{d}/adir", "--depth", "{d}/depth.npy", "--out", "{d}/o"],
+     "adir: is a folder, expected a file (image)"),
+    (["predict", "--image", "{d}/rgb.png", "--depth", "{d}/adir", "--out", "{d}/o"],
+     "adir: is a folder, expected a file (depth file)"),
+    (["export", "{d}/adir", "--format", "onnx", "--out", "{d}/o.onnx"],
+     "adir: is a folder, expected a file (model file)"),
+    # and a file where a folder is expected
+    (["sequence", "--input", "{d}/rgb.png", "--format", "tum", "--out", "{d}/o"],
+     "rgb.png: is a file, expected a folder (TUM sequence)"),
+    (["evaluate", "{d}/model.onnx", "--data", "{d}/depth.npy", "--all"],
+     "model.onnx: an exported model (.onnx); this needs the model file (.safetensors)"),
+    (["export", "{d}/model.onnx", "--format", "safetensors", "--out", "{d}/o.safetensors"],
+     "model.onnx: an exported model (.onnx)"),
+    # misleading messages
+    (["evaluate", "MODEL", "--data", "{d}/depth.npy", "--all"],
+     "depth.npy: is a file, expected a dataset folder (made by frontiernet datagen)"),  # was "corrupt shard, delete it"
+    (["predict", "--image", "{d}/rgb.png", "--depth", "{d}/depth.npy", "--depth-scale", "5000", "--out", "{d}/o"],
+     "depth.npy: holds float32 depth, read as metres; the depth scale (5000, --depth-scale) applies to integer"),
+    (["predict", "--image", "{d}/rgb.png", "--depth", "{d}/fake.npy", "--out", "{d}/o"],
+     "fake.npy: not a readable .npy array (the file is a PNG image, named .npy)"),  # was numpy's "allow_pickle"
+    (["scene", "info", "{d}/empty.glb"], "empty.glb: empty file (0 bytes), expected a mesh file"),  # was IndexError
+    (["sequence", "--input", "{d}/adir", "--depth", "sonar", "--out", "{d}/o"],
+     "--depth sonar: not a depth source; valid: sensor (the sequence's depth images, the default), gt, "),
+    (["sequence", "--input", "{d}/adir", "--stride", "0", "--out", "{d}/o"],
+     "frames.stride (--stride) must be an integer >= 1, got 0"),
+])
+def test_wrong_kinds_of_file_are_named_for_what_they_are(files, argv, message, one_line_error):
+    from frontiernet.model import default_model_path
+
+    before = sorted(path.name for path in files.iterdir())
+    argv = [str(default_model_path()) if word == "MODEL" else word.format(d=files) for word in argv]
+    assert main(argv) == 2
+    assert message in one_line_error()
+    assert sorted(path.name for path in files.iterdir()) == before  # nothing written, no empty --out
+
+
+def test_a_corrupt_shard_outside_a_dataset_gets_no_advice_to_delete_it(tmp_path):
+    from datagen.dataset import DatasetError, open_dataset
+
+    (tmp_path / "mine.zip").write_bytes(b"not a zip")
+    with pytest.raises(DatasetError) as error:
+        open_dataset(tmp_path / "mine.zip")
+    assert "corrupt shard (bad zip file)" in str(error.value) and "delete" not in str(error.value)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--start", "50,50,1.2,0"], "start pose outside the scene's free space"),  # known once the scene has loaded
+    (["planner.clearance_m=-1"], "planner.clearance_m = -1 is too small for the agent radius"),
+    (["--depth", "sonar"], "depth source 'sonar' (--depth, run.depth) is unknown"),
+])
+def test_a_refused_exploration_leaves_no_out_folder(plan_spec, tmp_path, argv, message, one_line_error):
+    out = tmp_path / "a" / "e"
+    assert main(["explore", "--scene", plan_spec, "--method", "classic", "--max-steps", "1", "--no-video",
+                 "--out", str(out), *argv]) == 2
+    assert message in one_line_error()
+    assert not (tmp_path / "a").exists()  # nor the parent it made
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--rerun"], "--rerun needs the rerun-sdk package"),  # was after 11 s of setup
+    (["planner.clearance_m=-1"], "planner.clearance_m = -1 is too small for the agent radius"),
+    (["--model", "m.safetensors"], "m.safetensors: model file not found"),
+])
+def test_explore_refuses_bad_settings_before_its_setup(plan_spec, tmp_path, no_setup, argv, message,
+                                                       one_line_error):
+    import importlib.util
+
+    if argv == ["--rerun"] and importlib.util.find_spec("rerun") is not None:
+        pytest.skip("rerun-sdk is installed here")
+    assert main(["explore", "--scene", plan_spec, "--out", str(tmp_path / "e"), *argv]) == 2
+    assert message in one_line_error()
+    assert not (tmp_path / "e").exists()
+
+
+def test_a_second_run_on_the_same_out_is_refused_while_the_first_writes(plan_spec, tmp_path, one_line_error):
+    # two explore runs 0.3 s apart both passed the check, and one died on the other's partial video
+    import os
+
+    from frontiernet.errors import InputError
+    from frontiernet.io import LOCK_NAME, claim_output_folder
+
+    out = tmp_path / "e"
+    with claim_output_folder(out) as claimed:  # a first run, writing
+        assert (claimed / LOCK_NAME).read_text().strip() == str(os.getpid())
+        for argv in (["explore", "--scene", plan_spec, "--max-steps", "1", "--no-video", "--force"],
+                     ["render", plan_spec, "--pose", "2.0,1.5,1.2,0", "--force"]):
+            assert main([*argv, "--out", str(out)]) == 2
+            assert f"{out}: another run (process " in one_line_error()
+        (claimed / "metrics.json").write_text("{}")
+    assert sorted(path.name for path in out.iterdir()) == ["metrics.json"]  # the lock goes with the run
+    with pytest.raises(InputError, match="already holds files"):  # a later run without --force
+        with claim_output_folder(out):
+            pass
+    assert (out / "metrics.json").is_file()
+
+
+def test_a_datagen_run_with_one_bad_scene_writes_the_others_and_says_so_in_one_line(tmp_path, capsys):
+    # was: exit 1, "FAILED", no error line
+    np.save(tmp_path / "zero.npy", np.zeros((0, 0), np.uint8))
+    out = tmp_path / "ds"
+    bad = f"floorplan:{tmp_path / 'zero.npy'}?resolution=0.05"
+    assert main(["datagen", "--scenes", "procedural:3", bad, *SMALL_DATAGEN, "--out", str(out)]) == 2
+    printed = capsys.readouterr()
+    [line] = printed.err.strip().splitlines()
+    assert line.startswith(f"frontiernet datagen: error: {bad}: ") and "at least 3x3 pixels" in line
+    assert "the other scenes' views are in" in line and "rerun with --resume" in line
+    assert f"failed: {bad}" in printed.out  # in the report too
+    assert len(list((out / "shards").glob("*.zip"))) == 1  # the good scene's views are kept

@@ -380,9 +380,11 @@ def test_failing_scene_is_reported_and_the_others_are_written(tmp_path, capsys):
     out = tmp_path / "ds"
     args = ["datagen", "--scenes", str(bad), "procedural:5", "--views-per-scene", "2", "--out", str(out),
             "--no-progress", "--set", *SMALL_SET]
-    assert main(args) == 1
+    assert main(args) == 2  # bad input (a corrupt scene file): exit 2, one error line on stderr
     printed = capsys.readouterr()
-    assert "FAILED" in printed.err and str(bad) in printed.err  # an error: on stderr, not only in the report
+    [line] = printed.err.strip().splitlines()
+    assert line.startswith(f"frontiernet datagen: error: {bad}: ") and "rerun with --resume" in line
+    assert f"failed: {bad}" in printed.out
     shards = sorted(p.name for p in (out / "shards").glob("*.zip"))
     assert shards == ["00001-procedural-5-0000.zip"]
     assert shard_complete(out / "shards" / shards[0])

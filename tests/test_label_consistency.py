@@ -66,7 +66,7 @@ def test_labels_measured_at_every_voxel_agree_with_themselves_and_sampled_ones_d
 
 def test_bad_consistency_input_is_one_line_exit_2(one_line_error):
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--views-per-scene", "0"]) == 2
-    assert "--views-per-scene must be a positive integer" in one_line_error()
+    assert "--views-per-scene must be an integer in [1, 10000000], got 0" in one_line_error()
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set", "consistency.max_tries=0"]) == 2
     assert "consistency.max_tries" in one_line_error()
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set",

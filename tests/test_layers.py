@@ -21,7 +21,7 @@ LAYERS = {
     "model": 2, "depth": 2, "planning": 2, "scenes": 2,
     "simulator": 3,
     "mapping": 4,
-    "frontiers": 5,
+    "frontiers": 5, "mapprediction": 5,
     "exploration": 6,
     "sequences": 7, "benchmark": 7,
     "cli": 8,

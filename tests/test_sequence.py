@@ -143,7 +143,7 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys,
         ([str(tmp_path / "no_depth")], "has no depth file"),
         ([str(tmp_path / "no_depth"), "--depth", "depth_anything_v2"], "depth_anything_v2"),
         ([str(tmp_path / "no_depth"), "--intrinsics", "1,2,3"], "--intrinsics must be fx,fy,cx,cy"),
-        ([str(tmp_path / "no_depth"), "frames.stride=0"], "frames.stride must be >= 1"),
+        ([str(tmp_path / "no_depth"), "frames.stride=0"], "frames.stride (--stride) must be an integer >= 1, got 0"),
         ([str(tmp_path / "metres")], "is implausible (read with depth scale 1000"),
     ]
     for (folder, *extra), expected in cases:

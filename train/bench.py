@@ -191,14 +191,16 @@ def add_parser(subparsers) -> None:
 def run(args) -> int:
     import os
 
-    from frontiernet.errors import InputError
+    from frontiernet.errors import InputError, cpu_count_option, whole_number
 
     from .config import load_train_config
 
     conf = load_train_config(args.config, args.overrides)
     workers = args.workers or sorted({0, 1, min(os.cpu_count() or 1, 16)})
-    if min(workers) < 0 or args.batches < 1 or args.steps < 1:
-        raise InputError("--workers must be >= 0, --batches and --steps >= 1")
+    for count in workers:
+        cpu_count_option(count, "--workers", 0)
+    whole_number(args.batches, "--batches", 1)
+    whole_number(args.steps, "--steps", 1)
     if args.precision not in (None, "32-true", "bf16-mixed", "16-mixed"):
         raise InputError(f"--precision: expected 32-true, bf16-mixed or 16-mixed, got {args.precision!r}")
     result = bench_train(conf, workers, args.batches, args.steps, not args.no_baseline, args.precision)

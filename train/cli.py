@@ -3,6 +3,8 @@
 
   frontiernet train --config configs/train.yaml [key=value ...] [--resume [CKPT]]
   frontiernet evaluate MODEL --data DIR [--scenes SPEC ...] [--all] [--max-samples N] [--json FILE]
+  frontiernet train --config configs/train_seer.yaml | train_mapex.yaml data.path=DIR   (map predictors)
+  frontiernet mapeval PREDICTOR --data DIR [--json FILE]                               (train/mapeval.py)
 """
 
 from __future__ import annotations
@@ -41,9 +43,16 @@ def add_parser(subparsers) -> None:
                           help="processes decoding the dataset (default 0: in this process)")
     options.json_file(evaluate, "the metrics")
     evaluate.set_defaults(func=run_evaluate)
+    from .mapeval import add_parser as add_mapeval_parser
+
+    add_mapeval_parser(subparsers)  # frontiernet mapeval: the map predictors' quality (docs/mapprediction.md)
 
 
 def run_train(args) -> int:
+    from .mapprediction import is_map_config, run_map_train
+
+    if is_map_config(args.config):  # configs/train_seer.yaml, train_mapex.yaml: a map predictor (docs/mapprediction.md)
+        return run_map_train(args)
     from .config import load_train_config
     from .main import main
 
@@ -58,22 +67,24 @@ def run_train(args) -> int:
 
 
 def run_evaluate(args) -> int:
-    from frontiernet.errors import InputError, whole_number
+    from frontiernet.errors import InputError, cpu_count_option, whole_number
     from frontiernet.io import check_output_file, write_json
+    from frontiernet.model.files import torch_model_file
+    from frontiernet.model.predictor import input_size
 
-    from .evaluate import evaluate, format_report
-
-    if args.max_samples is not None and args.max_samples < 1:
-        raise InputError(f"--max-samples must be >= 1, got {args.max_samples}")
-    if args.workers < 0:
-        raise InputError(f"--workers must be >= 0, got {args.workers}")
+    if args.max_samples is not None:
+        whole_number(args.max_samples, "--max-samples", 1)
+    cpu_count_option(args.workers, "--workers", 0)
     if args.size is not None:
-        whole_number(args.size, "--size", 8)  # (the smallest input the exports take)
+        input_size(args.size, "--size")
     if args.all and args.scenes:
         raise InputError("--all and --scenes exclude each other: give one")
     if args.json:
         check_output_file(args.json)  # a folder given as --json fails now, not after the evaluation
+    torch_model_file(args.model)  # before the data load
     from rich.progress import Progress
+
+    from .evaluate import evaluate, format_report
 
     with Progress(transient=True) as bar:
         task = bar.add_task("evaluating", total=None)

@@ -21,7 +21,7 @@ import torch
 from torch.utils.data import DataLoader, Dataset
 
 from datagen import DatasetError, FrontierDataset, open_dataset
-from frontiernet.errors import InputError
+from frontiernet.errors import InputError, cpu_count_option
 
 from .cache import TrainingCache, ensure_cache
 from .packed import pack_sample
@@ -160,14 +160,15 @@ def view_size(dataset: FrontierDataset) -> int:
     return height
 
 
-def worker_count(value) -> int:
-    """``data.num_workers`` / ``data.cache_workers``: a count, or ``auto`` (the machine's cores, at most 16)."""
+def worker_count(value, name: str = "data.num_workers") -> int:
+    """``data.num_workers`` / ``data.cache_workers`` (`name`): a count from 0 (in the training process)
+    to :data:`~frontiernet.errors.PER_CORE` per core, or ``auto`` (the machine's cores, at most 16)."""
     if str(value) == "auto":
         return min(os.cpu_count() or 1, 16)
-    count = int(value)
-    if count < 0:
-        raise InputError(f"data: worker count must be >= 0 or auto, got {value}")
-    return count
+    try:
+        return cpu_count_option(value, name, 0)
+    except InputError as error:
+        raise InputError(f"{error}; or auto") from None
 
 
 class FrontierDataModule(L.LightningDataModule):
@@ -227,7 +228,7 @@ def open_training_cache(data_conf, model_conf, dataset: FrontierDataset, progres
     with Progress(*columns, transient=True, disable=not progress) as bar:
         task = bar.add_task("cache", total=len(dataset))
         return ensure_cache(data_conf["path"], data_conf["cache"], size, model_conf["labels"],
-                            worker_count(data_conf["cache_workers"]),
+                            worker_count(data_conf["cache_workers"], "data.cache_workers"),
                             lambda done, total: bar.update(task, completed=done, total=total))
 
 

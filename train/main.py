@@ -32,7 +32,7 @@ from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import labels_gain_definition
-from frontiernet.io import write_json
+from frontiernet.io import input_file, write_json
 from frontiernet.model import FrontierNet, load_model, save_model
 
 from .config import plain
@@ -131,6 +131,45 @@ def check_loop_settings(conf, train_samples: int) -> None:
         raise InputError(f"trainer.val_check_interval: a fraction of an epoch must be in (0, 1], got {interval}")
 
 
+def check_settings(conf) -> None:
+    """Before anything is read or written (:func:`main` calls it first): InputError naming the key of
+    a setting that needs no data to be judged wrong: the run folder (``out``/``name``) a file or
+    under one; an epoch or step budget with no end (Lightning's -1 needs the other set); a crop or
+    image size outside [8, 2048] px; an augmentation probability outside [0, 1] or an amplitude
+    outside [0, 1); threads outside 1 to 4 per core; a checkpoint period that is not positive."""
+    from frontiernet.errors import cpu_count_option, positive_number, whole_number
+    from frontiernet.io import check_output_folder
+    from frontiernet.model.predictor import input_size
+
+    check_output_folder(run_dir(conf), force=True)  # (a run resumes in it)
+    trainer, data, augment = conf.trainer, conf.data, conf.augment
+    steps, epochs = trainer.max_steps, trainer.max_epochs
+    if steps != -1:
+        whole_number(steps, "trainer.max_steps (-1: no limit)", 1)
+    if epochs != -1 or steps == -1:
+        whole_number(epochs, "trainer.max_epochs" + (" (-1: no limit, with trainer.max_steps > 0)" if steps == -1
+                                                     else " (-1: no limit)"), 1)
+    for key, value in (("data.image_size", data.image_size), ("augment.crop_size", augment.crop_size)):
+        if value is not None:
+            input_size(value, f"{key} (or null)")
+    for key in ("hflip", "no_depth_fraction", "emulated_depth_fraction"):
+        if not 0.0 <= positive_number(augment[key], f"augment.{key}", allow_zero=True) <= 1.0:
+            raise InputError(f"augment.{key} is a probability, between 0 and 1; got {augment[key]}")
+    for key in ("brightness", "contrast", "saturation", "gamma"):
+        if not positive_number(augment[key], f"augment.{key}", allow_zero=True) < 1.0:
+            raise InputError(f"augment.{key}: factors are drawn from [1 - a, 1 + a], so a must be below 1; got "
+                             f"{augment[key]}")
+    for key in ("depth_scale_sigma", "depth_noise_sigma"):
+        positive_number(augment[key], f"augment.{key}", allow_zero=True)
+    for key in ("max_train_samples", "max_val_samples"):
+        if data[key] is not None:
+            whole_number(data[key], f"data.{key} (or null)", 1)
+    if trainer.threads is not None:
+        cpu_count_option(trainer.threads, "trainer.threads (or null)")
+    positive_number(trainer.checkpoint_every_minutes, "trainer.checkpoint_every_minutes", "minutes")
+    whole_number(trainer.checkpoint_every_n_epochs, "trainer.checkpoint_every_n_epochs", 1)
+
+
 def _check_checkpoint(path: str) -> None:
     """A checkpoint to resume from must load as one (plain data only: no code runs)."""
     try:
@@ -145,6 +184,24 @@ def run_dir(conf) -> Path:
     return Path(conf.out) / str(conf.name)
 
 
+
+def resume_checkpoint(out: Path, resume: str | None) -> str | None:
+    """The checkpoint a run in folder `out` resumes from: `resume` as given (``"last"``: the run's
+    last checkpoint), checked to be a training checkpoint; None for a fresh run. InputError: nothing
+    to resume, a missing or foreign checkpoint, or a fresh run into a folder holding one already."""
+    last = out / "checkpoints" / "last.ckpt"
+    if resume == "last":
+        if not last.is_file():
+            raise InputError(f"{last}: nothing to resume (no last checkpoint in the run folder)")
+        resume = str(last)
+    elif resume is not None:
+        input_file(resume, "checkpoint to resume from")
+    elif last.exists():
+        raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
+    if resume is not None:
+        _check_checkpoint(resume)
+    return resume
+
 def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     """Train with the resolved config `conf` (``train.config.load_train_config``).
 
@@ -153,18 +210,10 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     Returns:
         The run folder.
     """
+    check_settings(conf)
     out = run_dir(conf)
+    resume = resume_checkpoint(out, resume)
     last = out / "checkpoints" / "last.ckpt"
-    if resume == "last":
-        if not last.is_file():
-            raise InputError(f"{last}: nothing to resume (no last checkpoint in the run folder)")
-        resume = str(last)
-    elif resume is not None and not Path(resume).is_file():
-        raise InputError(f"{resume}: checkpoint to resume from not found")
-    elif resume is None and last.exists():
-        raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
-    if resume is not None:
-        _check_checkpoint(resume)
     init, init_labels = _initial_weights(conf) if resume is None else (None, {})
     dataset = open_training_data(conf.data.path)
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
@@ -201,6 +250,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
         part = 1 + len(list(out.glob("metrics-part*.csv")))
         (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
     started = time.time()
@@ -209,6 +259,12 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     except SystemExit:
         if trainer.interrupted:  # Lightning turns Ctrl-C into sys.exit(1) after its on_exception hooks
             raise KeyboardInterrupt from None
+        raise
+    except BaseException:
+        if created and trainer.global_step == 0:  # a run that never stepped leaves no folder behind
+            import shutil
+
+            shutil.rmtree(out, ignore_errors=True)
         raise
     if trainer.interrupted:
         raise KeyboardInterrupt

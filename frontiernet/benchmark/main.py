@@ -11,7 +11,7 @@ from ..config import load_config
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import RUN_SECTIONS, load_run_config
-from ..io import ensure_dir
+from ..io import check_output_folder, ensure_dir
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
@@ -20,6 +20,11 @@ from .budget import BudgetRule
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, plan_file, read_plan, write_plan
+
+
+MAX_STARTS = 1000
+"""The most start poses per scene (``--starts``) and runs per start and method (``--repeats``) of a
+benchmark: the paper's is 3 x 3; more would be sampled and planned for minutes before any run."""
 
 
 def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
@@ -56,18 +61,28 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
+    whole_number(starts, "--starts", 1, MAX_STARTS)
+    whole_number(repeats, "--repeats", 1, MAX_STARTS)
+    out = check_output_folder(out, force=True)  # (a benchmark folder resumes)
     check_backend(backend, workers)  # before plan.json is written: a refused run leaves nothing behind
     depths = depth_sources(depth, conf)
     scenes = expand_specs(scenes)
     valid = method_names()
-    for method in methods:
+    if not methods:
+        raise InputError(f"--methods names no method; valid: {', '.join(valid)}")
+    for index, method in enumerate(methods):
         if method not in valid:
             raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
+        if method in methods[:index]:
+            raise InputError(f"--methods names {method} twice; each method runs once per scene, start and repeat")
     if model is not None:  # a file that does not load is one error now, not a failed run per run
+        from ..exploration.methods import uses_model
         from ..model import open_runtime
 
+        if not any(uses_model(method) for method in methods):
+            raise InputError(f"--model {model}: none of the methods {', '.join(methods)} runs a model, so --model "
+                             "would be ignored; leave it out")
         open_runtime(model)
-    out = Path(out)
     settings = {"budget": budget if rule is None else rule.as_dict(), "seed": seed,
                 "model": str(model) if model else None, "depth": depth, "scene_starts": bool(scene_starts),
                 "conf": OmegaConf.to_container(conf, resolve=True)}

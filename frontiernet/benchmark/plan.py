@@ -130,18 +130,14 @@ def depth_sources(depth: str | None, conf) -> list[str]:
         InputError: an empty item, an unknown source (the valid ones listed) or one given twice
             (``gt,ground_truth`` too).
     """
-    from ..depth import SOURCES
-    from ..exploration.run import run_depth_source
+    from ..depth import known_source
 
     text = str(depth or conf.run.depth)
     names = []
     for item in text.split(","):
         if not item.strip():
             raise InputError(f"depth sources '{text}' (--depth, run.depth) have an empty item")
-        name = run_depth_source(item.strip(), conf)
-        if name not in SOURCES:
-            raise InputError(f"depth source '{item.strip()}' (--depth, run.depth) is unknown; valid: "
-                             f"gt, {', '.join(SOURCES)}")
+        name = known_source(item.strip())
         if name in names:
             raise InputError(f"depth source '{name}' is given twice in '{text}' (--depth, run.depth)")
         names.append(name)

@@ -18,16 +18,22 @@ def add_parser(subparsers) -> None:
     options.output_folder(parser, default="outputs/demo")
     options.max_steps(parser, "configs/demo.yaml")
     options.model_option(parser)
-    options.config_file(parser, "configs/demo.yaml")
+    options.config_file(parser, "configs/demo.yaml (over configs/explore.yaml), and sim.yaml, depth.yaml and "
+                                "scenes.yaml under sections sim:, depth: and scenes:")
+    options.config_overrides(parser, "run.max_steps=100 sim.camera.max_depth=5 depth.emulated.fill_depth=20")
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from ..exploration.run import load_run_config, main
+    from ..exploration.run import check_run, load_run_config, main
+    from ..io import check_output_folder, claim_output_folder
     from .explore import summary_line
 
-    conf = load_run_config(args.config, names=("explore", "demo"))
+    check_output_folder(args.out, force=True)  # the demo writes over its own outputs (make demo)
+    conf = load_run_config(args.config, args.overrides, names=("explore", "demo"))
     scene = args.scene or str(conf.pop("scene"))
-    record = main(conf, scene, args.out, model=args.model, max_steps=args.max_steps)
+    check_run(conf, model=args.model, max_steps=args.max_steps)  # before the folder is made
+    with claim_output_folder(args.out, force=True) as out:
+        record = main(conf, scene, out, model=args.model, max_steps=args.max_steps)
     print(summary_line(record, args.out))
     return 0

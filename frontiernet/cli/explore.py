@@ -55,21 +55,22 @@ def summary_line(record: dict, out) -> str:
 
 
 def run(args) -> int:
-    from ..exploration.run import explore
-    from ..io import check_output_folder
+    from ..exploration.run import check_run, load_run_config, main
+    from ..io import check_output_folder, claim_output_folder
 
     check_output_folder(args.out, args.force)
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # --map-free wins
-    mcap = []
-    if args.mcap:  # the ROS messages of frontiernet sequence (a layer above the explorer)
-        from pathlib import Path
+    conf = load_run_config(args.config, overrides)
+    settings = {"method": args.method, "model": args.model, "depth": args.depth, "max_steps": args.max_steps,
+                "start": args.start, "seed": args.seed, "rerun": args.rerun}
+    check_run(conf, **settings)  # before the folder is made
+    with claim_output_folder(args.out, args.force) as out:  # one run at a time writes there
+        mcap = []
+        if args.mcap:  # the ROS messages of frontiernet sequence (a layer above the explorer)
+            from ..sequences.ros_explore import ExplorationMcap
 
-        from ..sequences.ros_explore import ExplorationMcap
-
-        mcap = [ExplorationMcap(Path(args.out) / "exploration.mcap")]
-    record = explore(args.scene, args.out, args.config, overrides, method=args.method, model=args.model,
-                     depth=args.depth, max_steps=args.max_steps, start=args.start, seed=args.seed,
-                     video=not args.no_video, rerun=args.rerun, step_outputs=mcap)
+            mcap = [ExplorationMcap(out / "exploration.mcap")]
+        record = main(conf, args.scene, out, video=not args.no_video, step_outputs=mcap, **settings)
     if mcap:
         record["mcap"] = str(mcap[0].path)
     print(summary_line(record, args.out))

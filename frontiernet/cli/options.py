@@ -9,6 +9,8 @@ command's own are declared in its module.
 
 from __future__ import annotations
 
+import argparse
+
 SCENE_HELP = "scene spec (see `frontiernet scene --help`)"
 """Help of a command's one scene (``render SPEC``, ``explore --scene SPEC``)."""
 MODEL_FILE_HELP = "model file (.safetensors) or checkpoint (.ckpt)"
@@ -19,10 +21,22 @@ EXPLORE_CONFIG = ("configs/explore.yaml, and sim.yaml, depth.yaml and scenes.yam
 of :func:`~frontiernet.exploration.run.load_run_config`."""
 
 
+class Once(argparse.Action):
+    """An option given at most once: a second one is refused (argparse would keep the last one and
+    drop the first without a word)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        given = getattr(namespace, self.dest, None)
+        if given is not None:
+            parser.error(f"{option_string} given twice ({given}, then {values}): give one (put the keys of "
+                         f"both in one file, or set some as KEY=VALUE)")
+        setattr(namespace, self.dest, values)
+
+
 def config_file(parser, overriding: str) -> None:
     """``--config FILE``: a YAML file whose keys replace the shipped config's; `overriding` says
-    which files and sections it overrides (``configs/train.yaml (and model.*)``)."""
-    parser.add_argument("--config", metavar="FILE", help=f"YAML overriding {overriding}")
+    which files and sections it overrides (``configs/train.yaml (and model.*)``). One only (:class:`Once`)."""
+    parser.add_argument("--config", metavar="FILE", action=Once, help=f"YAML overriding {overriding} (one file)")
 
 
 def config_overrides(parser, example: str, *, option: bool = False) -> None:

@@ -24,27 +24,28 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ..io import check_output_folder, colorize_depth, ensure_dir, write_image, write_json, write_npy
+    from ..io import check_output_folder, claim_output_folder, colorize_depth, write_image, write_json, write_npy
     from ..simulator.world import build_world, load_world_config
 
     check_output_folder(args.out, args.force)
-    conf = load_world_config(args.config)
     x, y, z, yaw, pitch = parse_pose_text(args.pose)
+    conf = load_world_config(args.config)
     world = build_world(args.spec, conf, conf.scenes, voxels=not args.no_check)
     if world.voxels is not None:
         from ..simulator.poses import check_pose
 
         check_pose(world.scene, world.voxels, np.array([x, y, z]), conf=conf.poses)
-    out = ensure_dir(args.out)
     camera = world.renderer.camera
     frame = world.renderer.render(pose_from_heading(x, y, z, yaw, pitch))
-    write_image(out / "rgb.png", frame.rgb)
-    write_npy(out / "depth.npy", frame.depth)
-    write_image(out / "depth.png", colorize_depth(frame.depth, camera.max_depth))
-    write_image(out / "normals.png", ((frame.normals * 0.5 + 0.5) * 255 * frame.hit_mask[..., None]).astype(np.uint8))
-    write_json(out / "camera.json", {"spec": args.spec, "T_world_cam": frame.T_world_cam.tolist(),
-                                     "K": frame.K.tolist(), "width": camera.width, "height": camera.height,
-                                     "max_depth": camera.max_depth, "depth_units": "m", "depth_invalid": "NaN"})
+    with claim_output_folder(args.out, args.force) as out:  # (checked again: a run may have written there since)
+        write_image(out / "rgb.png", frame.rgb)
+        write_npy(out / "depth.npy", frame.depth)
+        write_image(out / "depth.png", colorize_depth(frame.depth, camera.max_depth))
+        write_image(out / "normals.png",
+                    ((frame.normals * 0.5 + 0.5) * 255 * frame.hit_mask[..., None]).astype(np.uint8))
+        write_json(out / "camera.json", {"spec": args.spec, "T_world_cam": frame.T_world_cam.tolist(),
+                                         "K": frame.K.tolist(), "width": camera.width, "height": camera.height,
+                                         "max_depth": camera.max_depth, "depth_units": "m", "depth_invalid": "NaN"})
     valid = np.isfinite(frame.depth)
     print(f"wrote {Path(out)}: valid depth {valid.mean():.0%}, "
           f"range {np.nanmin(frame.depth) if valid.any() else float('nan'):.2f}-"

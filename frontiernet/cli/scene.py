@@ -85,13 +85,14 @@ columns explorable only above or below it."""
 
 
 def run_topdown(args) -> int:
-    from ..io import check_image_name, check_output_file, ensure_dir, write_image
-    from ..simulator.preview import topdown_image
+    from ..io import check_image_name, check_output_file, check_output_folder, ensure_dir, write_image
+    from ..simulator.preview import check_view_settings, topdown_image
     from ..simulator.world import build_world, load_world_config
 
-    check_image_name(args.out)  # before the work: a bad --out fails at once
+    check_image_name(args.out)  # before the work: a bad --out or setting fails at once, and makes no folder
     check_output_file(args.out, args.force)
-    ensure_dir(Path(args.out).parent)
+    check_output_folder(Path(args.out).parent, force=True)
+    check_view_settings(args.pixel_size, args.cut_height)
     sim = load_world_config(args.config)
     scene = build_world(args.spec, sim, sim.scenes, voxels=False, renderer=False).scene  # the config's ray-cast engine
     image = topdown_image(scene, pixel_size=args.pixel_size, cut_height=args.cut_height)
@@ -107,6 +108,7 @@ def run_topdown(args) -> int:
                                     color=color, seed=mark)
         note = (f"; explorable {voxels.explorable_volume_m3:.1f} m^3: green at the cut height, amber only "
                 f"above or below it{'' if seed is None else ', red cross its seed'}")
+    ensure_dir(Path(args.out).parent)
     write_image(args.out, image)
     print(f"wrote {args.out} ({image.shape[1]} x {image.shape[0]} px{note})")
     return 0

@@ -54,6 +54,21 @@ def depth_source_name(name: str) -> str:
     return DEPTH_ALIASES.get(name, name)
 
 
+def known_source(name: str, what: str = "--depth, run.depth") -> str:
+    """`name` with its alias resolved when it names a source of :data:`SOURCES`; InputError naming
+    it and where it was given (`what`), with the valid names, otherwise."""
+    resolved = depth_source_name(name)
+    if resolved not in SOURCES:
+        raise InputError(f"depth source '{name}' ({what}) is unknown; valid: gt, {', '.join(SOURCES)}")
+    return resolved
+
+
+def monocular_sources() -> list[str]:
+    """The depth sources that estimate depth from the image alone (the others read the simulator's
+    ground truth): what a command without a simulator (``predict``, ``sequence``) offers."""
+    return [name for name in DEPTH_SOURCES.names() if not DEPTH_SOURCES.get(name).requires_ground_truth]
+
+
 def make_depth_source(
     name_or_conf: str | Mapping[str, Any] | DictConfig,
     conf: Mapping[str, Any] | DictConfig | None = None,
@@ -84,6 +99,8 @@ def make_depth_source(
 __all__ = [
     "DEPTH_ALIASES",
     "depth_source_name",
+    "known_source",
+    "monocular_sources",
     "source_options",
     "DepthSource",
     "GroundTruthDepth",

@@ -49,6 +49,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..registry import Registry
 from .ablations import discontinuity_frontiers, uniform_gain
 from .nbvp import make_nbvp
@@ -145,14 +146,24 @@ MAP_METHODS = {"classic": ("uniform", "nearest"), "gain-distance": ("unknown_vol
 """The map methods: name -> (map frontiers' gain, goal rule)."""
 
 
+def runs_model(factory):
+    """Mark method factory `factory` as one whose method runs the model file (``--model``), which
+    :func:`check_method` reads before a run's setup (a factory without the mark runs none)."""
+    factory.uses_model = True
+    return factory
+
+
+@runs_model
 def _frontiernet(context: MethodContext) -> Method:
     return image_method("frontiernet", model_perception(context), context, uses_model=True)
 
 
+@runs_model
 def _df_uniform(context: MethodContext) -> Method:
     return image_method("df-uniform", uniform_gain(model_perception(context), context.conf), context, uses_model=True)
 
 
+@runs_model
 def _discontinuity_gain(context: MethodContext) -> Method:
     perception = discontinuity_frontiers(model_perception(context), context.conf)
     return image_method("discontinuity-gain", perception, context, uses_model=True)
@@ -203,6 +214,21 @@ def method_names() -> list[str]:
     return sorted(METHODS.names())
 
 
+def uses_model(name: str) -> bool:
+    """Whether method `name` runs the model file (its factory is marked :func:`runs_model`);
+    InputError for an unknown name (the valid ones listed)."""
+    return bool(getattr(METHODS.get(name), "uses_model", False))
+
+
+def check_method(name: str, model=None) -> None:
+    """Before a run's setup: InputError for an unknown method `name` (the valid ones listed), or a
+    `model` (``--model``) given to a method that runs none (:func:`uses_model`)."""
+    if not uses_model(name) and model is not None:
+        users = [other for other in METHODS.names() if uses_model(other)]
+        raise InputError(f"--model {model}: method {name} runs no model, so --model would be ignored; leave it "
+                         f"out (the methods that run one: {', '.join(users)})")
+
+
 def make_method(name: str, context: MethodContext) -> Method:
     """Build the method `name` of :data:`METHODS` for a run (`context`).
 
@@ -212,6 +238,7 @@ def make_method(name: str, context: MethodContext) -> Method:
     return METHODS.get(name)(context)
 
 
-__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "MethodContext", "METHODS", "make_method",
+__all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "MethodContext", "METHODS", "check_method",
+           "make_method", "runs_model", "uses_model",
            "method_names", "image_method", "ModelPerception", "model_perception", "GOAL_RULES", "DRAW_FREE_METHODS",
            "repeats_identically"]

@@ -75,10 +75,43 @@ def planning_world(spec: str, conf):
 
 
 def run_depth_source(depth: str | None, conf) -> str:
-    """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``)."""
-    from ..depth import depth_source_name
+    """The depth source of a run: `depth` or ``run.depth``, aliases resolved (``gt``); InputError
+    for an unknown one (:func:`~frontiernet.depth.known_source`)."""
+    from ..depth import known_source
 
-    return depth_source_name(depth or str(conf.run.depth))
+    return known_source(depth or str(conf.run.depth))
+
+
+def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | None = None,
+              max_steps: int | None = None, start: str | None = None, seed: int | None = None,
+              rerun: bool = False) -> tuple[int, int, str]:
+    """Before a run's setup (:func:`main` calls it first; a command before it makes any folder): the
+    run's step budget, seed and depth source name, resolved; InputError for a budget < 1, a seed
+    < 0, an unknown depth source or method, a `model` the method does not run or that is no file,
+    a malformed `start`, a ``planner.clearance_m`` too small for the agent, `rerun` without
+    rerun-sdk. (What needs the scene, such as a start outside it, is checked after it loads.)"""
+    from ..errors import positive_number
+    from ..io import input_file
+    from .methods import check_method
+    from .move_check import body_radius
+
+    budget = int(conf.run.max_steps if max_steps is None else max_steps)
+    if budget < 1:
+        raise InputError(f"the step budget (--max-steps, run.max_steps) must be at least 1, got {budget}")
+    seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
+    depth_name = run_depth_source(depth, conf)
+    check_method(method, model)
+    if model is not None:
+        input_file(model, "model file")
+    if start is not None:
+        parse_pose_text(start, "--start", pitch=False)
+    agent = run_section(conf, "sim").agent
+    body_radius(conf.planner, float(conf.map.voxel_size), positive_number(agent.radius_m, "agent.radius_m", "metres"))
+    if rerun:
+        from .recording import require_rerun
+
+        require_rerun()
+    return budget, seed, depth_name
 
 
 def explore(scene: str, out: str | Path, user_file=None, overrides=(), **options) -> dict:
@@ -127,11 +160,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from .recording import RerunRecorder
     from .video import StepPictures
 
-    budget = int(conf.run.max_steps if max_steps is None else max_steps)
-    if budget < 1:
-        raise InputError(f"the step budget (--max-steps) must be at least 1, got {budget}")
-    seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
-    depth_name = run_depth_source(depth, conf)
+    budget, seed, depth_name = check_run(conf, method=method, model=model, depth=depth, max_steps=max_steps,
+                                         start=start, seed=seed, rerun=rerun)
     # the explorer's own draws read run.seed; config.yaml records what the run used
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
     sim = run_section(conf, "sim")

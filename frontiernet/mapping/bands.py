@@ -4,25 +4,28 @@ again, so a large map's step costs what its frame changes, not its whole band.""
 
 from __future__ import annotations
 
-from typing import Callable
-
 import numpy as np
-
-Columns = Callable[[int, int, tuple], tuple[np.ndarray, np.ndarray]]
-"""``(k0, k1, window) -> (free, occupied)``: (X', Y') bool columns of layers [k0, k1) over the
-(X, Y) `window` (a tuple of two slices) of the map."""
 
 
 class BandViews:
-    """(free, occupied) (X, Y) bool views per layer range [k0, k1), returned read-only.
+    """(free, occupied) (X, Y) bool views per layer range [k0, k1) of a map's `observed` ((X, Y, Z)
+    bool) and `log_odds` ((X, Y, Z) float32, occupied above `occupied_threshold`) arrays, which the
+    map updates in place; returned read-only. A column is occupied when any of its band voxels is
+    observed and occupied, free when all of them are observed and free.
 
     A view is computed whole once, then patched: :meth:`changed` records the index box a map
     update touched, and the next :meth:`view` of a band whose layers it overlaps recomputes the
     box's columns into a copy (a view handed out earlier never changes under its holder)."""
 
-    def __init__(self, columns: Columns) -> None:
-        self._columns = columns
+    def __init__(self, observed: np.ndarray, log_odds: np.ndarray, occupied_threshold: float) -> None:
+        self._observed, self._log_odds, self._threshold = observed, log_odds, float(occupied_threshold)
         self._views: dict[tuple[int, int], list] = {}  # (k0, k1) -> [free, occupied, stale box or None]
+
+    def _columns(self, k0: int, k1: int, window: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """(free, occupied) bool columns of layers [k0, k1) over the (X, Y) `window` (two slices)."""
+        observed = self._observed[window + (slice(k0, k1),)]
+        occupied = self._log_odds[window + (slice(k0, k1),)] > self._threshold
+        return np.all(observed & ~occupied, axis=2), np.any(observed & occupied, axis=2)
 
     def view(self, k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
         entry = self._views.get((k0, k1))

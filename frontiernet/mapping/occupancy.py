@@ -75,7 +75,8 @@ class OccupancyMap:
         self._observed = np.zeros(dims, bool)
         self._known_voxels = 0
         self._latest_frame: tuple[np.ndarray, np.ndarray] | None = None  # (box lo, voxels seen)
-        self._bands = BandViews(self._band_columns)  # slice_2d's views, patched where the map changes
+        # slice_2d's views, patched where the map changes (the arrays are only ever updated in place)
+        self._bands = BandViews(self._observed, self._log_odds, self.settings.occupied_threshold)
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
@@ -337,12 +338,6 @@ class OccupancyMap:
             empty = np.zeros(self.shape[:2], bool)
             return empty, empty.copy()
         return self._bands.view(k0, k1)
-
-    def _band_columns(self, k0: int, k1: int, window: tuple) -> tuple[np.ndarray, np.ndarray]:
-        """(free, occupied) bool columns of layers [k0, k1) over the (X, Y) `window` (two slices)."""
-        observed = self._observed[window + (slice(k0, k1),)]
-        occupied = self._log_odds[window + (slice(k0, k1),)] > self.settings.occupied_threshold
-        return np.all(observed & ~occupied, axis=2), np.any(observed & occupied, axis=2)
 
     # -- files -----------------------------------------------------------------------------------
 

@@ -43,6 +43,7 @@ from torch import nn
 
 from ..errors import InputError
 from ..io import write_bytes
+from .files import torch_model_file
 
 RESNET_ENCODERS = ("resnet18", "resnet34", "resnet50")
 FEATURE_ENCODERS = {
@@ -357,9 +358,7 @@ def load_model(path: str | Path | None = None) -> tuple[FrontierNet, dict]:
         InputError naming the file: missing, corrupt, not a FrontierNet file, or weights that
         do not fit the architecture the file declares.
     """
-    path = default_model_path() if path is None else Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: model file not found")
+    path = torch_model_file(default_model_path() if path is None else path)
     if path.suffix == ".safetensors":
         state, conf = _read_safetensors(path)
     else:

@@ -32,6 +32,7 @@ import torch
 
 from ..errors import InputError
 from ..registry import Registry
+from .files import RUNTIME_GROUP
 from .network import load_model
 
 
@@ -176,6 +177,20 @@ def decode_distance(normalised, labels_conf):
     if isinstance(normalised, torch.Tensor):
         return r * torch.exp(-normalised)
     return (r * np.exp(-np.asarray(normalised, np.float32))).astype(np.float32)
+
+
+MIN_INPUT_PX, MAX_INPUT_PX = 8, 2048
+"""The network input sizes (pixels, the short side) a user may ask for (``--size``, ``data.image_size``,
+``augment.crop_size``): the smallest the exports take, and 6.4 times the paper's 320 (a larger
+one only runs out of memory)."""
+
+
+def input_size(value, name: str) -> int:
+    """`value` as a network input size in [:data:`MIN_INPUT_PX`, :data:`MAX_INPUT_PX`] pixels;
+    InputError naming `name` (``--size``) otherwise."""
+    from ..errors import whole_number
+
+    return whole_number(value, name, MIN_INPUT_PX, MAX_INPUT_PX)
 
 
 def resize_and_crop(rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndarray | None, size: int,
@@ -327,7 +342,7 @@ class Predictor(Runtime):
         return distance.float().cpu().numpy(), logits.float().cpu().numpy()
 
 
-RUNTIMES = Registry("model format", "frontiernet.runtimes", {"safetensors": Predictor, "ckpt": Predictor})
+RUNTIMES = Registry("model format", RUNTIME_GROUP, {"safetensors": Predictor, "ckpt": Predictor})
 """Runtimes by model file suffix (without the dot): a Runtime class built as ``Class(path, threads)``.
 Torch files are built in; other formats register under the entry point group
 ``frontiernet.runtimes`` (``deploy`` adds ONNX as ``onnx`` and TorchScript as ``pt``, ``ts``,
@@ -343,8 +358,8 @@ def open_runtime(path: str | Path | None = None, threads: int | None = None) -> 
     """
     if path is None:
         return Predictor(None, threads=threads)
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: model file not found")
+    from ..io import input_file
+
+    path = input_file(path, "model file", empty_ok=False)
     suffix = path.suffix.lower().lstrip(".")
     return RUNTIMES.get(suffix, label=f"{path}: model format")(path, threads)

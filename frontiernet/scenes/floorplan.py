@@ -19,6 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
+from ..io import input_file, read_npy
 from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
@@ -85,8 +86,7 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
             valid = _load_array(path / "valid_space.npy")
         resolution = kth_resolution if resolution is None else resolution
         path = path / "occ_map.npy"
-    if not path.is_file():
-        raise InputError(f"{path}: floor-plan file not found")
+    input_file(path, "floor-plan file")
     if resolution is None:
         raise InputError(f"{spec_text}: a floor plan needs its resolution in metres/pixel "
                          "(add '?resolution=0.05')")
@@ -138,10 +138,7 @@ def _door_gaps(candidates: np.ndarray, space_labels: np.ndarray, free: np.ndarra
 
 
 def _load_array(path: Path) -> np.ndarray:
-    try:
-        array = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as error:  # EOFError: an empty file
-        raise InputError(f"{path}: not a readable .npy array ({error})") from None
+    array = read_npy(path)
     if not np.issubdtype(array.dtype, np.number) and array.dtype != bool:
         raise InputError(f"{path}: floor-plan array must be numeric, got {array.dtype}")
     return array.astype(np.float64) if array.dtype != bool else np.where(array, 254.0, 0.0)

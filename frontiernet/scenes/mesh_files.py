@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import T_ZUP_YUP
+from ..io import input_file
 from .scene import Material, Scene, SceneMetadata
 
 log = logging.getLogger(__name__)
@@ -124,9 +125,7 @@ def load_mesh_file(path: str | Path, spec_text: str, *, up: str = "z", scale: fl
     except ImportError:  # a torch-only GPU node: procedural and floor-plan scenes need no trimesh
         raise InputError(f"{spec_text}: loading mesh files needs trimesh (pip install trimesh)") from None
 
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
+    path = input_file(path, "mesh file", empty_ok=False)
     if path.suffix.lower() not in (".glb", ".gltf", ".obj", ".ply"):
         raise InputError(f"{path}: unsupported mesh format '{path.suffix}' (use .glb, .gltf, .obj or .ply)")
     if up not in ("y", "z"):
@@ -136,7 +135,8 @@ def load_mesh_file(path: str | Path, spec_text: str, *, up: str = "z", scale: fl
     try:
         loaded = trimesh.load(str(path), force="scene", process=False)
     except Exception as error:  # trimesh raises many types on corrupt input
-        raise InputError(f"{path}: cannot read mesh ({error.__class__.__name__}: "
+        raise InputError(f"{path}: cannot read mesh: a corrupt or truncated {path.suffix.lower()} file (trimesh: "
+                         f"{error.__class__.__name__}: "
                          f"{str(error).splitlines()[0][:120] if str(error) else 'corrupt file'})") from None
     vertices, triangles, tri_material, tri_uvs, vertex_colors, materials = _collect(
         loaded, max_texture_size, geometry_only)

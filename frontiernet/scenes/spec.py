@@ -55,6 +55,9 @@ from .scene import Scene
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
 DEFAULT_SPEC = "procedural:0"
+MAX_SEED_RANGE = 100_000
+"""The most scenes one seed range (``procedural:A-B``) may name: 200 times the paper's datasets;
+a larger one would only be listed for minutes before any work (:func:`expand_specs`)."""
 
 
 @dataclass
@@ -188,6 +191,9 @@ def expand_specs(texts) -> list[str]:
                                  "e.g. procedural:0-199") from None
             if not 0 <= low <= high:
                 raise InputError(f"scene spec '{text}': seed range must satisfy 0 <= FIRST <= LAST")
+            if high - low + 1 > MAX_SEED_RANGE:
+                raise InputError(f"scene spec '{text}': a seed range of {high - low + 1:,} scenes; at most "
+                                 f"{MAX_SEED_RANGE:,} in one range (split the work into several runs)")
             out += [f"procedural:{seed}{suffix}" for seed in range(low, high + 1)]
         elif any(c in argument for c in "*?["):
             matches = sorted(glob.glob(argument))

@@ -1,12 +1,12 @@
 """Reading RGB images and depth maps from disk, with the depth encodings of common datasets.
 
 * :func:`read_rgb`: (H, W, 3) uint8 RGB from any image OpenCV reads.
-* :func:`read_depth`: (H, W) float32 metres, 0 = invalid, from ``.npy`` (float metres) or a
-  depth image in one of the :data:`DEPTH_ENCODINGS`:
+* :func:`read_depth`: (H, W) float32 metres, 0 = invalid, from ``.npy`` or a depth image in one
+  of the :data:`DEPTH_ENCODINGS`:
 
-  ``scale`` (default): integer images divided by ``depth_scale`` units per metre (1000 for
-  millimetre PNGs as Redwood, ICL-NUIM and ScanNet write them; 5000 for TUM RGB-D), float
-  images taken as metres; ``sun``: SUN3D / SUN RGB-D's bit-rotated millimetres
+  ``scale`` (default): integer images and arrays divided by ``depth_scale`` units per metre (1000
+  for millimetre PNGs as Redwood, ICL-NUIM and ScanNet write them; 5000 for TUM RGB-D), float
+  ones (``frontiernet render``'s ``depth.npy``) taken as metres; ``sun``: SUN3D / SUN RGB-D's bit-rotated millimetres
   (``mm = v >> 3 | v << 13``); ``nyu``: NYU Depth V2's raw Kinect values, stored little-endian
   in a PGM whose header says big-endian (``m = 351.3 / (1092.5 - raw)``, Open3D's
   ``CreateFromNYUFormat``).
@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..io import input_file, read_npy
 
 DEPTH_ENCODINGS = ("scale", "sun", "nyu")
 PLAUSIBLE_DEPTH_M = (0.05, 100.0)  # median depths outside this mean a wrong unit (indoor and outdoor sensors)
@@ -29,9 +30,7 @@ _NYU_BASELINE, _NYU_OFFSET = 351.3, 1092.5  # Open3D RGBDImageFactory.cpp (NYU r
 
 def read_rgb(path: str | Path) -> np.ndarray:
     """(H, W, 3) uint8 RGB from an image file; InputError for a missing file or another channel count."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: image not found")
+    path = input_file(path, "image")
     image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if image is None:
         raise InputError(f"{path}: not a readable image")
@@ -74,33 +73,35 @@ def _read_nyu(path: Path) -> np.ndarray:
         return np.where(raw < _NYU_OFFSET, _NYU_BASELINE / (_NYU_OFFSET - raw), 0.0).astype(np.float32)
 
 
-def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "scale") -> np.ndarray:
+def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "scale", *,
+               scale_given: bool = False) -> np.ndarray:
     """(H, W) float32 metres from a depth file; 0 = invalid (see the module doc for `encoding`).
 
     NaN (the convention of ``frontiernet render``'s ``depth.npy``), 0 and negative values are invalid.
+    Integer depth (an image or a ``.npy`` array) is divided by `depth_scale`; float depth is metres.
+    `scale_given`: the user gave `depth_scale` (``--depth-scale``), so float depth, which it does not
+    apply to, is refused rather than read with the scale silently ignored.
     """
-    path = Path(path)
     if encoding not in DEPTH_ENCODINGS:
         raise InputError(f"depth encoding '{encoding}' is unknown; valid: {', '.join(DEPTH_ENCODINGS)}")
-    if not path.is_file():
-        raise InputError(f"{path}: depth file not found")
+    path = input_file(path, "depth file")
     if encoding == "nyu":
         return _read_nyu(path)
     if path.suffix.lower() == ".npy":
-        try:
-            depth = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as error:  # EOFError: an empty file
-            raise InputError(f"{path}: not a readable .npy array ({error})") from None
+        depth = read_npy(path)
     else:
         depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
         if depth is None:
             raise InputError(f"{path}: not a readable depth image")
-        if encoding == "sun":
-            if depth.dtype != np.uint16:
-                raise InputError(f"{path}: SUN depth must be a 16-bit image, got {depth.dtype}")
-            depth = ((depth >> 3) | (depth << 13)).astype(np.float32) / 1000.0
-        elif np.issubdtype(depth.dtype, np.integer):
-            depth = depth.astype(np.float32) / float(depth_scale)
+    if encoding == "sun":
+        if depth.dtype != np.uint16:
+            raise InputError(f"{path}: SUN depth must be a 16-bit image, got {depth.dtype}")
+        depth = ((depth >> 3) | (depth << 13)).astype(np.float32) / 1000.0
+    elif np.issubdtype(depth.dtype, np.integer):
+        depth = depth.astype(np.float32) / float(depth_scale)
+    elif scale_given:
+        raise InputError(f"{path}: holds {depth.dtype} depth, read as metres; the depth scale "
+                         f"({depth_scale:g}, --depth-scale) applies to integer depth only: leave it out")
     if depth.ndim != 2:
         raise InputError(f"{path}: depth must be a single-channel (H, W) map, got shape {tuple(depth.shape)}")
     depth = depth.astype(np.float32)

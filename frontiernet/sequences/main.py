@@ -19,14 +19,13 @@
 
 from __future__ import annotations
 
-import shutil
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..io import ensure_dir, write_json
+from ..errors import InputError, whole_number
+from ..io import claim_output_folder, ensure_dir, write_json
 from .gravity import gravity_alignment
 from .outputs import write_arrows, write_frontiers
 from .perceive import perceive_frames
@@ -34,15 +33,30 @@ from .stream import FrontierStream, load_sequence_config
 from .tracking import track_frontiers
 
 
+def check_frames(stride, max_frames) -> tuple[int, int | None]:
+    """(stride, max_frames) of ``frames``, checked: InputError naming the key (and its option) for a
+    stride < 1 or a max_frames < 1 (None: every frame)."""
+    stride = whole_number(stride, "frames.stride (--stride)", 1)
+    return stride, None if max_frames is None else whole_number(max_frames, "frames.max_frames (--max-frames)", 1)
+
+
+def check_depth(depth) -> None:
+    """InputError unless `depth` is ``sensor``, the name of a depth source of
+    :data:`~frontiernet.depth.SOURCES` (``emulated`` degrades the sensor's depth) or a
+    :class:`~frontiernet.depth.DepthSource`."""
+    from ..depth import SOURCES, depth_source_name
+
+    if isinstance(depth, str) and depth != "sensor" and depth_source_name(depth) not in SOURCES:
+        raise InputError(f"--depth {depth}: not a depth source; valid: sensor (the sequence's depth images, the "
+                         f"default), gt, {', '.join(SOURCES)}")
+
+
 def select_frames(sequence, stride: int, max_frames: int | None):
     """Every `stride`-th frame, at most `max_frames` of them (None: all)."""
-    if int(stride) < 1:
-        raise InputError(f"frames.stride must be >= 1, got {stride}")
-    indices = list(range(0, len(sequence), int(stride)))
+    stride, max_frames = check_frames(stride, max_frames)
+    indices = list(range(0, len(sequence), stride))
     if max_frames is not None:
-        if int(max_frames) < 1:
-            raise InputError(f"frames.max_frames must be >= 1 or null, got {max_frames}")
-        indices = indices[:int(max_frames)]
+        indices = indices[:max_frames]
     return sequence.subset(indices)
 
 
@@ -129,12 +143,6 @@ def reader_options(format: str, conf, out: Path, progress: bool, recording: dict
     return {"work_dir": out / "colmap", "conf": conf.sfm, "progress": progress} if format == "images" else {}
 
 
-def _remove_if_empty(folder: Path) -> None:
-    """Remove `folder` when no file lies anywhere under it (what a run stopped by bad input left)."""
-    if folder.is_dir() and not any(path.is_file() for path in folder.rglob("*")):
-        shutil.rmtree(folder, ignore_errors=True)
-
-
 def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto", depth: str = "sensor",
          model: str | Path | None = None, camera=None, video: bool = True, progress: bool = True,
          recording: dict | None = None, mcap: bool = True, rosbag2: bool = False) -> dict:
@@ -149,18 +157,16 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
-    Bad input (an :class:`InputError`) leaves no empty `out` folder behind that was not there before.
+    The frames, the depth and `out` are checked before any work; a run refused after (an
+    :class:`InputError`) leaves no empty `out` folder behind that was not there before, and a
+    second run on `out` while this one writes there is refused (:func:`~frontiernet.io.claim_output_folder`).
     """
     conf = load_sequence_config() if conf is None else conf
-    out = Path(out)
-    existed = out.exists()
-    try:
+    check_frames(conf.frames.stride, conf.frames.max_frames)
+    check_depth(depth)
+    with claim_output_folder(out, force=True) as out:  # (a re-run resumes from out/cache)
         return _run(conf, input_path, out, format=format, depth=depth, model=model, camera=camera, video=video,
                     progress=progress, recording=recording, mcap=mcap, rosbag2=rosbag2)
-    except InputError:
-        if not existed:
-            _remove_if_empty(out)
-        raise
 
 
 def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, progress, recording, mcap,

@@ -21,6 +21,7 @@ from PIL import Image, UnidentifiedImageError
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
+from ..io import input_file, input_folder, read_npy
 from .frames import Camera, Sequence, SequenceFrame
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm", ".webp")
@@ -36,11 +37,9 @@ REDWOOD_DEPTH_SCALE = 1000.0  # Redwood depth PNGs: millimetres
 # ----------------------------------------------------------------------------- shared file helpers
 
 def require_folder(path: str | Path, what: str) -> Path:
-    """`path` as a Path if it is a folder; InputError naming it and `what` it should be otherwise."""
-    path = Path(path)
-    if not path.is_dir():
-        raise InputError(f"{path}: {what} folder not found")
-    return path
+    """`path` as a Path if it is a folder; InputError naming it and `what` it should be otherwise
+    (:func:`~frontiernet.io.input_folder`)."""
+    return input_folder(path, what)
 
 
 def list_images(folder: Path) -> list[Path]:
@@ -55,13 +54,9 @@ def list_images(folder: Path) -> list[Path]:
 
 def image_size(path: Path) -> tuple[int, int]:
     """(width, height) in pixels of an image (from its header, no pixels decoded) or a ``.npy`` depth map."""
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
+    input_file(path)
     if path.suffix.lower() == ".npy":
-        try:
-            shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
-        except (ValueError, OSError, EOFError) as error:  # EOFError: an empty file
-            raise InputError(f"{path}: not a readable .npy array ({error})") from None
+        shape = read_npy(path, mmap_mode="r").shape
         if len(shape) != 2:
             raise InputError(f"{path}: depth must be a (H, W) array, got shape {tuple(shape)}")
         return int(shape[1]), int(shape[0])
@@ -101,8 +96,7 @@ def default_camera(size: tuple[int, int]) -> Camera:
 def _number_rows(path: Path, columns: int) -> list[tuple[int, list[str]]]:
     """(line number, fields) of the non-empty, non-``#`` lines of a text file with at least
     `columns` whitespace-separated fields; InputError naming the file and line otherwise."""
-    if not path.is_file():
-        raise InputError(f"{path}: file not found")
+    input_file(path)
     rows = []
     for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
         fields = line.split()

@@ -17,10 +17,15 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, positive_number, whole_number
 from ..geometry import intrinsics_matrix
 from ..scenes import Scene
 from .raycast import INVALID_ID, cast_rays
+
+
+MAX_CAMERA_PX = 4096
+"""The largest simulated image side, pixels (``camera.width``, ``camera.height``): a 4K frame; a
+larger one only runs out of memory (its rays are 24 bytes a pixel)."""
 
 
 @dataclass(frozen=True)
@@ -45,10 +50,13 @@ class PinholeCamera:
 
     @classmethod
     def from_config(cls, conf) -> "PinholeCamera":
-        """From the ``camera`` section of ``configs/sim.yaml`` (centred principal point)."""
-        width, height = int(conf.width), int(conf.height)
-        return cls(width, height, float(conf.focal_px), float(conf.focal_px),
-                   (width - 1) / 2.0, (height - 1) / 2.0, float(conf.max_depth))
+        """From the ``camera`` section of ``configs/sim.yaml`` (centred principal point); InputError
+        naming the key for a size outside [1, :data:`MAX_CAMERA_PX`] pixels, a focal length or a
+        range that is not a positive number."""
+        width, height = (whole_number(conf[key], f"camera.{key}", 1, MAX_CAMERA_PX) for key in ("width", "height"))
+        focal = positive_number(conf.focal_px, "camera.focal_px", "pixels")
+        return cls(width, height, focal, focal, (width - 1) / 2.0, (height - 1) / 2.0,
+                   positive_number(conf.max_depth, "camera.max_depth", "metres"))
 
     @classmethod
     def from_K(cls, K: np.ndarray, width: int, height: int, max_depth: float) -> "PinholeCamera":

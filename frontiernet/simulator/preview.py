@@ -20,6 +20,14 @@ MAX_TOPDOWN_PIXELS = 25_000_000
 """Largest top view drawn (5000 x 5000 px): its two casts of 24-byte rays per pixel hold 1.2 GB, more with their hits."""
 
 
+def check_view_settings(pixel_size: float, cut_height: float) -> None:
+    """InputError for a pixel size or cut height (of :func:`topdown_image`) that is not a positive number."""
+    from ..errors import positive_number
+
+    positive_number(pixel_size, "the pixel size (--pixel-size)", "metres")
+    positive_number(cut_height, "the cut height (--cut-height)", "metres above the floor")
+
+
 def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.8) -> np.ndarray:
     """Orthographic top view of `scene` cut at ``bounds_min_z + cut_height`` metres.
 
@@ -39,11 +47,10 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
         InputError: a pixel size or cut height that is not a positive number, or an image of more
             than :data:`MAX_TOPDOWN_PIXELS`.
     """
-    from ..errors import InputError, positive_number
+    from ..errors import InputError
     from .raycast import INVALID_ID, cast_rays
 
-    positive_number(pixel_size, "the pixel size (--pixel-size)", "metres")
-    positive_number(cut_height, "the cut height (--cut-height)", "metres above the floor")
+    check_view_settings(pixel_size, cut_height)
     lo, hi = scene.bounds
     width, height = (int(np.ceil((hi[axis] - lo[axis]) / pixel_size)) for axis in (0, 1))
     if width * height > MAX_TOPDOWN_PIXELS:

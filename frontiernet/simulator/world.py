@@ -77,6 +77,7 @@ def build_world(scene: str | Scene, sim_conf, scenes_conf=None, *, voxels: bool 
     if not isinstance(scene, Scene) and scenes_conf is None:
         raise TypeError("build_world: a scene spec needs scenes_conf, the command's scenes config")
     backend = select_backend(sim_conf.raycast.backend)
+    camera = PinholeCamera.from_config(sim_conf.camera) if renderer else None  # checked before the scene loads
     stopwatch = Stopwatch()
     if not isinstance(scene, Scene):
         with stopwatch("load"):
@@ -88,6 +89,5 @@ def build_world(scene: str | Scene, sim_conf, scenes_conf=None, *, voxels: bool 
     rendering = None
     if renderer:
         with stopwatch("renderer"):
-            camera = sim_conf.camera
-            rendering = Renderer(scene, PinholeCamera.from_config(camera), tuple(camera.background))
+            rendering = Renderer(scene, camera, tuple(sim_conf.camera.background))
     return World(scene, grid, rendering, backend, stopwatch.seconds)
