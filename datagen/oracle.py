@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from frontiernet.exploration.ablations import GainFrom, uniform_gain
-from frontiernet.exploration.methods import Method, MethodContext, image_method, model_perception, runs_model
+from frontiernet.exploration.methods import Method, MethodContext, image_method, model_perception
 from frontiernet.exploration.perception import Perception, PerceptionResult
 
 from .config import load_datagen_config
@@ -77,9 +77,11 @@ def oracle_uniform(context: MethodContext) -> Method:
     return image_method("oracle-uniform", uniform_gain(_oracle_perception(context), context.conf), context)
 
 
-@runs_model
 def frontiernet_oracle_gain(context: MethodContext) -> Method:
     """``frontiernet-oracle-gain``: the model's frontier pixels (the context's model file, None =
     the shipped one), ground-truth gain classes (a ``frontiernet.methods`` factory)."""
     perception = GainFrom(model_perception(context), _oracle_perception(context))
     return image_method("frontiernet-oracle-gain", perception, context, uses_model=True)
+
+
+frontiernet_oracle_gain.uses_model = True  # it runs the model file: --model applies (exploration.methods.uses_model)

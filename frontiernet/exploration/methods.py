@@ -146,27 +146,22 @@ MAP_METHODS = {"classic": ("uniform", "nearest"), "gain-distance": ("unknown_vol
 """The map methods: name -> (map frontiers' gain, goal rule)."""
 
 
-def runs_model(factory):
-    """Mark method factory `factory` as one whose method runs the model file (``--model``), which
-    :func:`check_method` reads before a run's setup (a factory without the mark runs none)."""
-    factory.uses_model = True
-    return factory
-
-
-@runs_model
 def _frontiernet(context: MethodContext) -> Method:
     return image_method("frontiernet", model_perception(context), context, uses_model=True)
 
 
-@runs_model
 def _df_uniform(context: MethodContext) -> Method:
     return image_method("df-uniform", uniform_gain(model_perception(context), context.conf), context, uses_model=True)
 
 
-@runs_model
 def _discontinuity_gain(context: MethodContext) -> Method:
     perception = discontinuity_frontiers(model_perception(context), context.conf)
     return image_method("discontinuity-gain", perception, context, uses_model=True)
+
+
+# factories whose method runs the model file (--model), read by uses_model before a run's setup; a
+# plugin factory marks itself the same way (an attribute, set where it is defined: datagen/oracle.py)
+_frontiernet.uses_model = _df_uniform.uses_model = _discontinuity_gain.uses_model = True
 
 
 def _discontinuity_uniform(context: MethodContext) -> Method:
@@ -215,7 +210,7 @@ def method_names() -> list[str]:
 
 
 def uses_model(name: str) -> bool:
-    """Whether method `name` runs the model file (its factory is marked :func:`runs_model`);
+    """Whether method `name` runs the model file (its factory has ``uses_model = True``);
     InputError for an unknown name (the valid ones listed)."""
     return bool(getattr(METHODS.get(name), "uses_model", False))
 
@@ -239,6 +234,6 @@ def make_method(name: str, context: MethodContext) -> Method:
 
 
 __all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "MethodContext", "METHODS", "check_method",
-           "make_method", "runs_model", "uses_model",
+           "make_method", "uses_model",
            "method_names", "image_method", "ModelPerception", "model_perception", "GOAL_RULES", "DRAW_FREE_METHODS",
            "repeats_identically"]
