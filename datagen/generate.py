@@ -99,13 +99,17 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
     return expanded, shard_size
 
 
-def _prepare_output(out: Path, info: dict, resume: bool) -> None:
-    """Create `out` with its dataset.json, or check that it matches when resuming."""
+def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "seed", "scenes", "views_per_scene",
+                                                               "generator_version"),
+                   read_info=read_dataset_info, write_info=write_dataset_info) -> None:
+    """Create `out` with its dataset.json (`write_info`), or check that it matches when resuming: the
+    `keys` of the one `read_info` reads there must equal `info`'s (nothing written on a refusal).
+    Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys and files."""
     if (out / INFO_NAME).exists():
         if not resume:
             raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")
-        previous = read_dataset_info(out)
-        for key in ("config_hash", "seed", "scenes", "views_per_scene", "generator_version"):
+        previous = read_info(out)
+        for key in keys:
             if previous.get(key) != info[key]:
                 raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
                                  f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
@@ -116,7 +120,7 @@ def _prepare_output(out: Path, info: dict, resume: bool) -> None:
         raise InputError(f"{out}: folder is not empty and holds no dataset; choose another --out")
     try:
         (out / SHARDS_DIR).mkdir(parents=True, exist_ok=True)
-        write_dataset_info(out, info)
+        write_info(out, info)
     except OSError as error:
         raise InputError(f"{out}: cannot write the dataset there ({error.strerror or error})") from None
 
@@ -149,7 +153,7 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
             "scenes": specs, "views_per_scene": views_per_scene, "shard_size": shard_size, "config": conf_dict}
     created = not (out / INFO_NAME).exists()
     existed = out.exists()
-    _prepare_output(out, info, resume)
+    prepare_output(out, info, resume)
     removed = remove_stale_temporaries(out / SHARDS_DIR)
     if removed:
         log.info("removed %d unfinished shard file(s) of an interrupted run", removed)

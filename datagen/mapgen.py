@@ -29,7 +29,7 @@ from frontiernet import __version__
 from frontiernet.errors import InputError, positive_number, whole_number
 from frontiernet.io import write_json
 
-from .generate import _slug, shard_seed
+from .generate import _slug, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
                         write_map_shard)
 from .shards import INFO_NAME, SHARDS_DIR, remove_stale_temporaries
@@ -191,26 +191,6 @@ def run_map_task(task: dict, conf_dict: dict, info: dict) -> dict:
             "bad_input": bad_input, "seconds": time.perf_counter() - start}
 
 
-def _prepare(out: Path, info: dict, resume: bool) -> None:
-    """Create `out` with its dataset.json, or check that it matches when resuming (nothing written on a refusal)."""
-    if (out / INFO_NAME).exists():
-        if not resume:
-            raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")
-        previous = read_map_dataset_info(out)
-        for key in ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"):
-            if previous.get(key) != info[key]:
-                raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
-                                 f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
-        return
-    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not (out / SHARDS_DIR).is_dir())):
-        raise InputError(f"{out}: exists and is not an empty folder or a map dataset; choose another --out")
-    try:
-        (out / SHARDS_DIR).mkdir(parents=True, exist_ok=True)
-        write_map_dataset_info(out, info)
-    except OSError as error:
-        raise InputError(f"{out}: cannot write the dataset there ({error.strerror or error})") from None
-
-
 class _Progress:
     """A rich bar of finished runs (snapshots and failures counted), or nothing."""
 
@@ -268,7 +248,8 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
     info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed, "scenes": specs,
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}
     created, existed = not (out / INFO_NAME).exists(), out.exists()
-    _prepare(out, info, resume)
+    prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
+                   read_map_dataset_info, write_map_dataset_info)
     remove_stale_temporaries(out / SHARDS_DIR)
     tasks = plan_map_tasks(specs, runs, seed, out)
     todo = [task for task in tasks if not map_shard_complete(task.path)]

@@ -18,7 +18,7 @@ Members of a shard, in this order (every array a flat ``np.packbits`` of an (X, 
                              size, stop reason) and one record per snapshot (step, camera position and
                              yaw, floor height, coverage, the map's frontier pieces [x, y, cells])
 
-Shards are written to ``<name>.zip.tmp-<pid>`` and renamed into place (:func:`datagen.shards._add` and
+Shards are written to ``<name>.zip.tmp-<pid>`` and renamed into place (:func:`datagen.shards.write_zip` and
 friends: fixed time stamps, the same inputs give the same bytes); a reader ignores the temporaries.
 """
 
@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import zipfile
 import zlib
 from collections import OrderedDict
@@ -37,8 +36,7 @@ import numpy as np
 from frontiernet.errors import InputError
 from frontiernet.io import ensure_dir, write_json
 
-from .shards import (INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _add, _dumps, _fsync_dir, _npy_bytes,
-                     _tmp_name)
+from .shards import INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, write_zip
 
 MAP_DATASET_FORMAT = "frontiernet-map-dataset"
 MAP_DATASET_VERSION = 1
@@ -112,29 +110,15 @@ def write_map_shard(path: str | Path, truth: dict, snapshots: list[dict], meta: 
     """
     path = Path(path)
     shape = tuple(np.shape(truth["occupied"]))
+    members = [(f"truth/{name}.npy", _packed(truth[name]), zipfile.ZIP_DEFLATED) for name in ("occupied", "explorable")]
     records = []
-    tmp = _tmp_name(ensure_dir(path.parent) / path.name)
-    try:
-        with open(tmp, "wb") as handle:
-            with zipfile.ZipFile(handle, "w") as archive:
-                for name in ("occupied", "explorable"):
-                    _add(archive, f"truth/{name}.npy", _packed(truth[name]), zipfile.ZIP_DEFLATED)
-                for j, snapshot in enumerate(snapshots):
-                    key = f"{j:04d}"
-                    for name in ("observed", "occupied"):
-                        _add(archive, f"{key}/{name}.npy", _snapshot_bits(snapshot[name], shape, f"{key}/{name}"),
-                             zipfile.ZIP_DEFLATED)
-                    records.append(dict(snapshot["record"], key=key))
-                full = dict(meta, shape=list(shape), snapshots=records, shard_format_version=MAP_SHARD_VERSION)
-                _add(archive, META_NAME, _dumps(full), zipfile.ZIP_DEFLATED)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    _fsync_dir(path.parent)
-    return path
+    for j, snapshot in enumerate(snapshots):
+        key = f"{j:04d}"
+        members += [(f"{key}/{name}.npy", _snapshot_bits(snapshot[name], shape, f"{key}/{name}"), zipfile.ZIP_DEFLATED)
+                    for name in ("observed", "occupied")]
+        records.append(dict(snapshot["record"], key=key))
+    return write_zip(path, members, dict(meta, shape=list(shape), snapshots=records,
+                                          shard_format_version=MAP_SHARD_VERSION))
 
 
 def _corrupt(shard: Path, what: str) -> DatasetError:

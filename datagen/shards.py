@@ -243,15 +243,22 @@ def write_shard(path: str | Path, samples: list[dict], meta: dict, writer_conf=N
                      width=shape[1], rgb_format=ext, shard_format_version=SHARD_FORMAT_VERSION)
     if with_far == {True}:
         full_meta["far_depth"] = True
+    members = (member for j, sample in enumerate(samples)
+               for member in _sample_members(f"{j:06d}", sample, shape, ext, quality))
+    return write_zip(path, members, full_meta)
+
+
+def write_zip(path: Path, members, meta: dict) -> Path:
+    """Write a shard atomically and deterministically: the `members` ((name, bytes, compress type)
+    in order), then `meta` as :data:`META_NAME`, into ``<name>.tmp-<pid>``, synced and renamed into
+    place (the folder synced too); the temporary file is removed on any error."""
     tmp = _tmp_name(ensure_dir(path.parent) / path.name)
     try:
         with open(tmp, "wb") as handle:
             with zipfile.ZipFile(handle, "w") as archive:
-                for j, sample in enumerate(samples):
-                    for name, data, compress_type in _sample_members(f"{j:06d}", sample, shape, ext,
-                                                                     quality):
-                        _add(archive, name, data, compress_type)
-                _add(archive, META_NAME, _dumps(full_meta), zipfile.ZIP_DEFLATED)
+                for name, data, compress_type in members:
+                    _add(archive, name, data, compress_type)
+                _add(archive, META_NAME, _dumps(meta), zipfile.ZIP_DEFLATED)
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)

@@ -39,6 +39,14 @@ KINDS = ("ros1", "sqlite3", "mcap", "plain_mcap")
 # ----------------------------------------------------------------------------- frames and folders
 
 
+FRONTIER_TOPICS = {  # what frontiers.mcap and exploration.mcap hold: topic -> message type
+    "/frontiernet/frontiers": "visualization_msgs/msg/MarkerArray",
+    "/frontiernet/frontier_poses": "geometry_msgs/msg/PoseArray",
+    "/frontiernet/overlay": "sensor_msgs/msg/Image",
+    "/frontiernet/overlay/camera_info": "sensor_msgs/msg/CameraInfo",
+    "/frontiernet/map": "sensor_msgs/msg/PointCloud2",
+}
+
 def synthetic_frames(count: int = 4, size=(40, 30)):
     """(frames, K): textured frames with depth (uint16 mm) and poses walking along x."""
     rng = np.random.default_rng(0)
@@ -489,12 +497,7 @@ def test_a_recording_gives_the_frontiers_of_the_folder(runs):
 def test_the_mcap_holds_markers_poses_overlay_and_map_in_the_recordings_frames(runs):
     bag, _, count = runs
     topics = _decoded(bag / "frontiers.mcap")
-    assert {topic: messages[0][1] for topic, messages in topics.items()} == {
-        "/frontiernet/frontiers": "visualization_msgs/msg/MarkerArray",
-        "/frontiernet/frontier_poses": "geometry_msgs/msg/PoseArray",
-        "/frontiernet/overlay": "sensor_msgs/msg/Image",
-        "/frontiernet/overlay/camera_info": "sensor_msgs/msg/CameraInfo",
-        "/frontiernet/map": "sensor_msgs/msg/PointCloud2"}
+    assert {topic: messages[0][1] for topic, messages in topics.items()} == FRONTIER_TOPICS
     stamps = [T0 + i * PERIOD for i in range(count)]
     for topic in ("/frontiernet/frontiers", "/frontiernet/frontier_poses", "/frontiernet/overlay"):
         assert [time for time, _, _ in topics[topic]] == stamps
@@ -555,12 +558,7 @@ def test_explore_writes_the_same_messages_from_the_simulator(plan_spec, tmp_path
     assert main(["explore", "--scene", plan_spec, "--max-steps", "20", "--no-video", "--mcap", "--out", str(out)]) == 0
     topics = _decoded(out / "exploration.mcap")
     assert {topic: messages[0][1] for topic, messages in topics.items()} == {
-        "/frontiernet/frontiers": "visualization_msgs/msg/MarkerArray",
-        "/frontiernet/frontier_poses": "geometry_msgs/msg/PoseArray",
-        "/frontiernet/overlay": "sensor_msgs/msg/Image",
-        "/frontiernet/overlay/camera_info": "sensor_msgs/msg/CameraInfo",
-        "/frontiernet/map": "sensor_msgs/msg/PointCloud2",
-        "/tf": "tf2_msgs/msg/TFMessage"}
+        **FRONTIER_TOPICS, "/tf": "tf2_msgs/msg/TFMessage"}
     trajectory = json.loads((out / "trajectory.json").read_text())
     iterations = [step["iteration"] for step in trajectory["steps"]]
     fps = 10.0  # configs/explore.yaml run.video_fps: one message per iteration on the video's clock

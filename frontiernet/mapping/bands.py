@@ -7,6 +7,15 @@ from __future__ import annotations
 import numpy as np
 
 
+def band_layers(origin_z: float, voxel_size: float, layers: int, z_min: float, z_max: float) -> tuple[int, int]:
+    """Voxel layer range [k0, k1) of the height band [z_min, z_max] (world metres) of a grid whose
+    bottom is at `origin_z` with `layers` layers of `voxel_size`: the layers overlapping the band, at
+    least the one holding z_min, clipped to the grid (empty: k1 <= k0)."""
+    k0 = int(np.floor((z_min - origin_z) / voxel_size))
+    k1 = max(int(np.ceil((z_max - origin_z) / voxel_size)), k0 + 1)
+    return max(k0, 0), min(k1, int(layers))
+
+
 class BandViews:
     """(free, occupied) (X, Y) bool views per layer range [k0, k1) of a map's `observed` ((X, Y, Z)
     bool) and `log_odds` ((X, Y, Z) float32, occupied above `occupied_threshold`) arrays, which the

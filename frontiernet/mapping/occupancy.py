@@ -29,7 +29,7 @@ from ..errors import InputError, positive_number
 from ..io import atomic_path
 from ..simulator.voxels import VoxelGrid
 from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
-from .bands import BandViews, read_only
+from .bands import BandViews, band_layers, read_only
 from .checks import MapSettings, depth_edges, depth_image, finite_number, scalar
 from .traversal import apply_marks, frustum_volume, mark_depth_rays
 
@@ -394,9 +394,7 @@ class OccupancyMap:
         z_min, z_max = finite_number(z_min, "z_min"), finite_number(z_max, "z_max")
         if z_max < z_min:
             raise InputError(f"{what} needs z_min <= z_max, got {z_min}, {z_max}")
-        k0 = int(np.floor((z_min - self.origin[2]) / self.voxel_size))
-        k1 = max(int(np.ceil((z_max - self.origin[2]) / self.voxel_size)), k0 + 1)
-        return max(k0, 0), min(k1, self.shape[2])
+        return band_layers(self.origin[2], self.voxel_size, self.shape[2], z_min, z_max)
 
     def _latest_frame_mask(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """(hi - lo) bool: the voxels of the index box [lo, hi) that the latest frame observed."""

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..mapping.bands import band_layers as grid_band_layers
 from ..mapping.occupancy import FREE, OCCUPIED, UNKNOWN
 
 LABEL_FREE, LABEL_OCCUPIED, IGNORE = 0, 1, 255
@@ -108,10 +109,7 @@ def decode_crop_input(one_hot: np.ndarray) -> np.ndarray:
 def band_layers(origin_z: float, voxel_size: float, layers: int, z: float, band_m: float) -> tuple[int, int]:
     """Voxel layer range [k0, k1) of the band ``z +- band_m`` (world metres): the layers overlapping it,
     at least the one holding its bottom, clipped to the grid; the rule of ``OccupancyMap.slice_2d``."""
-    z_min, z_max = float(z) - float(band_m), float(z) + float(band_m)
-    k0 = int(np.floor((z_min - origin_z) / voxel_size))
-    k1 = max(int(np.ceil((z_max - origin_z) / voxel_size)), k0 + 1)
-    return max(k0, 0), min(k1, int(layers))
+    return grid_band_layers(origin_z, voxel_size, layers, float(z) - float(band_m), float(z) + float(band_m))
 
 
 def topdown_states(states: np.ndarray, k0: int, k1: int) -> np.ndarray:
