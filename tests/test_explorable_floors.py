@@ -4,8 +4,9 @@ A building model of one storey has its floor as a thin surface at z = 0 (no slab
 it) and a stairwell going down to the storey below, which the model leaves out: the voxel grid
 then reaches down to z = -3 and the void under the floor is covered by the floor, so it lies
 inside the building's envelope. The ``reachable`` rule (frontiernet/scenes/explorable.py) must
-seed on the floor the robot stands on, and count neither the void under the building nor the
-parts of the stairwell no pose can stand in (under the flight, down its open eye).
+seed on the floor the robot stands on and count its storey only: not the void under the building,
+not the stairwell going down (the robot keeps its camera height and takes no stair), not another
+storey.
 """
 
 from __future__ import annotations
@@ -14,8 +15,11 @@ import numpy as np
 import pytest
 from conftest import scenes_config
 
+from omegaconf import OmegaConf
+
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
+from frontiernet.exploration.region import camera_z
 from frontiernet.scenes import load_scene
 from frontiernet.simulator.poses import check_pose
 from frontiernet.simulator.voxels import voxelize_scene
@@ -98,6 +102,15 @@ def test_thin_floor_over_a_stairwell_counts_the_storey_not_the_void_under_it(one
     assert 0.9 * X * Y * H <= grid.explorable_volume_m3 <= X * Y * H  # at most the storey's own volume
     seed = grid.index_to_world(grid.seed)
     assert 0.0 < seed[2] < 0.2  # on the floor, not under it
+    assert grid.is_explorable(np.array(IN_ROOM)).all()
+    assert not grid.is_explorable(np.array(VOID + SHAFT + OVER_FLIGHT)).any()  # the way down is another storey's
+
+
+def test_without_the_storey_keys_the_rule_before_them_keeps_the_flight(one_storey):
+    """Benchmark plans made before the storey keys read them as null (frontiernet/benchmark/plan.py):
+    then only the void under the building is cut, and the space over the flight still counts."""
+    conf = OmegaConf.merge(load_config("sim").voxels, {"storey_floor_share": None, "storey_slab_share": None})
+    grid = voxelize_scene(load_scene(str(one_storey), scenes_config()), conf)
     assert grid.is_explorable(np.array(IN_ROOM + OVER_FLIGHT)).all()
     assert not grid.is_explorable(np.array(VOID + SHAFT)).any()
 
@@ -122,19 +135,27 @@ def test_a_camera_under_the_floor_is_outside_the_building(one_storey):
         check_pose(scene, grid, np.array(VOID[0]), poses)
 
 
-def test_two_thin_floor_storeys_are_explorable_and_the_void_under_them_is_not(tmp_path):
-    """The automatic seed lies on the largest floor (here upstairs): the room air over the lower
-    storey's stairwell eye, with nothing under it down to the grid's bottom, is then left out with
-    the void (docs/exploration.md, known limit); `?seed=x,y` on the lower floor keeps it."""
+def test_each_storey_of_a_two_storey_building_counts_on_its_own(tmp_path):
+    """The automatic seed is on the ground storey (the lowest large floor, not the largest: here the
+    upper one, whose opening is smaller) and only that storey counts, up to the upper floor;
+    ``?seed=x,y,z`` upstairs counts the upper storey, and the robot's camera stands over its floor."""
     path = building(tmp_path / "two.ply", storeys=2)
-    upper = [[2.0, 2.0, 4.5], [8.0, 6.0, 5.5], [2.0, 2.0, 2.9]]  # upstairs, and in its floor's opening
-    for spec in (path, f"{path}?seed=2,5"):
-        grid = voxels(spec)
-        assert 0.85 * X * Y * 2 * H <= grid.explorable_volume_m3 <= X * Y * 2 * H
-        assert 0.0 < grid.index_to_world(grid.seed)[2] % H < 0.2  # on one of the floors
-        assert grid.is_explorable(np.array([IN_ROOM[0]] + OVER_FLIGHT + upper)).all()
-        assert not grid.is_explorable(np.array(VOID + SHAFT)).any()
-    assert grid.index_to_world(grid.seed)[2] < H and grid.is_explorable(np.array(IN_ROOM[1:2])).all()
+    upper = [[6.0, 2.0, 4.5], [8.0, 6.0, 5.5], [9.0, 1.0, 5.9]]  # upstairs, not over its floor's opening
+    ground = voxels(path)
+    assert 0.85 * X * Y * H <= ground.explorable_volume_m3 <= X * Y * H
+    assert 0.0 < ground.index_to_world(ground.seed)[2] < 0.2
+    assert ground.is_explorable(np.array(IN_ROOM)).all()
+    assert not ground.is_explorable(np.array(upper + OVER_FLIGHT + VOID + SHAFT)).any()
+    up = voxels(f"{path}?seed=6,2,4")
+    assert H < up.index_to_world(up.seed)[2] < H + 0.2
+    assert 0.85 * X * Y * H <= up.explorable_volume_m3 <= X * Y * H
+    assert up.is_explorable(np.array(upper)).all()
+    assert not up.is_explorable(np.array(IN_ROOM + OVER_FLIGHT)).any()
+    explore = load_config("explore")
+    scene = load_scene(str(path), scenes_config())
+    height = explore.motion.camera_height_m  # over the storey's floor, not over the shaft's bottom at z = -3
+    assert camera_z(scene, ground, explore) == pytest.approx(height, abs=0.05)
+    assert camera_z(scene, up, explore) == pytest.approx(H + height, abs=0.05)
 
 
 def side_cut(grid, y: float, scale: int = 4) -> np.ndarray:
@@ -155,9 +176,20 @@ if __name__ == "__main__":  # the docs picture: .venv/bin/python tests/test_expl
     import tempfile
     from pathlib import Path
 
-    from PIL import Image
+    from PIL import Image, ImageDraw
 
+    before_keys = {"storey_floor_share": None, "storey_slab_share": None}  # the void rule alone (before the storey)
     with tempfile.TemporaryDirectory() as folder:
-        grid = voxels(building(Path(folder) / "storey.ply"))
-    Image.fromarray(side_cut(grid, 5.6)).save(sys.argv[1])
-    print(f"wrote {sys.argv[1]}: explorable {grid.explorable_volume_m3:.1f} m^3 of a {X * Y * H:.0f} m^3 storey")
+        scene = load_scene(str(building(Path(folder) / "storey.ply")), scenes_config())
+        grids = [voxelize_scene(scene, OmegaConf.merge(load_config("sim").voxels, keys)) for keys in (before_keys, {})]
+    titles = ("the void rule alone", "one storey (the robot takes no stair)")
+    cuts = [side_cut(grid, 5.6) for grid in grids]
+    canvas = Image.new("RGB", (sum(c.shape[1] for c in cuts) + 20, cuts[0].shape[0] + 18), "white")
+    draw, x = ImageDraw.Draw(canvas), 0
+    for cut, grid, title in zip(cuts, grids, titles):
+        canvas.paste(Image.fromarray(cut), (x, 18))
+        draw.text((x + 4, 3), f"{title}: {grid.explorable_volume_m3:.1f} m^3", fill="black")
+        x += cut.shape[1] + 20
+    canvas.save(sys.argv[1])
+    print(f"wrote {sys.argv[1]}: explorable {', '.join(f'{g.explorable_volume_m3:.1f}' for g in grids)} m^3 "
+          f"of a {X * Y * H:.0f} m^3 storey")

@@ -65,7 +65,7 @@ def explorable_floor_m2(scene, voxels, conf) -> float:
     camera height (:func:`~frontiernet.exploration.region.camera_z`) times the voxel's footprint."""
     from ..exploration.region import camera_z
 
-    layer = voxels.layer(camera_z(scene, conf))
+    layer = voxels.layer(camera_z(scene, voxels, conf))
     return float(np.count_nonzero(voxels.explorable[:, :, layer])) * voxels.voxel_size ** 2
 
 

@@ -60,6 +60,9 @@ KEYS_ADDED_AFTER_PLANS = {
     "omniscient": {"candidate_spacing_m": 0.7, "yaw_count": 8, "view_width_px": 16, "max_candidates": 150,
                    "refresh_every_steps": 1},
     "planner.forgive_before_stop": False,  # issue 54: a goal given up on stays given up on, as before
+    # issue 55: the explorable space of one storey (null: the largest floor's seed, only the void cut)
+    "sim.voxels.storey_floor_share": None,
+    "sim.voxels.storey_slab_share": None,
     "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
@@ -233,7 +236,7 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
     poses = []
     if scene_starts:
-        z = camera_z(scene, conf)
+        z = camera_z(scene, voxels, conf)
         for index, (x, y) in enumerate(scene.metadata.extra.get("start_xy", [])):
             yaw = float(rng.uniform(-180.0, 180.0))
             i, j = voxels.world_to_index(np.array([x, y, z]))[:2]

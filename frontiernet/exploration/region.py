@@ -10,15 +10,21 @@ from ..errors import InputError
 from ..geometry import pose_from_heading
 
 
-def camera_z(scene, conf) -> float:
-    """World z (metres) of the robot's camera: ``motion.camera_height_m`` above the scene's floor."""
-    return float(scene.bounds[0, 2]) + float(conf.motion.camera_height_m)
+def camera_z(scene, voxels, conf) -> float:
+    """World z (metres) of the robot's camera: ``motion.camera_height_m`` above the floor of the
+    storey the explorable space counts (``voxels.floor_layer``: the centre of the layer holding
+    the surface under the seed's floor, within half a voxel of it; frontiernet/scenes/explorable.py),
+    or above the scene's lowest point where that layer is the grid's bottom one or there is no seed."""
+    floor = float(scene.bounds[0, 2])
+    if voxels.floor_layer:  # a storey over the grid's bottom layer (a thin floor over a shaft, an upper storey)
+        floor = float(voxels.origin[2]) + (voxels.floor_layer + 0.5) * voxels.voxel_size
+    return floor + float(conf.motion.camera_height_m)
 
 
 def _camera_clearance(scene, voxels, conf) -> tuple[float, np.ndarray]:
     """Camera height z (:func:`camera_z`) and the (X, Y) float64 clearance (metres) of each
     column over the planning band around it."""
-    z = camera_z(scene, conf)
+    z = camera_z(scene, voxels, conf)
     band = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
     return z, voxels.column_clearance(voxels.layer(z), band)
 

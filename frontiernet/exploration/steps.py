@@ -279,7 +279,7 @@ def reachable_columns(scene, voxels, conf) -> tuple[np.ndarray, slice]:
 
     region = start_sampler(scene, voxels, conf)[0]
     columns = dilated_columns(region, voxels.voxel_size, AccountSettings.from_config(conf.steps).reachable_dilation_m)
-    k = voxels.layer(camera_z(scene, conf))
+    k = voxels.layer(camera_z(scene, voxels, conf))
     half = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
     return columns, slice(max(k - half, 0), k + half + 1)
 

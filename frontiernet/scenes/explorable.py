@@ -25,16 +25,21 @@ robot can reach and see, not what the outside cannot flood into:
    the navigable floor voxel nearest the spec's ``?seed=x,y[,z]`` (within ``seed_search_m``; with
    a z, the highest floor at or below it, without one the lowest), else, automatically, the
    component with the most navigable floor (the building's interior, not a cabinet or a wall's
-   hollow), seeded at the centre of its largest walkable floor (:func:`walkable_floors`:
+   hollow), seeded on its lowest storey's walkable floor (step 4; :func:`walkable_floors`:
    navigable voxels joined through steps of one voxel, a ramp or a threshold; a stair's treads
    or a table top are floors of their own). With no navigable floor at all: the largest
    component, no seed, and step 4 is skipped.
-4. **Not under the building** (:func:`under_floor`). Voxels of that component below the surface
-   under the seed's walkable floor with no surface anywhere below them in their column (no
-   pose can stand there) are the void under the building: neither explorable nor enclosed. A
-   thin floor over nothing, or a stairwell going down to a storey the mesh leaves out, does not
-   let the void under it in; space over a stair flight stands on it and stays, and so does a
-   room's patch without a floor mesh level with the floor (KTH plans).
+4. **One storey** (:func:`storey_ceiling`). The robot keeps its camera height over the seed's
+   floor and never takes a stair, so of the component only the seed's storey counts: the layers
+   from the surface under the seed's walkable floor (its lowest voxel's) up to below the storey's
+   ceiling, the first layer above that floor whose occupied voxels cover at least
+   ``storey_slab_share`` of the floor's columns (a ceiling, or the next storey's floor slab;
+   with none, up to the grid's top). The void under a thin floor over nothing, a stairwell going
+   down, the storeys below and, above the ceiling, the space over structure (the storeys above)
+   are neither explorable nor enclosed; the air over a courtyard or up an opening in the slab,
+   and a room's patch without a floor mesh level with the floor (KTH plans), stay. The automatic seed is on the
+   lowest storey: the lowest walkable floor holding at least ``storey_floor_share`` of the
+   largest one's voxels (not a stair's tread or the bottom of a shaft).
 
 Everything else free inside the envelope (wall interiors, closed cabinets, rooms with no way in)
 is *enclosed*, not explorable: it tells "inside an obstacle" from "outside the building".
@@ -148,12 +153,15 @@ class ReachableSpace:
         enclosed: every free voxel inside the envelope (a superset of `explorable`).
         navigable: navigable floor voxels (free, on a support, with the robot's headroom and clearance).
         seed: (3,) int64 voxel index the component was chosen by, or None (no navigable floor).
+        floor_layer: layer index of the surface under the seed's walkable floor (step 4), or None
+            (no seed): the robot's camera height is taken over it.
     """
 
     explorable: np.ndarray
     enclosed: np.ndarray
     navigable: np.ndarray
     seed: np.ndarray | None
+    floor_layer: int | None = None
 
 
 def box_mask(origin: np.ndarray, voxel_size: float, shape: tuple[int, int, int], box) -> np.ndarray:
@@ -252,12 +260,17 @@ def walkable_floors(navigable: np.ndarray) -> tuple[np.ndarray, int]:
     return labels, low
 
 
-def _floor_seed(floors: np.ndarray, low: int) -> np.ndarray:
-    """(3,) int64 voxel index of the automatic seed: the voxel of the largest walkable floor nearest
-    its centroid (`floors`, `low`: :func:`walkable_floors`)."""
+def _floor_seed(floors: np.ndarray, low: int, share: float) -> np.ndarray:
+    """(3,) int64 voxel index of the automatic seed: the voxel nearest its centroid of the lowest
+    walkable floor (by its lowest layer; the larger of two at one layer) with at least `share` of
+    the largest floor's voxels: the ground storey of a building of several, not a stair's tread
+    or the bottom of a shaft (`floors`, `low`: :func:`walkable_floors`)."""
     sizes = np.bincount(floors.ravel())
     sizes[0] = 0
-    cells = np.argwhere(floors == int(np.argmax(sizes)))
+    large = np.flatnonzero(sizes >= share * sizes.max())
+    lowest = ndimage.minimum(np.broadcast_to(np.arange(floors.shape[2]), floors.shape), floors, large)
+    label = int(large[np.lexsort((-sizes[large], np.asarray(lowest)))[0]])
+    cells = np.argwhere(floors == label)
     best = cells[np.argmin(((cells - cells.mean(axis=0)) ** 2).sum(axis=1))]
     return best + np.array([0, 0, low])
 
@@ -269,30 +282,54 @@ def floor_layer(floors: np.ndarray, low: int, seed_index: np.ndarray) -> int:
     return low + int(np.flatnonzero(region.any(axis=(0, 1)))[0]) - 1
 
 
+def storey_ceiling(occupied: np.ndarray, floor_columns: np.ndarray, floor: int, share: float) -> int:
+    """Layer index of the storey's ceiling (step 4): the first layer above `floor` whose occupied
+    voxels cover at least `share` of `floor_columns` ((X, Y) bool: the columns of the seed's
+    walkable floor), or Z (the grid's height) when none does. `occupied`: (X, Y, Z) bool."""
+    counts = np.count_nonzero(occupied[floor_columns], axis=0)  # (Z,) occupied voxels per layer
+    above = np.flatnonzero(counts[floor + 1:] >= share * max(int(np.count_nonzero(floor_columns)), 1))
+    return floor + 1 + int(above[0]) if len(above) else occupied.shape[2]
+
+
 def under_floor(occupied: np.ndarray, floor: int) -> np.ndarray:
     """(X, Y, floor) bool over the layers below `floor`: voxels with no occupied voxel at or below
-    them in their column (step 4 of the module docstring: the void under a building, where no
-    pose can stand). `occupied`: (X, Y, Z) bool; `floor`: a layer index (0: no layer below)."""
+    them in their column (the void under a building, where no pose can stand; all that step 4
+    cut below the storey before ``storey_slab_share``, and still does with it null).
+    `occupied`: (X, Y, Z) bool; `floor`: a layer index (0: no layer below)."""
     return ~np.logical_or.accumulate(occupied[:, :, :max(floor, 0)], axis=2)
 
 
-def _seed_and_void(occupied: np.ndarray, navigable: np.ndarray, explorable: np.ndarray,
-                   seed_index: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def _seed_and_storey(occupied: np.ndarray, navigable: np.ndarray, explorable: np.ndarray,
+                     seed_index: np.ndarray | None, shares: tuple[float, float]) -> tuple[np.ndarray, int, np.ndarray]:
     """Steps 3 and 4 of the module docstring on the chosen component.
 
     Args:
         occupied, navigable, explorable: (X, Y, Z) bool; `navigable` within the component
             `explorable` and not empty.
         seed_index: (3,) int index of the spec's seed voxel, or None (automatic).
+        shares: (``storey_floor_share``, ``storey_slab_share``); None for either is the rule
+            before them (benchmark plans made before the keys): the largest floor's seed, and
+            only the void under the building cut (nothing above).
     Returns:
-        (seed_index, void): the seed's (3,) index, and (X, Y, F) bool over the layers below its
-        floor's surface F: the component's voxels under the building.
+        (seed_index, floor, cut): the seed's (3,) index, the layer F of its floor's surface, and
+        (X, Y, Z) bool: the component's voxels off the seed's storey (below F, or at or above its
+        ceiling), which do not count.
     """
     floors, low = walkable_floors(navigable)
     if seed_index is None:
-        seed_index = _floor_seed(floors, low)
+        seed_index = _floor_seed(floors, low, 1.0 if shares[0] is None else shares[0])
     floor = floor_layer(floors, low, seed_index)
-    return seed_index, explorable[:, :, :floor] & under_floor(occupied, floor)
+    cut = np.zeros(explorable.shape, bool)
+    if shares[1] is None:  # the rule before the storey: the void under the building only
+        cut[:, :, :floor] = explorable[:, :, :floor] & under_floor(occupied, floor)
+        return seed_index, floor, cut
+    columns = (floors == floors[seed_index[0], seed_index[1], seed_index[2] - low]).any(axis=2)
+    top = storey_ceiling(occupied, columns, floor, shares[1])
+    cut[:, :, :floor] = explorable[:, :, :floor]  # below the storey: the void under it, shafts down, storeys below
+    # at and above its ceiling, over structure there: the storeys above (not the air over a
+    # courtyard or up an opening in the slab, which the robot sees from below)
+    cut[:, :, top:] = explorable[:, :, top:] & np.logical_or.accumulate(occupied[:, :, top:], axis=2)
+    return seed_index, floor, cut
 
 
 def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float, conf, *,
@@ -303,7 +340,7 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
         occupied: (X, Y, Z) bool surface voxels.
         origin: (3,) world corner of voxel (0, 0, 0), metres; voxel_size: metres.
         conf: the ``voxels`` section of configs/sim.yaml (``wall_gap_m``, ``gap_closing_m``, ``floor_headroom_m``,
-            ``floor_clearance_m``, ``seed_search_m``).
+            ``floor_clearance_m``, ``seed_search_m``, ``storey_floor_share``, ``storey_slab_share``).
         seed: None, or (2,) / (3,) world metres (a spec's ``?seed=``).
         box: None, or (2, 3) world [min, max] metres (a spec's ``?bounds=``).
         where: names the scene in error messages.
@@ -315,6 +352,7 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
     headroom = positive_number(conf.floor_headroom_m, "voxels.floor_headroom_m", "metres")
     clearance = positive_number(conf.floor_clearance_m, "voxels.floor_clearance_m", "metres", allow_zero=True)
     search = positive_number(conf.seed_search_m, "voxels.seed_search_m", "metres", allow_zero=True)
+    shares = tuple(_share(conf, key) for key in ("storey_floor_share", "storey_slab_share"))
     origin = np.asarray(origin, np.float64)
     in_box = box_mask(origin, voxel_size, occupied.shape, box)
     structure = occupied & in_box
@@ -339,11 +377,26 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
         chosen = int(np.argmax(sizes))
     explorable = labels == chosen if chosen > 0 else np.zeros(occupied.shape, bool)
     navigable &= explorable
-    if navigable.any():  # the void under the building is neither explorable nor enclosed
-        seed_index, void = _seed_and_void(occupied, navigable, explorable, seed_index)
-        explorable[:, :, :void.shape[2]] &= ~void
-        enclosed[:, :, :void.shape[2]] &= ~void
-    return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=navigable, seed=seed_index)
+    floor = None
+    if navigable.any():  # the void under the building and the other storeys are neither explorable nor enclosed
+        seed_index, floor, cut = _seed_and_storey(occupied, navigable, explorable, seed_index, shares)
+        explorable &= ~cut
+        enclosed &= ~cut
+        navigable &= explorable
+    return ReachableSpace(explorable=explorable, enclosed=enclosed, navigable=navigable, seed=seed_index,
+                          floor_layer=floor)
+
+
+def _share(conf, key: str) -> float | None:
+    """The fraction ``voxels.<key>`` of configs/sim.yaml, in (0, 1], or None (null or absent: the
+    rule before the key, :func:`_seed_and_storey`)."""
+    value = conf.get(key) if hasattr(conf, "get") else getattr(conf, key, None)
+    if value is None:
+        return None
+    value = positive_number(value, f"voxels.{key}", "")
+    if value > 1.0:
+        raise InputError(f"voxels.{key} must be a fraction in (0, 1], got {value:g}")
+    return value
 
 
 EXPLORABLE_RULES = ("reachable", "enclosed")

@@ -61,6 +61,8 @@ class VoxelGrid:
             "inside an obstacle" from "outside the building".
         seed: (3,) int64 voxel index the ``reachable`` rule grew `explorable` from (a navigable
             floor voxel), or None.
+        floor_layer: layer index of the surface under the seed's walkable floor (the storey the
+            ``reachable`` rule counts), or None (no seed).
     """
 
     origin: np.ndarray
@@ -69,6 +71,7 @@ class VoxelGrid:
     explorable: np.ndarray
     enclosed: np.ndarray | None = None
     seed: np.ndarray | None = None
+    floor_layer: int | None = None
 
     def __post_init__(self) -> None:
         self.origin = np.asarray(self.origin, np.float64).reshape(3)
@@ -203,7 +206,7 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
         raise InputError(f"{meta.spec}: the scene has no explorable free space at voxel size "
                          f"{size} m (rule {rule}: no {'building envelope' if rule == 'reachable' else 'enclosed interior'})")
     return VoxelGrid(origin=origin, voxel_size=size, occupied=occupied, explorable=explorable, enclosed=interior,
-                     seed=seed)
+                     seed=seed, floor_layer=space.floor_layer)
 
 
 # ----------------------------------------------------------------------------- surfaces
