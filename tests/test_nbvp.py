@@ -12,7 +12,9 @@ import pytest
 from frontiernet.exploration.methods import MethodContext, make_method, method_names
 from frontiernet.exploration.move_check import body_radius
 from frontiernet.exploration.nbvp import NbvpSource, visited
-from frontiernet.exploration.nbvp_tree import accumulated_gains, stop_node
+from frontiernet.errors import InputError
+from frontiernet.exploration.motion import wrap_angle
+from frontiernet.exploration.nbvp_tree import NbvpSettings, accumulated_gains, stop_node
 from frontiernet.exploration.run import load_run_config
 from frontiernet.geometry import pose_from_heading, poses_from_headings
 from frontiernet.mapping import FREE
@@ -47,6 +49,28 @@ def test_nbvp_is_a_method_with_one_fresh_target_and_its_settings_from_the_config
     settings = method.source.planner.settings
     assert (settings.extension_m, settings.degressive_coeff) == (1.0, 0.5)  # nbvplanner's
     assert (settings.init_iterations, settings.cutoff_iterations) == (15, 200)
+    assert settings.found_on == "views" and settings.yaw_window_deg == 45.0  # ours (configs/explore.yaml)
+
+
+def test_bad_found_on_or_yaw_window_is_refused_and_missing_keys_keep_nbvplanners_rules():
+    section = dict(load_run_config().nbvp)
+    with pytest.raises(InputError, match="nbvp.found_on"):
+        NbvpSettings.from_config({**section, "found_on": "sometimes"})
+    with pytest.raises(InputError, match="nbvp.yaw_window_deg"):
+        NbvpSettings.from_config({**section, "yaw_window_deg": 270.0})
+    bare = {k: v for k, v in section.items() if k not in ("found_on", "yaw_window_deg")}
+    settings = NbvpSettings.from_config(bare)
+    assert settings.found_on == "discounted" and settings.yaw_window_deg == 180.0
+
+
+def test_a_sampled_nodes_yaw_lies_within_the_window_of_its_incoming_edge(looked_around):
+    method, context, T = looked_around
+    planner = method.source.planner
+    tree = planner.grow(T)
+    offset = tree.xy[1:] - tree.xy[tree.parent[1:]]
+    off = np.array([wrap_angle(a) for a in tree.yaw[1:] - np.arctan2(offset[:, 1], offset[:, 0])])
+    window = np.radians(planner.settings.yaw_window_deg)
+    assert np.all(np.abs(off) <= window + 1e-9) and np.abs(off).max() > 0.5 * window
 
 
 def test_the_tree_lies_in_known_free_space_with_edges_of_at_most_the_extension(looked_around):
@@ -92,6 +116,12 @@ def test_growth_stops_at_the_first_node_with_enough_nodes_and_some_gain():
     assert stop_node(gains, 1, 6, init_iterations=1, threshold=1.0) == 2
     assert stop_node(gains, 1, 6, init_iterations=3, threshold=5.0) is None
     assert stop_node(gains, 4, 6, init_iterations=3, threshold=1.0) == 4  # only nodes from `start` on
+    # found_on: views: the best node by discounted gain must promise the threshold undiscounted
+    discounted = np.array([0.0, 0.2, 0.1, 0.3, 0.3, 0.0])
+    views = np.array([0.0, 0.5, 3.0, 1.5, 9.0, 0.0])
+    assert stop_node(discounted, 1, 6, init_iterations=1, threshold=1.0) is None  # the former rule
+    assert stop_node(discounted, 1, 6, 1, 1.0, views) == 3  # node 3 is the best of 1..3 (node 2's view not)
+    assert stop_node(discounted, 1, 6, 1, 2.0, views) is None  # node 4 ties node 3: the first is the best
 
 
 def test_a_fully_known_map_gives_no_gain_after_the_cutoff_and_no_proposal(looked_around):
@@ -110,7 +140,8 @@ def test_the_target_is_the_best_branchs_first_node_kept_until_a_pose_reaches_it(
     branch = tree.branch(tree.best)
     assert target is not None and np.allclose(target.xy, tree.xy[branch[0]]) and target.yaw == pytest.approx(
         tree.yaw[branch[0]])
-    assert target.gain_m3 == pytest.approx(tree.gain_m3[tree.best]) and target.gain_m3 > 1.0
+    assert target.gain_m3 == pytest.approx(tree.view_sum_m3[tree.best]) and target.gain_m3 > 1.0  # found_on: views
+    np.testing.assert_allclose(tree.view_sum_m3[branch[-1]], tree.view_gain_m3[branch].sum())
     np.testing.assert_allclose(source.memory[:, :2], tree.xy[branch[1:]])  # the rest, for the next tree
     observation = source.observation(Z, T)
     np.testing.assert_allclose(observation.position, [*target.xy, Z])

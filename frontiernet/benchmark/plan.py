@@ -67,7 +67,12 @@ KEYS_ADDED_AFTER_PLANS = {
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "max_samples": 5000,
-             "stall_frames": 17},
+             "stall_frames": 17, "found_on": "views", "yaw_window_deg": 45.0},
+    # issue 54: NBVP's gain test on the branch's views and its node yaws within the drive window; a plan
+    # made with the nbvp section before them ran the discounted test and uniform yaws (one without
+    # the section ran no nbvp: the section above, today's settings)
+    "nbvp.found_on": "discounted",
+    "nbvp.yaw_window_deg": 180.0,
     # the step account's thresholds (exploration/steps.py: metrics.json's step_account): reporting only, no run changes
     "steps": {"translation_m": 0.02, "new_volume_m3": 0.05, "revisit_cell_m": 0.5, "revisit_after_steps": 10,
               "livelock_window_steps": 50, "livelock_gain_m3": 1.0, "livelock_radius_m": 2.0,

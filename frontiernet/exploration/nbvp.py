@@ -11,17 +11,21 @@ robot's pose, as nbvplanner's ``RrtTree`` does:
    height (known free there and ``planner.clearance_m`` from the obstacles of the planning grid:
    :meth:`NbvpPlanner.free_space`), in the connected region the robot stands in, is steered from
    its nearest tree node by at most ``nbvp.extension_m``; the edge (and ``nbvp.overshoot_m`` beyond
-   it) must cross free cells only. Its yaw is drawn uniformly (the best of ``nbvp.yaw_samples``
-   draws; nbvplanner: one).
+   it) must cross free cells only. Its yaw is drawn uniformly within ``nbvp.yaw_window_deg`` of its
+   incoming edge's direction (the best of ``nbvp.yaw_samples`` draws; nbvplanner: one, uniform over
+   the circle, which its MAV turns to while flying the edge; a ground robot holds a heading within
+   ``motion.turn_in_place_deg`` of its travel only).
 3. **Gain.** ``gain(node) = gain(parent) + v(node) * exp(-lambda * length)``, with ``v`` the unknown
    volume (m^3) a camera at the node sees through the map (walls occlude, unknown space does not:
    :meth:`~frontiernet.mapping.OccupancyMap.visible_unknown_volume`, the camera's field of view and
    pitch, up to ``nbvp.gain_range_m``), ``length`` the branch length from the root (metres) and
    ``lambda`` = ``nbvp.degressive_coeff``.
-4. **Stop.** Once at least ``nbvp.init_iterations`` nodes exist and some node's gain exceeds the
-   threshold, or with no gain after ``nbvp.cutoff_iterations`` nodes: NBVP is done. The threshold
-   is ``tracking.min_gain_m3`` (g_min), below which the tracker drops every method's frontiers;
-   nbvplanner's is ``nbvp/gain/zero`` (0: any unknown voxel).
+4. **Stop.** Once at least ``nbvp.init_iterations`` nodes exist and gain is found, or with no gain
+   after ``nbvp.cutoff_iterations`` nodes: NBVP is done. Gain is found when the best node's branch
+   promises more than ``tracking.min_gain_m3`` (g_min, below which the tracker drops every method's
+   frontiers): with ``nbvp.found_on: views`` in the undiscounted sum of its views (the target's gain
+   then), with ``discounted`` in its discounted gain; nbvplanner's threshold is ``nbvp/gain/zero``
+   (0: any unknown voxel, discounted or not).
 5. **Execute.** The best branch is the one ending at the node of highest gain; only its first edge
    is executed (the receding horizon), then the robot plans again from where it is.
 
@@ -63,7 +67,8 @@ class ViewTarget:
 
     Attributes:
         xy: (2,) float64 world position, metres. yaw: heading, radians.
-        gain_m3: the best branch's gain, m^3. memory: (M, 3) float64 [x, y, yaw] of the branch's
+        gain_m3: the best branch's gain, m^3 (``nbvp.found_on: views``: the undiscounted sum of its
+            views, which the tracker holds against g_min). memory: (M, 3) float64 [x, y, yaw] of the branch's
             nodes after this one (inserted into the next tree).
     """
 
@@ -161,7 +166,8 @@ class NbvpSource(FrontierSource):
         rest = branch[first + 1:]
         self.memory = np.column_stack([tree.xy[rest], tree.yaw[rest]])
         node = branch[first]
-        return ViewTarget(tree.xy[node].copy(), float(wrap_angle(tree.yaw[node])), float(tree.gain_m3[tree.best]),
+        promise = tree.gain_m3 if tree.view_sum_m3 is None else tree.view_sum_m3  # nbvp.found_on
+        return ViewTarget(tree.xy[node].copy(), float(wrap_angle(tree.yaw[node])), float(promise[tree.best]),
                           self.memory)
 
     def observation(self, z: float, T_world_cam: np.ndarray) -> FrontierObservation:

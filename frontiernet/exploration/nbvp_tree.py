@@ -16,6 +16,9 @@ from ..geometry import cells_inside, grid_cells, poses_from_headings
 from .motion import yaw_of
 
 
+FOUND_ON = ("discounted", "views")
+
+
 @dataclass(frozen=True)
 class NbvpSettings:
     """The checked ``nbvp`` section of ``configs/explore.yaml`` (see there for each value's source).
@@ -28,6 +31,11 @@ class NbvpSettings:
         yaw_samples: yaws drawn per node (the best is kept). overshoot_m: edges are checked this far
             beyond their node, metres. max_samples: sampling attempts per planning call.
         stall_frames: a target is dropped after more on-the-spot frames than this.
+        found_on: what must exceed the threshold (g_min) for "gain found": ``discounted``, the best
+            node's discounted gain; ``views``, the undiscounted sum of the views along the best
+            node's branch (see configs/explore.yaml).
+        yaw_window_deg: a sampled node's yaw is drawn within this of its incoming edge's direction
+            (180: uniform, nbvplanner's).
     """
 
     extension_m: float
@@ -40,6 +48,8 @@ class NbvpSettings:
     overshoot_m: float
     max_samples: int
     stall_frames: int
+    found_on: str = "discounted"
+    yaw_window_deg: float = 180.0
 
     @classmethod
     def from_config(cls, section) -> "NbvpSettings":
@@ -57,7 +67,12 @@ class NbvpSettings:
         settings = cls(number("extension_m", "metres"), number("degressive_coeff", "1 / metres", True),
                        count("init_iterations"), count("cutoff_iterations"), number("gain_range_m", "metres"),
                        count("gain_width_px"), count("yaw_samples"), number("overshoot_m", "metres", True),
-                       count("max_samples"), count("stall_frames"))
+                       count("max_samples"), count("stall_frames"), str(get("found_on") or "discounted"),
+                       180.0 if get("yaw_window_deg") is None else number("yaw_window_deg", "degrees"))
+        if settings.found_on not in FOUND_ON:
+            raise InputError(f"nbvp.found_on must be one of {', '.join(FOUND_ON)}, got {settings.found_on!r}")
+        if settings.yaw_window_deg > 180.0:
+            raise InputError(f"nbvp.yaw_window_deg must be at most 180 degrees, got {settings.yaw_window_deg}")
         if settings.cutoff_iterations < settings.init_iterations:
             raise InputError(f"nbvp.cutoff_iterations ({settings.cutoff_iterations}) must be at least "
                              f"nbvp.init_iterations ({settings.init_iterations})")
@@ -90,6 +105,8 @@ class RrtTree:
         view_gain_m3: (N,) float64 unknown volume the node's camera sees, m^3 (root: 0).
         gain_m3: (N,) float64 accumulated gain ``parent's + view * exp(-lambda * length)``, m^3.
         found: some node's gain exceeds the threshold (else NBVP is done).
+        view_sum_m3: (N,) float64 the undiscounted sum of the views from the root to each node, m^3
+            (None: not computed).
     """
 
     xy: np.ndarray
@@ -99,6 +116,7 @@ class RrtTree:
     view_gain_m3: np.ndarray
     gain_m3: np.ndarray
     found: bool
+    view_sum_m3: np.ndarray | None = None
 
     @property
     def best(self) -> int:
@@ -125,14 +143,23 @@ def accumulated_gains(view_gain_m3: np.ndarray, parent: np.ndarray, length_m: np
     return gain
 
 
-def stop_node(gain_m3: np.ndarray, start: int, stop: int, init_iterations: int, threshold: float) -> int | None:
+def stop_node(gain_m3: np.ndarray, start: int, stop: int, init_iterations: int, threshold: float,
+              view_sum_m3: np.ndarray | None = None) -> int | None:
     """The first node n in [start, stop) after whose insertion nbvplanner stops growing: at least
     `init_iterations` nodes (n counts them, the root not) and some gain of nodes 1..n above
-    `threshold`; None when none in the range does."""
+    `threshold`; None when none in the range does. With `view_sum_m3` ((N,), ``found_on: views``)
+    the best node of nodes 1..n (the first of equal gains) must promise more than `threshold` in
+    the undiscounted sum of its branch's views instead."""
     if stop <= 1:
         return None
-    running = np.maximum.accumulate(gain_m3[1:stop])  # running[n - 1]: the best of nodes 1..n
     nodes = np.arange(1, stop)
+    if view_sum_m3 is None:
+        running = np.maximum.accumulate(gain_m3[1:stop])  # running[n - 1]: the best of nodes 1..n
+    else:
+        gains = gain_m3[1:stop]
+        new_best = np.concatenate([[True], gains[1:] > np.maximum.accumulate(gains)[:-1]])
+        best = np.maximum.accumulate(np.where(new_best, nodes, 0))  # best[n - 1]: the best of nodes 1..n
+        running = view_sum_m3[best]
     hits = np.flatnonzero((nodes >= max(start, init_iterations)) & (running > threshold))
     return int(nodes[hits[0]]) if len(hits) else None
 
@@ -269,10 +296,26 @@ class NbvpPlanner:
         xy[0] = root
         n = grow_tree(space.free, float(space.origin_xy[0]), float(space.origin_xy[1]), space.cell_m, goals,
                       s.extension_m, s.overshoot_m, xy, parent, length, goal_of)
-        tree = RrtTree(xy[:n], np.full(n, yaw_of(T_world_cam)), parent[:n], length[:n], np.zeros(n), np.zeros(n), False)
-        return self._score(tree, goal_yaws, goal_of[:n], z)
+        tree = RrtTree(xy[:n], np.full(n, yaw_of(T_world_cam)), parent[:n], length[:n], np.zeros(n), np.zeros(n), False,
+                       np.zeros(n) if s.found_on == "views" else None)
+        return self._score(tree, self.node_yaws(tree, goal_yaws, goal_of[:n], len(memory)), z)
 
-    def _score(self, tree: RrtTree, goal_yaws: np.ndarray, goal_of: np.ndarray, z: float) -> RrtTree:
+    def node_yaws(self, tree: RrtTree, goal_yaws: np.ndarray, goal_of: np.ndarray, remembered: int) -> np.ndarray:
+        """(N, yaw_samples) float64 the yaws drawn for each node of `tree` (the root's row unused):
+        a sampled node's draw u in [-pi, pi) (`goal_yaws`, rows by `goal_of`) becomes its incoming
+        edge's direction + u x ``yaw_window_deg`` / 180 (the draw itself with 180: nbvplanner's
+        uniform yaw); the first `remembered` goals (the remembered branch) keep their yaws."""
+        yaws = np.array(goal_yaws[goal_of], np.float64)
+        window = self.settings.yaw_window_deg
+        if window >= 180.0 or len(tree.parent) < 2:
+            return yaws
+        offset = tree.xy[1:] - tree.xy[tree.parent[1:]]
+        heading = np.arctan2(offset[:, 1], offset[:, 0])
+        sampled = np.flatnonzero(goal_of[1:] >= remembered) + 1
+        yaws[sampled] = heading[sampled - 1, None] + yaws[sampled] * (window / 180.0)
+        return yaws
+
+    def _score(self, tree: RrtTree, node_yaws: np.ndarray, z: float) -> RrtTree:
         """`tree` with its gains, cut after the node at which nbvplanner stops (views are scored in
         growing chunks: init_iterations nodes first, then twice as many each time, so a call that
         finds gain early scores few views)."""
@@ -280,15 +323,18 @@ class NbvpPlanner:
         done, upto = 1, min(n, s.init_iterations + 1)
         while done < n:
             tree.view_gain_m3[done:upto], tree.yaw[done:upto] = self.view_gains(tree.xy[done:upto],
-                                                                                goal_yaws[goal_of[done:upto]], z)
+                                                                                node_yaws[done:upto], z)
             accumulated_gains(tree.view_gain_m3, tree.parent, tree.length_m, s.degressive_coeff, done, tree.gain_m3)
-            stop = stop_node(tree.gain_m3, done, upto, s.init_iterations, self.threshold)
+            if tree.view_sum_m3 is not None:
+                accumulated_gains(tree.view_gain_m3, tree.parent, tree.length_m, 0.0, done, tree.view_sum_m3)
+            stop = stop_node(tree.gain_m3, done, upto, s.init_iterations, self.threshold, tree.view_sum_m3)
             if stop is not None:
                 return _cut(tree, stop + 1, True)
             done, upto = upto, min(n, 2 * upto)
         # no stop: the cutoff without gain (NBVP is done), or the samples ran out (nbvplanner: "return
         # to previous point"), where a tree of fewer than init_iterations nodes is used if it found gain
-        return _cut(tree, n, n - 1 < s.init_iterations and float(tree.gain_m3.max(initial=0.0)) > self.threshold)
+        promise = tree.gain_m3 if tree.view_sum_m3 is None else tree.view_sum_m3
+        return _cut(tree, n, n - 1 < s.init_iterations and n > 1 and float(promise[tree.best]) > self.threshold)
 
     def view_gains(self, xy: np.ndarray, yaws: np.ndarray, z: float) -> tuple[np.ndarray, np.ndarray]:
         """The unknown volume (m^3) the cameras (the robot's field of view and ``motion.pitch_deg``) at
@@ -307,7 +353,7 @@ class NbvpPlanner:
 
 def _cut(tree: RrtTree, n: int, found: bool) -> RrtTree:
     return RrtTree(tree.xy[:n], tree.yaw[:n], tree.parent[:n], tree.length_m[:n], tree.view_gain_m3[:n],
-                   tree.gain_m3[:n], found)
+                   tree.gain_m3[:n], found, None if tree.view_sum_m3 is None else tree.view_sum_m3[:n])
 
 
 __all__ = ["NbvpSettings", "NbvpPlanner", "FreeSpace", "RrtTree", "accumulated_gains", "stop_node", "grow_tree"]
