@@ -73,6 +73,14 @@ KEYS_ADDED_AFTER_PLANS = {
     # the section ran no nbvp: the section above, today's settings)
     "nbvp.found_on": "discounted",
     "nbvp.yaw_window_deg": 180.0,
+    # issue 56: the map-predicting methods' settings (they change no run of any other method)
+    "seer": {"predictor": None, "candidate_rmin_m": 0.5, "candidate_rmax_m": 1.2, "candidate_rnum": 3,
+             "candidate_dphi_deg": 15.0, "yaw_offsets_deg": [-50.0, -30.0, -10.0, 10.0, 30.0, 50.0],
+             "min_view_distance_m": 0.75, "max_velocity_mps": 1.0, "w_dir": 1.5, "cluster_min_cells": 5,
+             "cluster_max_extent_m": 2.4, "view_width_px": 16, "repredict_new_voxels": 5000,
+             "max_predictions_per_step": 2, "reuse_distance_m": 1.0},
+    "mapex": {"predictor": None, "min_cells": 11, "max_extent_m": 1000.0, "visibility_range_m": 3.5, "num_rays": 256,
+              "hit_probability": 0.8, "repredict_new_cells": 300, "value_floor": 1e-06},
     # the step account's thresholds (exploration/steps.py: metrics.json's step_account): reporting only, no run changes
     "steps": {"translation_m": 0.02, "new_volume_m3": 0.05, "revisit_cell_m": 0.5, "revisit_after_steps": 10,
               "livelock_window_steps": 50, "livelock_gain_m3": 1.0, "livelock_radius_m": 2.0,

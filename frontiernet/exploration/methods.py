@@ -25,6 +25,12 @@ omniscient               reachable views of the robot's map    true unseen volum
                                                                                        (:mod:`.omniscient`)
 nbvp                     an RRT of views in the robot's map    visible unknown volume  the best branch's first node, then
                                                                                        plan again (Bircher 2016, :mod:`.nbvp`)
+seer                     views on circles around the map's     unknown volume seen     gain / (path time + heading cost)
+                         frontier clusters                     through the predicted   (tyuezhan/SEER, :mod:`.seer`)
+                                                               3D crop
+mapex                    the map's frontiers                   ensemble variance of    variance / distance (castacks/MapEx
+                                                               the predicted map in    visvarprob, :mod:`.mapex`)
+                                                               sight, still unknown
 =======================  ====================================  ======================  ====================
 
 The first five are the paper's system and its Fig. 9 ablations, the next two the oracle's
@@ -52,9 +58,11 @@ import numpy as np
 from ..errors import InputError
 from ..registry import Registry
 from .ablations import discontinuity_frontiers, uniform_gain
+from .mapex import make_mapex
 from .nbvp import make_nbvp
 from .omniscient import make_omniscient
 from .perception import Perception, PerceptionResult
+from .seer import make_seer
 from .sources import GOAL_RULES, FrontierSource, ImageSource, MapSource, Method
 from .vacuum import VacuumMoves
 
@@ -182,11 +190,12 @@ def _vacuum(context: MethodContext) -> Method:
 METHODS = Registry("exploration method", "frontiernet.methods", {
     "frontiernet": _frontiernet, "df-uniform": _df_uniform, "discontinuity-gain": _discontinuity_gain,
     "discontinuity-uniform": _discontinuity_uniform, **{name: _map_method(name) for name in MAP_METHODS},
-    "vacuum": _vacuum, "omniscient": make_omniscient, "nbvp": make_nbvp})
+    "vacuum": _vacuum, "omniscient": make_omniscient, "nbvp": make_nbvp, "seer": make_seer, "mapex": make_mapex})
 """Every exploration method: name -> factory ``make(context: MethodContext) -> Method``. Built in:
 the paper's system and its Fig. 9 ablations (:mod:`.ablations`; only ``discontinuity-uniform``
-loads no model), the map methods, ``vacuum``; other packages register under the entry point
-group ``frontiernet.methods`` (``datagen``: ``oracle`` and its hybrids)."""
+loads no model), the map methods, ``vacuum``, ``omniscient``, ``nbvp``, ``seer`` and ``mapex``
+(the last two run a map predictor: ``--model`` names its file); other packages register under the
+entry point group ``frontiernet.methods`` (``datagen``: ``oracle`` and its hybrids)."""
 
 
 #: Methods that draw no random numbers: with a depth source that is not seeded, a run depends on
@@ -215,13 +224,18 @@ def uses_model(name: str) -> bool:
     return bool(getattr(METHODS.get(name), "uses_model", False))
 
 
-def check_method(name: str, model=None) -> None:
+def check_method(name: str, model=None, conf=None) -> None:
     """Before a run's setup: InputError for an unknown method `name` (the valid ones listed), or a
-    `model` (``--model``) given to a method that runs none (:func:`uses_model`)."""
+    `model` (``--model``) given to a method that runs none (:func:`uses_model`); with the run config
+    `conf`, the factory's own ``check(conf, model)`` where it has one (``seer``, ``mapex``: their
+    predictor file loads and fits the run's map)."""
     if not uses_model(name) and model is not None:
         users = [other for other in METHODS.names() if uses_model(other)]
         raise InputError(f"--model {model}: method {name} runs no model, so --model would be ignored; leave it "
                          f"out (the methods that run one: {', '.join(users)})")
+    check = getattr(METHODS.get(name), "check", None)
+    if conf is not None and check is not None:
+        check(conf, model)
 
 
 def make_method(name: str, context: MethodContext) -> Method:

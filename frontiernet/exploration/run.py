@@ -100,7 +100,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
         raise InputError(f"the step budget (--max-steps, run.max_steps) must be at least 1, got {budget}")
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     depth_name = run_depth_source(depth, conf)
-    check_method(method, model)
+    check_method(method, model, conf)  # a method's own file checks (seer, mapex: the predictor)
     if model is not None:
         input_file(model, "model file")
     if start is not None:

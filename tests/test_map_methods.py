@@ -1,0 +1,202 @@
+"""The methods that explore with a map predictor (issue 56 items 3 and 4): ``seer`` (views around the
+map's frontier clusters, gain through SEER's predicted 3D crop) and ``mapex`` (map frontiers by the
+ensemble variance in sight of the predicted map, per metre). The predictors here are tiny and
+randomly initialised: the tests check the methods' plumbing and scoring, not a predictor's quality."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+
+from frontiernet.cli.main import main
+from frontiernet.config import load_config
+from frontiernet.exploration.mapex import MapexSource, visible_cells
+from frontiernet.exploration.methods import method_names, uses_model
+from frontiernet.exploration.seer import Crop, SeerSource
+from frontiernet.frontiers.anchoring import FrontierObservation
+from frontiernet.geometry import poses_from_headings
+from frontiernet.mapping import OccupancyMap
+from frontiernet.mapprediction import save_predictor, shipped_predictor_path
+from frontiernet.mapprediction.networks import NetworkSettings, PredictorSpec
+
+CONF = load_config("explore")
+CAMERA = load_config("sim").camera
+
+
+@pytest.fixture(scope="module")
+def predictors(tmp_path_factory) -> dict:
+    """A tiny random predictor file of each kind (SEER's 80 x 80 x 24 crop, MapEx's 3 members)."""
+    folder = tmp_path_factory.mktemp("predictors")
+    torch.manual_seed(0)
+    specs = {"seer": PredictorSpec("seer", NetworkSettings((2, 4), (1,), 3), 1, extra={"occupied_threshold": 0.65}),
+             "mapex": PredictorSpec("mapex", NetworkSettings((4, 4), (1,), 2), 3, extra={"occupied_threshold": 0.5})}
+    return {kind: save_predictor(folder / f"{kind}.safetensors", spec, spec.build().state_dict())
+            for kind, spec in specs.items()}
+
+
+def explore(spec: str, out, method: str, steps: int, *options: str) -> tuple[int, str]:
+    stream = io.StringIO()
+    with contextlib.redirect_stdout(stream), contextlib.redirect_stderr(stream):
+        code = main(["explore", "--scene", spec, "--method", method, "--max-steps", str(steps), "--no-video",
+                     "--out", str(out), *options])
+    return code, stream.getvalue()
+
+
+def empty_map(size=(6.0, 4.0, 2.4)) -> OccupancyMap:
+    return OccupancyMap(np.zeros(3), tuple(int(round(n / 0.1)) for n in size), CONF.map)
+
+
+# --------------------------------------------------------------------------- in the loop
+
+def test_both_are_registered_methods_that_take_a_predictor_file():
+    assert {"seer", "mapex"} <= set(method_names())
+    assert uses_model("seer") and uses_model("mapex")  # --model names the predictor file
+
+
+@pytest.mark.parametrize("method", ["seer", "mapex"])
+def test_the_method_explores_the_two_room_plan_with_its_predictor(plan_spec, predictors, tmp_path, method):
+    code, log = explore(plan_spec, tmp_path / method, method, 50, "--model", str(predictors[method]))
+    assert code == 0, log
+    metrics = json.loads((tmp_path / method / "metrics.json").read_text())
+    assert metrics["method"] == method and metrics["model"] == str(predictors[method])
+    assert metrics["collisions"] == 0 and metrics["goals"] >= 1 and metrics["path_length_m"] > 0.3
+    assert metrics["coverage"] > metrics["coverage_per_step"][0]
+    assert metrics["timing"]["mean_ms"]["perception"] > 0  # the prediction ran (timed as perception)
+
+
+def test_the_predictor_file_comes_from_the_config_key_too(plan_spec, predictors, tmp_path):
+    code, log = explore(plan_spec, tmp_path / "run", "mapex", 3, f"mapex.predictor={predictors['mapex']}")
+    assert code == 0, log
+
+
+@pytest.mark.parametrize("method", ["seer", "mapex"])
+def test_a_missing_or_wrong_predictor_is_one_line_and_exit_2_before_the_scene_loads(predictors, tmp_path, capsys,
+                                                                                    method):
+    other = predictors["mapex" if method == "seer" else "seer"]
+    cases = [(["--model", str(tmp_path / "none.safetensors")], "none.safetensors: predictor file not found"),
+             (["--model", str(other)], f"{other}: a {'mapex' if method == 'seer' else 'seer'} predictor, expected a "
+                                       f"{method} one"),
+             ([f"{method}.predictor={tmp_path / 'gone.safetensors'}"], "gone.safetensors: predictor file not found")]
+    if not shipped_predictor_path(method).is_file():
+        cases.append(([], f"no {method} predictor is shipped yet"))
+    for options, message in cases:
+        # a scene that does not exist: the predictor is checked first, so the error names it, not the scene
+        code = main(["explore", "--scene", "floorplan:/no/such/plan.png", "--method", method, "--no-video",
+                     "--out", str(tmp_path / "out"), *options])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and "\n" not in err and "Traceback" not in err and message in err, err
+        assert not (tmp_path / "out").exists()  # nothing written
+
+
+# --------------------------------------------------------------------------- MapEx's score
+
+def test_rays_stop_before_a_cell_predicted_occupied():
+    mean = np.zeros((21, 21), np.float32)
+    mean[15, :] = 0.85  # a predicted wall 5 cells in +x from the centre
+    seen = visible_cells(mean, np.array([10, 10]), 64, 8.0, 0.8)
+    assert seen[10, 10] and seen[14, 10] and not seen[15, 10] and not seen[17, 10]
+    assert seen[10, 17] and seen[3, 10] and not seen[10, 19]  # the other directions reach their range, no farther
+    assert visible_cells(np.where(mean > 0, 0.75, 0.0), np.array([10, 10]), 64, 8.0, 0.8)[17, 10]  # below 0.8: seen
+
+
+def test_mapex_ranks_a_frontier_with_uncertain_unknown_space_in_sight_above_one_without():
+    source = MapexSource(SimpleNamespace(spec=SimpleNamespace(band_m=0.3)), empty_map(), CONF)
+    mean = np.full((60, 40), 0.5, np.float32)  # unknown, predicted neither free nor occupied
+    variance = np.zeros((60, 40), np.float32)
+    variance[45:, 25:] = 0.2  # the members disagree in the north-east ...
+    variance[12:20, :] = 0.2  # ... and on a band 1.2 m east of the west frontier ...
+    walled = mean.copy()
+    walled[10, :] = 0.9  # ... which a predicted wall hides from it
+    west, east = (FrontierObservation(np.array([x, y, 1.2]), np.array([1.0, 0, 0]), 1.0, 10, np.full(2, np.nan),
+                                      np.eye(4)) for x, y in ((0.55, 0.55), (5.55, 3.55)))
+    positions = np.array([west.position[:2], east.position[:2]])
+    assert source.values(positions, mean, variance)[0] > 1.0  # in sight without the wall
+    values = source.values(positions, walled, variance)
+    assert values[0] == 0.0 and values[1] > 10 * 0.2
+    scored = source.scored([west, east], walled, variance)
+    assert scored[1].gain_m3 > scored[0].gain_m3 >= CONF.tracking.min_gain_m3  # none dropped; ranked by variance
+    assert scored[1].gain_m3 / scored[0].gain_m3 == pytest.approx((values[1] + 1e-6) / 1e-6)
+
+
+def test_mapex_predicts_again_only_once_the_map_has_learnt_enough():
+    calls = []
+
+    def predict(states, voxel_size):
+        calls.append(states.shape)
+        return np.full(states.shape, 0.3, np.float32), np.full(states.shape, 0.1, np.float32)
+
+    predictor = SimpleNamespace(spec=SimpleNamespace(band_m=0.3), predict_topdown_states=predict)
+    occupancy = empty_map((12.0, 10.0, 2.4))
+    source = MapexSource(predictor, occupancy, OmegaConf.merge(CONF, {"mapex": {"repredict_new_cells": 50}}))
+    states = np.zeros((120, 100), np.int8)
+    states[20:25, 20:25] = 1  # 25 known cells: the window is them and the 3.5 m visibility range around
+    mean, variance = source.prediction(states)
+    assert calls == [(20 + 5 + 36, 20 + 5 + 36)]
+    assert mean[22, 22] == 0.0 and variance[22, 22] == 0.0 and mean[30, 30] == pytest.approx(0.3)
+    assert mean[100, 90] == 0.5 and variance[100, 90] == 0.0  # out of reach of every ray: not predicted
+    states[25:30, 20:25] = 1  # 25 more, below 50: the cached prediction, read with the new known cells
+    mean, variance = source.prediction(states)
+    assert len(calls) == 1 and mean[27, 22] == 0.0 and variance[27, 22] == 0.0
+    states[30:40, 20:25] = 1  # 75 since the prediction: predicted again
+    source.prediction(states)
+    assert len(calls) == 2
+
+
+# --------------------------------------------------------------------------- SEER's gain and views
+
+def seer_source(occupancy, **changes) -> SeerSource:
+    predictor = SimpleNamespace(occupied_threshold=0.65, spec=SimpleNamespace(crop_shape=(80, 80, 24)))
+    return SeerSource(predictor, occupancy, OmegaConf.merge(CONF, {"seer": changes}), CAMERA)
+
+
+def test_seer_rays_stop_at_predicted_occupied_voxels_of_unknown_space():
+    occupancy = empty_map()
+    source = seer_source(occupancy)
+    pose = poses_from_headings(np.array([[1.0, 2.0, 1.2]]), np.array([0.0]), np.radians(-5.0))
+    wall = np.zeros((80, 80, 24), bool)
+    wall[20, :, :] = True  # x = 2.0 m: 1 m ahead of the view
+    crop = Crop(np.array([0, -20, 0]), np.array([3.0, 2.0]), wall, 0)
+    open_gain, walled = source.gains(pose, None)[0], source.gains(pose, crop)[0]
+    assert open_gain > 10.0 and 0 < walled < 0.1 * open_gain  # a 1 m deep frustum, not a 3.5 m one
+    behind = np.zeros_like(wall)
+    behind[5, :, :] = True  # x = 0.5 m, behind the view
+    behind_crop = Crop(np.array([0, -20, 0]), np.array([3.0, 2.0]), behind, 0)
+    assert source.gains(pose, behind_crop)[0] == pytest.approx(open_gain)
+
+
+def test_seer_proposes_one_view_per_cluster_on_its_circles_away_from_the_robot():
+    occupancy = empty_map()
+    K = np.array([[40.0, 0, 31.5], [0, 40.0, 31.5], [0, 0, 1]])
+    T = np.eye(4)
+    T[:3, :3] = [[0, 0, 1], [-1, 0, 0], [0, -1, 0]]  # level, looking along +x
+    T[:3, 3] = [0.5, 2.0, 1.2]
+    occupancy.integrate(np.full((64, 64), np.nan, np.float32), K, T)  # nothing within range: free up to 3.5 m
+    source = seer_source(occupancy)
+    clusters = source.clusters(1.2)
+    assert clusters
+    views = source.views(clusters, [None] * len(clusters), poses_from_headings(np.array([[0.5, 2.0, 1.2]]),
+                                                                               np.array([0.0]), 0.0)[0])
+    assert views and all(v.gain_m3 >= CONF.tracking.min_gain_m3 for v in views)
+    centres = [c.mean(axis=0) for c in clusters]
+    for view in views:
+        assert np.hypot(*(view.position[:2] - [0.5, 2.0])) >= 0.75
+        assert any(0.5 - 1e-6 <= np.hypot(*(view.position[:2] - c)) <= 1.2 + 1e-6 for c in centres)
+
+
+@pytest.mark.parametrize("method", ["seer", "mapex"])
+def test_an_exploration_never_calls_back_into_a_library_file_it_came_from(plan_spec, predictors, tmp_path, method):
+    from test_walks import returns_during  # docs/design.md, "Walk (a)" and "Walk (b)"
+
+    def run() -> None:
+        code, log = explore(plan_spec, tmp_path / "run", method, 4, "--model", str(predictors[method]))
+        assert code == 0, log
+
+    returns = returns_during(run)
+    assert returns == {}, "\n".join(f"{where}: {chain}" for where, chain in returns.items())
