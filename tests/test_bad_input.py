@@ -67,7 +67,7 @@ SMALL_DATAGEN = ["--views-per-scene", "2", "--no-progress", "--set", "camera.wid
     (["bench", "--scenes", "procedural:3", "--methods", "classic,classic", "--max-steps", "4"],
      "--methods names classic twice"),
     (["bench", "--scenes", "procedural:3", "--methods", "classic", "--model", "m.safetensors", "--max-steps", "4"],
-     "none of the methods classic runs a model"),
+     "none of the methods classic runs a FrontierNet model"),
     (["bench", "--scenes", "procedural:3", "--starts", "100000000", "--max-steps", "4"],
      "--starts must be an integer in [1, 1000], got 100000000"),
     (["bench", "--scenes", "procedural:3", "--workers", "99999", "--max-steps", "4"],

@@ -83,6 +83,21 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
 
 
 @pytest.mark.slow
+def test_model_goes_to_the_methods_that_run_it_and_every_other_runs_without(plan_spec, tmp_path):
+    """`--model` beside methods that run none (the published protocol's command): each run of those
+    gets no model, where the per-run check would refuse one (every classic run failed so)."""
+    from conftest import REPO_ROOT
+
+    model = REPO_ROOT / "frontiernet" / "weights" / "frontiernet_rgbd_resnet18.safetensors"
+    code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "classic,frontiernet", "--starts", "1",
+                                 "--repeats", "1", "--max-steps", "12", "--model", model, "--out", tmp_path / "b")
+    assert code == 0, stderr
+    assert "2 runs (0 failed)" in stdout
+    rows = {r["method"]: r for r in csv.DictReader(open(tmp_path / "b" / "results.csv"))}
+    assert {r["status"] for r in rows.values()} == {"done"}
+
+
+@pytest.mark.slow
 def test_repeats_of_a_method_that_draws_nothing_are_reported_from_its_first_run(plan_spec, tmp_path):
     """classic on ground-truth depth repeats its run exactly (test_methods), so its repeat 1 is not
     run but reported from repeat 0; random-frontier draws, so both repeats run."""
@@ -311,11 +326,11 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         resumable_plan(tmp_path, protocol())
 
 
-def test_the_two_regime_plan_resumes_with_todays_defaults():
-    """docs/benchmark/regimes runs the published protocol in both depth regimes across sessions
-    under today's defaults (its resume.sh sets nothing): a default that changes what its runs do
-    must refuse it (then the folder is kept as a record and the protocol starts again, as
-    regimes_exponent1 was); the exponent-1 record resumes only with its exponent."""
+def test_the_two_regime_plan_resumes_as_the_record_it_is():
+    """docs/benchmark/regimes ran the published protocol in both depth regimes under the defaults of
+    its time: a default that changes what its runs do refuses it (the storey rule of 2026-12-06
+    changes procedural_1005's), and its resume.sh sets the rule it was made under, as the exponent-1
+    record's sets its exponent; both resume only so."""
     from omegaconf import OmegaConf
 
     from conftest import REPO_ROOT
@@ -331,11 +346,15 @@ def test_the_two_regime_plan_resumes_with_todays_defaults():
 
     folders = REPO_ROOT / "docs" / "benchmark"
     regimes, record = folders / "regimes", folders / "regimes_exponent1"
-    assert resumable_plan(regimes, protocol())["start_poses"] == resumable_plan(
-        record, protocol("planner.gain_exponent=1.0"))["start_poses"]  # the same starts: they pair run by run
+    one_rule = ("sim.voxels.storey_floor_share=null", "sim.voxels.storey_slab_share=null")
+    with pytest.raises(InputError, match=r"\(conf.sim.voxels.storey_floor_share: None in the plan, 0.5 now\)"):
+        resumable_plan(regimes, protocol())
+    assert resumable_plan(regimes, protocol(*one_rule))["start_poses"] == resumable_plan(
+        record, protocol("planner.gain_exponent=1.0", *one_rule))["start_poses"]  # the same starts: they pair
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
-        resumable_plan(record, protocol())
-    assert "SETTINGS= " in (regimes / "resume.sh").read_text()
+        resumable_plan(record, protocol(*one_rule))
+    assert 'SETTINGS="sim.voxels.storey_floor_share=null sim.voxels.storey_slab_share=null"' in (
+        regimes / "resume.sh").read_text()
     assert "SETTINGS=planner.gain_exponent=1" in (record / "resume.sh").read_text()
 
 

@@ -14,6 +14,7 @@ from datagen.preview import (
     sample_contact_sheet,
     write_previews,
 )
+from datagen.config import load_datagen_config
 from datagen.views import sample_trajectory_poses
 from frontiernet.config import load_config
 from frontiernet.errors import InputError
@@ -119,7 +120,7 @@ def test_trajectory_two_storeys(confs):
     from frontiernet.simulator.voxels import voxelize_scene
 
     scene = load_scene("procedural:3?floors=2", scenes_config())
-    voxels = voxelize_scene(scene, load_config("sim").voxels)
+    voxels = voxelize_scene(scene, load_datagen_config().voxels)  # datagen's: every storey (configs/datagen.yaml)
     T = sample_trajectory_poses(scene, voxels, 200, np.random.default_rng(1), *confs)
     p = T[:, :3, 3]
     assert voxels.is_explorable(p).all()

@@ -76,12 +76,13 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         if method in methods[:index]:
             raise InputError(f"--methods names {method} twice; each method runs once per scene, start and repeat")
     if model is not None:  # a file that does not load is one error now, not a failed run per run
-        from ..exploration.methods import uses_model
+        from ..exploration.methods import runs_frontiernet_model
         from ..model import open_runtime
 
-        if not any(uses_model(method) for method in methods):
-            raise InputError(f"--model {model}: none of the methods {', '.join(methods)} runs a model, so --model "
-                             "would be ignored; leave it out")
+        if not any(runs_frontiernet_model(method) for method in methods):
+            raise InputError(f"--model {model}: none of the methods {', '.join(methods)} runs a FrontierNet model, "
+                             "so --model would be ignored; leave it out (seer and mapex take their predictor "
+                             "from --set seer.predictor=FILE / mapex.predictor=FILE)")
         open_runtime(model)
     settings = {"budget": budget if rule is None else rule.as_dict(), "seed": seed,
                 "model": str(model) if model else None, "depth": depth, "scene_starts": bool(scene_starts),

@@ -170,10 +170,19 @@ def _in_map_mode(stored: dict) -> bool:
     return str(stored["conf"]["planner"]["mode"]) == "map"
 
 
+def _under_the_enclosed_rule(stored: dict) -> bool:
+    """The plan's explorable space is the ``enclosed`` rule's (a plan without the key predates the
+    ``reachable`` rule: :data:`KEYS_ADDED_AFTER_PLANS`), which reads no ``reachable`` setting."""
+    voxels = stored["conf"].get("sim", {}).get("voxels", {})
+    return str(voxels.get("explorable", KEYS_ADDED_AFTER_PLANS["sim.voxels.explorable"])) == "enclosed"
+
+
 KEYS_IDLE_WHEN = {
     "map.depth_edge_rtol": _on_ground_truth_only,  # the map leaves out depth edges only for sources
                                                    # with flying pixels (94cd18a)
     "planner.obstacle_memory_frames": _in_map_mode,  # the map-free move check's memory (7d7d5e4)
+    "sim.voxels.storey_floor_share": _under_the_enclosed_rule,  # the reachable rule's storey (issue 55)
+    "sim.voxels.storey_slab_share": _under_the_enclosed_rule,
 }
 """Keys added to ``configs/explore.yaml`` after benchmarks had been planned that change no run of
 a plan meeting the key's condition (a function of the stored settings). Such a plan that lacks the

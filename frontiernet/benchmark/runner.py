@@ -110,6 +110,7 @@ def run_one(run: dict, settings: dict) -> dict:
     """
     from omegaconf import OmegaConf
 
+    from ..exploration.methods import runs_frontiernet_model
     from ..exploration.run import main
 
     out = Path(settings["out"])
@@ -121,7 +122,8 @@ def run_one(run: dict, settings: dict) -> dict:
     _limit_threads(int(settings["threads"]))
     try:
         record = main(OmegaConf.create(settings["conf"]), run["scene"], partial, method=run["method"],
-                      model=settings["model"], depth=run.get("depth") or settings["depth"],
+                      model=settings["model"] if runs_frontiernet_model(run["method"]) else None,  # --model's methods
+                      depth=run.get("depth") or settings["depth"],
                       max_steps=int(run.get("max_steps") or settings["max_steps"]),
                       start=",".join(str(v) for v in run["start_pose"]), seed=int(run["seed"]), video=False,
                       progress=False)

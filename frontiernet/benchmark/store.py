@@ -38,7 +38,6 @@ from __future__ import annotations
 import gzip
 import itertools
 import json
-import os
 import re
 import zlib
 from collections import defaultdict

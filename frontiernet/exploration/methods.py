@@ -224,6 +224,13 @@ def uses_model(name: str) -> bool:
     return bool(getattr(METHODS.get(name), "uses_model", False))
 
 
+def runs_frontiernet_model(name: str) -> bool:
+    """Whether method `name` runs a FrontierNet model file (:func:`uses_model`, not a map predictor:
+    ``seer`` and ``mapex`` mark theirs with ``model_kind``): the methods the benchmark's ``--model``
+    goes to."""
+    return uses_model(name) and getattr(METHODS.get(name), "model_kind", "frontiernet") == "frontiernet"
+
+
 def check_method(name: str, model=None, conf=None) -> None:
     """Before a run's setup: InputError for an unknown method `name` (the valid ones listed), or a
     `model` (``--model``) given to a method that runs none (:func:`uses_model`); with the run config
@@ -248,6 +255,6 @@ def make_method(name: str, context: MethodContext) -> Method:
 
 
 __all__ = ["FrontierSource", "ImageSource", "MapSource", "Method", "MethodContext", "METHODS", "check_method",
-           "make_method", "uses_model",
+           "make_method", "uses_model", "runs_frontiernet_model",
            "method_names", "image_method", "ModelPerception", "model_perception", "GOAL_RULES", "DRAW_FREE_METHODS",
            "repeats_identically"]

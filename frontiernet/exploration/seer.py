@@ -290,6 +290,7 @@ def make_seer(context) -> Method:
 
 
 make_seer.uses_model = True  # --model names its predictor file (methods.uses_model)
+make_seer.model_kind = "seer predictor"  # not a FrontierNet model: bench --model is not for it
 make_seer.check = check_predictor("seer")  # before the scene loads (methods.check_method)
 
 __all__ = ["Crop", "SeerSource", "make_seer"]
