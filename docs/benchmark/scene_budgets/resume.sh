@@ -13,7 +13,7 @@
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh b5ee664 ../pinned_scene_budgets_b5ee664}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 4540b20 ../pinned_scene_budgets_4540b20}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
