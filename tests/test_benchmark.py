@@ -358,6 +358,20 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
     assert "SETTINGS=planner.gain_exponent=1" in (record / "resume.sh").read_text()
 
 
+def test_a_second_benchmark_on_a_folder_in_use_is_refused_at_once(plan_spec, tmp_path):
+    """Two `bench` commands on one --out would run the same runs twice and write one plan over the
+    other: the second is refused while the first holds the folder (issue 55's bad-input probe);
+    --report and --pack still read a folder in use."""
+    from frontiernet.io import claim_output_folder
+
+    out = tmp_path / "bench"
+    with claim_output_folder(out, force=True):  # a benchmark running there
+        code, _, stderr = bench("--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "1",
+                                "--max-steps", "40", "--out", out)
+    assert code == 2 and "another run" in stderr and "is writing there" in stderr
+    assert not (out / "plan.json").exists()
+
+
 def test_report_of_a_folder_without_a_benchmark_says_so(tmp_path, one_line_error):
     assert main(["bench", "--report", "--out", str(tmp_path)]) == 2
     assert "no benchmark here" in one_line_error()

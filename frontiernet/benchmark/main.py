@@ -11,7 +11,7 @@ from ..config import load_config
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import RUN_SECTIONS, load_run_config
-from ..io import check_output_folder, ensure_dir
+from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
@@ -89,21 +89,23 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
                 "conf": OmegaConf.to_container(conf, resolve=True)}
     if rule is not None:
         settings["vox_steps"] = "coverage"
-    poses, budgets = None, None
-    if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
-        previous = resumable_plan(out, settings)
-        poses, budgets = previous["start_poses"], previous.get("budgets")
-    clock = time.perf_counter()
-    runs, start_poses, budgets = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses,
-                                           scene_starts, depths, budgets, rule)
-    ensure_dir(out)
-    write_plan(out, {"settings": settings, "start_poses": start_poses, **({"budgets": budgets} if budgets else {}),
-                     "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
-    rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget, "model": settings["model"],
-                          "depth": depth}, workers, backend, progress)
-    report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None,
-                          interval=load_config("bench").report.interval, vox_steps=settings.get("vox_steps", "budget"))
-    return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
+    with claim_output_folder(out, force=True):  # one benchmark at a time in a folder (--pack and --report read it)
+        poses, budgets = None, None
+        if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
+            previous = resumable_plan(out, settings)
+            poses, budgets = previous["start_poses"], previous.get("budgets")
+        clock = time.perf_counter()
+        runs, start_poses, budgets = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses,
+                                               scene_starts, depths, budgets, rule)
+        write_plan(out, {"settings": settings, "start_poses": start_poses,
+                         **({"budgets": budgets} if budgets else {}),
+                         "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
+        rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget,
+                              "model": settings["model"], "depth": depth}, workers, backend, progress)
+        report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None,
+                              interval=load_config("bench").report.interval,
+                              vox_steps=settings.get("vox_steps", "budget"))
+        return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
 def resumable_plan(out: Path, settings: dict) -> dict:
