@@ -22,8 +22,7 @@ def add_parser(subparsers) -> None:
     options.scene_specs(parser, required=True)
     parser.add_argument("--out", required=True, metavar="DIR", help="dataset folder")
     options.parallel(parser)
-    parser.add_argument("--seed", type=int, default=0, help="run seed: same seed, same bytes (default 0)")
-    parser.add_argument("--resume", action="store_true", help="continue the dataset in --out")
+    options.dataset_run(parser)
     options.config_file(parser, "configs/mapgen.yaml and configs/explore.yaml (with its sections sim:, depth:, "
                                 "scenes:)")
     options.config_overrides(parser, "mapgen.max_steps=200 mapgen.snapshot_every_steps=20", option=True)

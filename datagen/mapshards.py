@@ -36,7 +36,7 @@ import numpy as np
 from frontiernet.errors import InputError
 from frontiernet.io import ensure_dir, write_json
 
-from .shards import INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, write_zip
+from .shards import INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, read_info_file, write_zip
 
 MAP_DATASET_FORMAT = "frontiernet-map-dataset"
 MAP_DATASET_VERSION = 1
@@ -54,13 +54,7 @@ def write_map_dataset_info(root: str | Path, info: dict) -> Path:
 def read_map_dataset_info(root: str | Path) -> dict:
     """The dict of ``root/dataset.json``; InputError naming the file when it is missing, unreadable or
     not a map dataset's (a FrontierNet dataset of ``frontiernet datagen`` says so)."""
-    path = Path(root) / INFO_NAME
-    if not path.is_file():
-        raise DatasetError(f"{path}: not found (not a map dataset folder; make one with frontiernet mapgen)")
-    try:
-        info = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as error:
-        raise DatasetError(f"{path}: not a readable JSON file ({error.__class__.__name__})") from None
+    path, info = read_info_file(root, "not a map dataset folder; make one with frontiernet mapgen")
     found = info.get("format") if isinstance(info, dict) else type(info).__name__
     if found != MAP_DATASET_FORMAT:
         raise DatasetError(f"{path}: not a map dataset (format {found!r}, expected {MAP_DATASET_FORMAT!r}; "

@@ -93,15 +93,22 @@ def write_dataset_info(root: str | Path, info: dict) -> Path:
     return write_json(ensure_dir(root) / INFO_NAME, json.loads(_dumps(data)))
 
 
-def read_dataset_info(root: str | Path) -> dict:
-    """The dict of ``root/dataset.json``; DatasetError naming the file if it is missing or wrong."""
+def read_info_file(root: str | Path, not_found: str) -> tuple[Path, object]:
+    """(path, parsed JSON) of ``root/dataset.json`` (a FrontierNet or a map dataset's); DatasetError
+    naming the file when it is missing (`not_found` says what the folder then is not) or is no
+    readable JSON. The caller checks its format."""
     path = Path(root) / INFO_NAME
     if not path.is_file():
-        raise DatasetError(f"{path}: not found (not a FrontierNet dataset folder)")
+        raise DatasetError(f"{path}: not found ({not_found})")
     try:
-        info = json.loads(path.read_text())
+        return path, json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as error:
         raise DatasetError(f"{path}: not a readable JSON file ({error.__class__.__name__})") from None
+
+
+def read_dataset_info(root: str | Path) -> dict:
+    """The dict of ``root/dataset.json``; DatasetError naming the file if it is missing or wrong."""
+    path, info = read_info_file(root, "not a FrontierNet dataset folder")
     if not isinstance(info, dict) or info.get("format") != DATASET_FORMAT:
         found = info.get("format") if isinstance(info, dict) else type(info).__name__
         raise DatasetError(f"{path}: not a FrontierNet dataset description "

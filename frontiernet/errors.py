@@ -32,6 +32,18 @@ def positive_number(value, name: str, unit: str = "", *, allow_zero: bool = Fals
     return float(value)
 
 
+def fraction_or_null(value, name: str) -> float | None:
+    """`value` as a float in (0, 1], or None when it is None (a key whose null keeps the rule from
+    before it); otherwise InputError naming ``<name> (or null)``."""
+    if value is None:
+        return None
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)):
+        raise InputError(f"{name} (or null) must be a finite number, got {value!r}")
+    if not 0.0 < value <= 1.0:
+        raise InputError(f"{name} must be in (0, 1] (or null), got {float(value)}")
+    return float(value)
+
+
 def number_range(value, name: str, lower: float = -math.inf, upper: float = math.inf) -> tuple[float, float]:
     """`value` as a ``(min, max)`` pair of finite floats with ``lower <= min <= max <= upper``.
 

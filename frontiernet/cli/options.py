@@ -128,6 +128,13 @@ def parallel(parser) -> None:
                         help="local (processes, the default) or ray (Ray tasks; set RAY_ADDRESS to use a cluster)")
 
 
+def dataset_run(parser) -> None:
+    """``--seed S --resume``: a dataset generator's run seed and the continuation of its ``--out``
+    (``datagen``, ``mapgen``)."""
+    parser.add_argument("--seed", type=int, default=0, help="run seed: same seed, same bytes (default 0)")
+    parser.add_argument("--resume", action="store_true", help="continue the dataset in --out")
+
+
 def max_steps(parser, config: str) -> None:
     """``--max-steps``: an exploration's step budget, by default ``run.max_steps`` of `config`."""
     parser.add_argument("--max-steps", type=int, help=f"step budget (default: {config} run.max_steps)")

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from ..config import ConfigSection, setting
-from ..errors import InputError, positive_number, whole_number
+from ..errors import InputError, fraction_or_null, positive_number, whole_number
 
 
 def scalar(value):
@@ -52,12 +52,7 @@ def _monocular_miss(value, name: str) -> float | None:
 
 
 def _monocular_fraction(value, name: str) -> float | None:
-    if value is None:
-        return None
-    fraction = finite_number(value, f"{name} (or null)")
-    if not 0.0 < fraction <= 1.0:
-        raise InputError(f"{name} must be in (0, 1] (or null), got {fraction}")
-    return fraction
+    return fraction_or_null(None if value is None else scalar(value), name)
 
 
 @dataclass(frozen=True)

@@ -37,9 +37,9 @@ robot can reach and see, not what the outside cannot flood into:
    with none, up to the grid's top). The void under a thin floor over nothing, a stairwell going
    down, the storeys below and, above the ceiling, the space over structure (the storeys above)
    are neither explorable nor enclosed; the air over a courtyard or up an opening in the slab,
-   and a room's patch without a floor mesh level with the floor (KTH plans), stay. The automatic seed is on the
-   lowest storey: the lowest walkable floor holding at least ``storey_floor_share`` of the
-   largest one's voxels (not a stair's tread or the bottom of a shaft).
+   and a room's patch without a floor mesh level with the floor (KTH plans), stay. The
+   automatic seed is on the lowest storey: the lowest walkable floor holding at least
+   ``storey_floor_share`` of the largest one's voxels (not a stair's tread or the bottom of a shaft).
 
 Everything else free inside the envelope (wall interiors, closed cabinets, rooms with no way in)
 is *enclosed*, not explorable: it tells "inside an obstacle" from "outside the building".
@@ -61,7 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError, positive_number
+from ..errors import InputError, fraction_or_null, positive_number
 
 
 _TIE = 1e-4  # cells; float32 distances equal to the radius count as within it
@@ -390,13 +390,7 @@ def reachable_space(occupied: np.ndarray, origin: np.ndarray, voxel_size: float,
 def _share(conf, key: str) -> float | None:
     """The fraction ``voxels.<key>`` of configs/sim.yaml, in (0, 1], or None (null or absent: the
     rule before the key, :func:`_seed_and_storey`)."""
-    value = conf.get(key) if hasattr(conf, "get") else getattr(conf, key, None)
-    if value is None:
-        return None
-    value = positive_number(value, f"voxels.{key}", "")
-    if value > 1.0:
-        raise InputError(f"voxels.{key} must be a fraction in (0, 1], got {value:g}")
-    return value
+    return fraction_or_null(conf.get(key) if hasattr(conf, "get") else getattr(conf, key, None), f"voxels.{key}")
 
 
 EXPLORABLE_RULES = ("reachable", "enclosed")
