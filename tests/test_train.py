@@ -203,6 +203,36 @@ def test_channels_last_changes_the_memory_order_not_the_numbers():
         channels_last_wanted(OmegaConf.create({"channels_last": "maybe", "accelerator": "cpu"}))
 
 
+def test_a_ctrl_c_during_the_batch_transform_stays_a_keyboard_interrupt(tiny_dataset, monkeypatch):
+    """Ctrl-C lands between two Python bytecodes. Inside omegaconf's ``__getitem__``, called by
+    ``torch.tensor`` on a config list, it came out as torch's ValueError and the run died without
+    its interrupt checkpoint: the per-batch transform must run no config code at all."""
+    from types import SimpleNamespace
+
+    from omegaconf import DictConfig, ListConfig
+
+    from train.config import load_train_config
+    from train.data import FrontierDataModule
+
+    conf = load_train_config(REPO_ROOT / "configs" / "train_tiny.yaml", [f"data.path={tiny_dataset}"])
+    datamodule = FrontierDataModule(conf, progress=False)
+    datamodule.setup()
+    batch = next(iter(datamodule.train_dataloader()))
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    for node in (DictConfig, ListConfig):
+        monkeypatch.setattr(node, "__getitem__", ctrl_c)
+        monkeypatch.setattr(node, "__getattr__", ctrl_c)
+    datamodule.trainer = SimpleNamespace(training=True)  # the augmented path too
+    training = datamodule.on_after_batch_transfer(dict(batch), 0)
+    datamodule.trainer = None
+    validation = datamodule.on_after_batch_transfer(dict(batch), 0)
+    for network_input in (training["image"], validation["image"]):
+        assert network_input.shape[:2] == (len(batch["rgb"]), 4) and torch.isfinite(network_input).all()
+
+
 def train_losses(run: Path) -> list[float]:
     with open(run / "metrics.csv") as handle:
         return [float(row["train/loss"]) for row in csv.DictReader(handle) if row.get("train/loss")]

@@ -24,5 +24,5 @@ def load_train_config(user_file: str | Path | None = None, overrides: Iterable[s
 
 
 def plain(conf) -> dict:
-    """A resolved plain-dict copy (what checkpoints store)."""
-    return OmegaConf.to_container(conf, resolve=True)
+    """A resolved plain-dict copy of a DictConfig or mapping (what checkpoints store)."""
+    return OmegaConf.to_container(conf if isinstance(conf, DictConfig) else OmegaConf.create(conf), resolve=True)

@@ -24,6 +24,7 @@ from datagen import DatasetError, FrontierDataset, open_dataset
 from frontiernet.errors import InputError, cpu_count_option
 
 from .cache import TrainingCache, ensure_cache
+from .config import plain
 from .packed import pack_sample
 from .transforms import network_batch, training_item, training_sample
 
@@ -179,6 +180,11 @@ class FrontierDataModule(L.LightningDataModule):
         by :meth:`setup`)."""
         super().__init__()
         self.conf, self.progress, self.dataset = conf, progress, dataset
+        # Plain copies for the per-batch transform: a Ctrl-C landing inside omegaconf's Python
+        # __getitem__ while torch.tensor reads a ListConfig surfaced as torch's ValueError ("could
+        # not determine the shape of object type 'ListConfig'"), not as KeyboardInterrupt, and the
+        # run died without its interrupt checkpoint. Plain lists are read in C, with no Python frame.
+        self.batch_confs = plain(conf["model"]), plain(conf["augment"])
         self.train_set = self.val_set = None
         self.train_scenes = self.val_scenes = []
 
@@ -216,7 +222,8 @@ class FrontierDataModule(L.LightningDataModule):
     def on_after_batch_transfer(self, batch: dict, dataloader_idx: int) -> dict:
         """Augment (training batches only) and normalise on the training device."""
         training = self.trainer is not None and self.trainer.training
-        return network_batch(batch, self.conf["model"], self.conf["augment"] if training else None)
+        model_conf, augment_conf = self.batch_confs
+        return network_batch(batch, model_conf, augment_conf if training else None)
 
 
 def open_training_cache(data_conf, model_conf, dataset: FrontierDataset, progress: bool = True) -> TrainingCache:
