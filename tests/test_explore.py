@@ -217,6 +217,30 @@ def test_the_run_starts_with_one_turn_on_the_spot(oracle_run):
 
 
 @pytest.mark.slow
+def test_the_rerun_recording_holds_the_run(plan_spec, tmp_path):
+    """``--rerun`` (rerun-sdk is in the test environment) writes a recording that Rerun reads back:
+    camera, image overlay, frontiers, map and trajectory, the trajectory ending as the run's path."""
+    from rerun.chunk import RrdReader
+
+    out = tmp_path / "run"
+    code, _, _ = run_cli(explore_args(plan_spec, out, 12, "--no-video", "--rerun"))
+    assert code == 0
+    chunks = list(RrdReader(out / "recording.rrd").stream().to_chunks())
+    entities = {chunk.entity_path for chunk in chunks if not chunk.is_static}
+    assert {"/world/camera", "/world/camera/image", "/world/camera/image/frontiers", "/world/frontiers",
+            "/world/map/occupied", "/world/trajectory"} <= entities
+    strips = {}  # step -> the trajectory logged at that step
+    for chunk in chunks:
+        if chunk.entity_path == "/world/trajectory":
+            batch = chunk.to_record_batch()
+            for step, strip in zip(batch.column("step").to_pylist(), batch.column("LineStrips3D:strips").to_pylist()):
+                if strip:
+                    strips[step] = np.array(strip[0])
+    path = np.array([T[:3, 3] for T in map(np.array, load(out, "trajectory.json")["T_world_cam"])])
+    last = strips[max(strips)]
+    assert len(strips) >= 12 and last.shape == path.shape and np.allclose(last, path, atol=1e-5)
+
+
 def test_the_robot_stays_clear_of_walls_and_moves_in_single_steps(oracle_run, plan_spec):
     from frontiernet.scenes import load_scene
     from frontiernet.simulator.raycast import distance_to_surface

@@ -65,8 +65,11 @@ def test_sigterm_to_the_parent_ends_every_worker_and_interrupts_it():
 
 
 @pytest.mark.slow
-def test_ray_reruns_a_task_whose_worker_died(tmp_path):
+def test_ray_reruns_a_task_whose_worker_died(tmp_path, monkeypatch):
     pytest.importorskip("ray")
+    # Ray's workers import this module by name (the library's own tasks live in the package); pytest
+    # put tests/ on this process's path only, the local Ray instance inherits the environment
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
     marker = str(tmp_path / "died")
     results = run_parallel(double_but_die_first, [(marker, value) for value in range(3)], backend="ray",
                            workers=2, died=died)
