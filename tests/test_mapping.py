@@ -234,6 +234,48 @@ def test_far_monocular_hits_are_weak_hits_that_a_later_miss_clears():
     np.testing.assert_allclose(occupancy.log_odds[tuple(occupancy.world_to_index(post).T)] - before, [0.85], rtol=1e-5)
 
 
+def test_oblique_monocular_pixels_are_left_out_and_ground_truth_keeps_them():
+    """A floor 1 m below a level camera meets its rays at incidence atan(x / 1 m) from its normal
+    (x: distance along it): :func:`grazing_pixels` flags the pixels past the angle (against the
+    exact angle), and with ``monocular_max_incidence_deg`` a monocular frame leaves them out of the
+    map (neither hit nor free) while the nearer floor, a frontal wall and the ground truth's frame
+    are integrated as before."""
+    from frontiernet.mapping.checks import grazing_pixels
+
+    K = np.array([[120.0, 0, 119.5], [0, 120.0, 119.5], [0, 0, 1]])
+    v = (np.arange(240) - 119.5) / 120.0  # image y (down) per unit depth
+    floor = np.where(v[:, None] > 0.05, 1.0 / np.maximum(v[:, None], 1e-9), np.inf) * np.ones((1, 240))
+    depth = np.minimum(floor, 3.0).astype(np.float32)  # a wall 3 m ahead above the floor's horizon
+    flagged = grazing_pixels(depth, K, 60.0, 9)
+    u = (np.arange(240) - 119.5) / 120.0
+    cos = v[:, None] / np.sqrt(1 + u[None] ** 2 + v[:, None] ** 2)  # floor normal (0, 1, 0) in the camera frame
+    angle = np.degrees(np.arccos(cos))
+    interior = np.zeros_like(flagged)
+    interior[8:-8, 8:-8] = True
+    on_floor = interior & (floor < 2.6)  # a window clear of the wall
+    clear = on_floor & (np.abs(angle - 60.0) > 2.0)  # and off the threshold
+    assert np.array_equal(flagged[clear], angle[clear] > 60.0) and flagged[on_floor].any()
+    assert not flagged[interior & (floor > 3.5)].any()  # the wall is frontal
+    T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)  # camera z = world +x, image down = world -z
+    bounds = np.array([[-0.05, -3.05, -1.55], [6.05, 3.05, 1.55]])
+    keys = dict(ray_stride_px=1, depth_edge_rtol=None, monocular_max_incidence_deg=60.0)
+    maps = {}
+    for monocular in (False, True):
+        maps[monocular] = OccupancyMap.from_bounds(bounds, map_conf(**keys))
+        maps[monocular].integrate(depth, K, T, monocular=monocular)
+    far_floor = np.array([[2.3, 0.0, -1.0]])  # seen at 66 deg
+    near_floor = np.array([[1.2, 0.0, -1.0]])  # 50 deg
+    wall = np.array([[3.0, 0.0, 0.5]])
+    assert maps[False].state_at(far_floor).tolist() == [OCCUPIED]
+    assert maps[True].state_at(far_floor).tolist() == [UNKNOWN]
+    for probe in (near_floor, wall):
+        assert maps[True].state_at(probe).tolist() == maps[False].state_at(probe).tolist() == [OCCUPIED]
+    with pytest.raises(InputError, match="monocular_max_incidence_deg"):
+        OccupancyMap.from_bounds(bounds, map_conf(monocular_max_incidence_deg=90.0))
+    with pytest.raises(InputError, match="monocular_normal_window_px"):
+        OccupancyMap.from_bounds(bounds, map_conf(monocular_normal_window_px=8))
+
+
 def test_stride_two_sees_nearly_what_stride_one_sees(renderer):
     poses = surround_poses()[:3]
     fine = integrated(renderer, poses, ray_stride_px=1)

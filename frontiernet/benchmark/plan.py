@@ -63,6 +63,9 @@ KEYS_ADDED_AFTER_PLANS = {
     # issue 55: the explorable space of one storey (null: the largest floor's seed, only the void cut)
     "sim.voxels.storey_floor_share": None,
     "sim.voxels.storey_slab_share": None,
+    # issue 54: oblique monocular pixels left out of the map (null: all integrated, as before the keys)
+    "map.monocular_max_incidence_deg": None,
+    "map.monocular_normal_window_px": 9,
     "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,

@@ -51,6 +51,20 @@ def _monocular_miss(value, name: str) -> float | None:
     return miss
 
 
+def _incidence(value, name: str) -> float:
+    value = finite_number(value, name)
+    if not 0.0 < value < 90.0:
+        raise InputError(f"{name}: an angle from the surface normal in (0, 90) degrees, got {value}")
+    return value
+
+
+def _odd_window(value, name: str) -> int:
+    value = whole_number(value, name, 3)
+    if value % 2 == 0:
+        raise InputError(f"{name}: an odd window side in pixels, got {value}")
+    return value
+
+
 def _monocular_fraction(value, name: str) -> float | None:
     return fraction_or_null(None if value is None else scalar(value), name)
 
@@ -63,13 +77,16 @@ class RayModel:
     ray is free up to this fraction of its depth; ``log_odds_miss``: a passed voxel's update;
     ``far_hit_max``: ends beyond ``hit_range_m`` are weak hits raised to at most this log-odds
     (None: no hit); ``depth_edge_rtol``: pixels at depth edges are left out (:func:`depth_edges`;
-    None: none)."""
+    None: none); ``max_incidence_deg``: pixels seeing their surface more obliquely are left out
+    (:func:`grazing_pixels` over ``normal_window_px``; None: none)."""
 
     hit_range_m: float
     free_fraction: float
     log_odds_miss: float
     far_hit_max: float | None
     depth_edge_rtol: float | None
+    max_incidence_deg: float | None = None
+    normal_window_px: int = 9
 
 
 @dataclass(frozen=True)
@@ -92,6 +109,8 @@ class MapSettings(ConfigSection):
     monocular_log_odds_miss: float | None = setting(_monocular_miss)
     monocular_free_fraction: float | None = setting(_monocular_fraction)
     monocular_far_hit_max: float | None = setting(_or_null(finite_number))
+    monocular_max_incidence_deg: float | None = setting(_or_null(_incidence))
+    monocular_normal_window_px: int = setting(_odd_window)
 
     def __post_init__(self) -> None:  # what ties keys together
         if not (self.log_odds_min <= 0.0 <= self.log_odds_max):
@@ -114,7 +133,8 @@ class MapSettings(ConfigSection):
         weak = self.monocular_far_hit_max is not None and hit_range < self.max_range_m
         return RayModel(hit_range, _unless_null(self.monocular_free_fraction, 1.0),
                         _unless_null(self.monocular_log_odds_miss, self.log_odds_miss),
-                        self.monocular_far_hit_max if weak else None, self.depth_edge_rtol)
+                        self.monocular_far_hit_max if weak else None, self.depth_edge_rtol,
+                        self.monocular_max_incidence_deg, self.monocular_normal_window_px)
 
 
 def _unless_null(value, default):
@@ -156,3 +176,43 @@ def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarra
     lowest = cv2.erode(np.where(valid, depth, np.inf), window, borderType=cv2.BORDER_REPLICATE)
     with np.errstate(invalid="ignore"):
         return valid & (highest - lowest > rtol * depth)  # NaN (invalid) pixels compare False
+
+
+def grazing_pixels(depth: np.ndarray, K: np.ndarray, max_incidence_deg: float, window_px: int) -> np.ndarray:
+    """Pixels that see their surface at more than `max_incidence_deg` from its normal: (H, W) bool.
+
+    A range error moves a point along its ray; seen at incidence theta, that is an error of
+    ``tan(theta)`` times as much along the surface (a wall beside a doorway, seen obliquely from
+    3 m with a depth 15 % long, is drawn across the doorway). The normal is that of the point
+    cloud of the depth image, from central differences over `window_px` pixels of the
+    `window_px`-box-filtered points (monocular noise is correlated over a few pixels).
+
+    Args:
+        depth: (H, W) float z-depth in metres, NaN (or <= 0) where invalid; invalid pixels and
+            their neighbourhood are never grazing (depth edges are :func:`depth_edges`' job).
+        K: (3, 3) pinhole intrinsics, pixels.
+        max_incidence_deg: angle between the viewing ray and the surface normal, degrees, in (0, 90).
+        window_px: odd smoothing window and difference span, pixels.
+    """
+    depth = np.asarray(depth, np.float32)
+    H, W = depth.shape
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(depth) & (depth > 0)
+    u = (np.arange(W, dtype=np.float32) - np.float32(K[0, 2])) / np.float32(K[0, 0])
+    v = (np.arange(H, dtype=np.float32) - np.float32(K[1, 2])) / np.float32(K[1, 1])
+    z = np.where(valid, depth, np.float32(0.0))
+    points = np.stack([u[None, :] * z, v[:, None] * z, z], axis=-1)  # (H, W, 3) camera frame
+    box = (window_px, window_px)
+    points = cv2.blur(points, box, borderType=cv2.BORDER_REPLICATE)  # box filters run on sums: no NaN in
+    whole = cv2.blur(valid.astype(np.float32), box, borderType=cv2.BORDER_REPLICATE) > 1.0 - 1e-4
+    points[~whole] = np.nan  # a window with an invalid pixel has no normal
+    h = window_px // 2
+    along_u = np.full_like(points, np.nan)
+    along_v = np.full_like(points, np.nan)
+    along_u[:, h:W - h] = points[:, 2 * h:] - points[:, :W - 2 * h]
+    along_v[h:H - h] = points[2 * h:] - points[:H - 2 * h]
+    normal = np.cross(along_u, along_v)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = np.abs(np.einsum("hwc,hwc->hw", normal, points)) / (
+            np.linalg.norm(normal, axis=-1) * np.linalg.norm(points, axis=-1))
+        return cos < np.cos(np.radians(max_incidence_deg))  # NaN (invalid near) compares False

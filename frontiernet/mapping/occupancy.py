@@ -30,7 +30,7 @@ from ..io import atomic_path
 from ..simulator.voxels import VoxelGrid
 from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
 from .bands import BandViews, band_layers, read_only
-from .checks import MapSettings, depth_edges, depth_image, finite_number, scalar
+from .checks import MapSettings, depth_edges, depth_image, grazing_pixels, finite_number, scalar
 from .traversal import apply_marks, frustum_volume, mark_depth_rays
 
 UNKNOWN, FREE, OCCUPIED = 0, 1, 2
@@ -241,6 +241,9 @@ class OccupancyMap:
         hit = np.zeros_like(passed)
         rays = s.ray_model(monocular)
         skip = depth_edges(depth, rays.depth_edge_rtol) if rays.depth_edge_rtol is not None else np.zeros((0, 0), bool)
+        if rays.max_incidence_deg is not None:
+            grazing = grazing_pixels(depth, K, rays.max_incidence_deg, rays.normal_window_px)
+            skip = skip | grazing if skip.size else grazing
         weak = rays.far_hit_max is not None
         far = np.zeros_like(passed) if weak else np.zeros((0, 0, 0), bool)
         mark_depth_rays(depth, K[0, 0], K[1, 1], K[0, 2], K[1, 2], s.ray_stride_px, np.ascontiguousarray(T[:3, :3]),
@@ -363,6 +366,8 @@ class OccupancyMap:
                 settings.setdefault("monocular_log_odds_miss", None)
                 settings.setdefault("monocular_free_fraction", None)
                 settings.setdefault("monocular_far_hit_max", None)
+                settings.setdefault("monocular_max_incidence_deg", None)  # ... nor its oblique-view rule
+                settings.setdefault("monocular_normal_window_px", 9)
                 occupancy = cls(data["origin"], data["log_odds"].shape, settings)
                 occupancy._log_odds[...] = data["log_odds"]
                 occupancy._observed[...] = data["observed"]
