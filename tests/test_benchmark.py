@@ -163,6 +163,37 @@ def test_several_depth_sources_run_every_run_once_per_source_from_the_same_start
     assert code == 2 and "other settings" in stderr
 
 
+def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_others(plan_spec, tmp_path, caplog):
+    """A map key of the monocular sensor model changes only the emulated-depth runs: resuming with it is
+    refused unless --redo-changed, which discards those runs (packed or not) and runs them again under
+    the new value, the ground-truth runs kept byte for byte; any other change stays refused."""
+    from frontiernet.benchmark.store import read_pack, read_plan
+
+    out = tmp_path / "bench"
+    args = ["--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "1", "--max-steps", "4",
+            "--depth", "gt,emulated", "--out", out]
+    assert bench(*args)[0] == 0
+    runs = {run["depth"]: run["key"] for run in read_plan(out)["runs"]}
+    assert bench("--pack", "--out", out)[0] == 0
+    packs = {depth: out / "runs" / (key.rsplit("/", 1)[0] + ".jsonl.gz") for depth, key in runs.items()}
+    before = {depth: path.read_bytes() for depth, path in packs.items()}
+    change = ["--set", "map.monocular_log_odds_miss=-0.85"]
+    code, _, stderr = bench(*args, *change)
+    assert code == 2 and "conf.map.monocular_log_odds_miss: None in the plan, -0.85 now" in stderr
+    assert "only its emulated-depth runs read: --redo-changed" in stderr
+    code, _, stderr = bench(*args, *change, "--redo-changed")
+    assert code == 0 and "1 finished runs of them discarded" in caplog.text and "bench 1/1" in stderr
+    assert packs["ground_truth"].read_bytes() == before["ground_truth"]
+    assert not packs["emulated"].exists() or runs["emulated"] not in read_pack(packs["emulated"])
+    redone = out / "runs" / runs["emulated"]
+    assert "monocular_log_odds_miss: -0.85" in (redone / "config.yaml").read_text()
+    assert read_plan(out)["settings"]["conf"]["map"]["monocular_log_odds_miss"] == -0.85
+    code, _, stderr = bench(*args, *change)  # the plan has the new value: a plain resume, nothing to run
+    assert code == 0 and "bench 1/" not in stderr
+    code, _, stderr = bench(*args, *change, "planner.clearance_m=0.35", "--redo-changed")
+    assert code == 2 and "conf.planner.clearance_m: 0.3 in the plan, 0.35 now" in stderr and "--redo-changed" not in stderr
+
+
 @pytest.mark.slow
 def test_the_published_benchmarks_report_is_rebuilt_byte_for_byte(tmp_path, request):
     """docs/benchmark/published (one depth source, packed) reports as it did before several sources."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from pathlib import Path
 
@@ -14,13 +15,15 @@ from ..exploration.run import RUN_SECTIONS, load_run_config
 from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
-from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, with_idle_keys,
+from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, sources_changed, with_idle_keys,
                    with_keys_added_after)
 from .budget import BudgetRule
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
-from .store import FinishedRuns, plan_file, read_plan, write_plan
+from .store import FinishedRuns, discard_runs, plan_file, read_plan, write_plan
 
+
+log = logging.getLogger(__name__)
 
 MAX_STARTS = 1000
 """The most start poses per scene (``--starts``) and runs per start and method (``--repeats``) of a
@@ -29,7 +32,8 @@ benchmark: the paper's is 3 x 3; more would be sampled and planned for minutes b
 
 def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts: int = 3, repeats: int = 3,
          max_steps: int | None = None, workers: int = 1, backend: str = "local", seed: int | None = None,
-         model=None, depth: str | None = None, scene_starts: bool = False, progress: bool = True) -> dict:
+         model=None, depth: str | None = None, scene_starts: bool = False, redo_changed: bool = False,
+         progress: bool = True) -> dict:
     """Run every method on every scene from shared start poses and write the report to `out`.
 
     Args:
@@ -49,6 +53,10 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             (:func:`~frontiernet.benchmark.plan.depth_sources`, :mod:`.plan`).
         workers, backend: parallel runs, ``local`` or ``ray``.
         scene_starts: start from the positions a scene ships (KTH plans: MapEx's) first.
+        redo_changed: resume a benchmark whose settings differ only in settings that the runs of some
+            depth sources alone read (``map.monocular_*``, a source's ``depth`` section:
+            :func:`~frontiernet.benchmark.plan.sources_changed`): its finished runs of those sources
+            are discarded and run again under this run's settings, the others kept.
     Returns:
         ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
     Raises:
@@ -92,8 +100,14 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     with claim_output_folder(out, force=True):  # one benchmark at a time in a folder (--pack and --report read it)
         poses, budgets = None, None
         if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
-            previous = resumable_plan(out, settings)
+            previous = resumable_plan(out, settings, redo_changed)
             poses, budgets = previous["start_poses"], previous.get("budgets")
+            redo = previous.get("redo_sources")
+            if redo:  # before the plan takes the new settings: a run stopped between redoes the rest
+                single = depth_sources(previous["settings"]["depth"], OmegaConf.create(previous["settings"]["conf"]))
+                keys = [run["key"] for run in previous["runs"] if (run.get("depth") or single[0]) in redo]
+                log.warning("%s: the settings of its %s-depth runs changed; %d finished runs of them discarded, "
+                            "to run again", out, " and ".join(redo), discard_runs(out, keys))
         clock = time.perf_counter()
         runs, start_poses, budgets = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses,
                                                scene_starts, depths, budgets, rule)
@@ -108,9 +122,12 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
-def resumable_plan(out: Path, settings: dict) -> dict:
+def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dict:
     """The plan stored in benchmark folder `out` (``plan.json``) when a benchmark with `settings`
     (as :func:`main` builds them) may resume it; InputError naming the first setting that differs.
+    Settings that only the runs of some of its depth sources read may differ with `redo_changed`
+    (:func:`~frontiernet.benchmark.plan.sources_changed`): the plan then carries ``redo_sources``, the
+    sources whose finished runs are stale (:func:`main` discards them).
 
     A plan made before the run config had a section of
     :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
@@ -133,8 +150,16 @@ def resumable_plan(out: Path, settings: dict) -> dict:
         raise InputError(f"{out} holds a benchmark made under another protocol ({made}); {give}, or use another "
                          "--out: its runs are not mixed with this protocol's")
     if previous["settings"] != settings:
-        raise InputError(f"{out} holds a benchmark with other settings "
-                         f"({first_difference(previous['settings'], settings)}); use another --out or remove it")
+        difference = first_difference(previous["settings"], settings)
+        redo = sources_changed(previous["settings"], settings)
+        if redo is None:
+            raise InputError(f"{out} holds a benchmark with other settings ({difference}); use another --out or "
+                             "remove it")
+        if redo and not redo_changed:
+            raise InputError(f"{out} holds a benchmark with other settings ({difference}), which only its "
+                             f"{' and '.join(redo)}-depth runs read: --redo-changed runs those again (their finished "
+                             "runs are discarded) and keeps the others; or use another --out")
+        previous["redo_sources"] = redo
     return previous
 
 

@@ -217,20 +217,58 @@ def with_keys_added_after(conf: dict) -> dict:
     return conf
 
 
-def first_difference(old, new, prefix: str = "") -> str | None:
-    """The first dotted key whose value differs between two nested dicts, as
-    ``"key: OLD in the plan, NEW now"`` (``absent`` for a missing key); None when equal."""
+def differences(old, new, prefix: str = ""):
+    """Every dotted key whose value differs between two nested dicts, in sorted key order, as
+    ``(key, "key: OLD in the plan, NEW now")`` (``absent`` for a missing key)."""
     if isinstance(old, dict) and isinstance(new, dict):
         for key in sorted(set(old) | set(new), key=str):
             name = f"{prefix}{key}"
             if key not in old or key not in new:
                 shown = [repr(side[key]) if key in side else "absent" for side in (old, new)]
-                return f"{name}: {shown[0]} in the plan, {shown[1]} now"
-            found = first_difference(old[key], new[key], f"{name}.")
-            if found:
-                return found
-        return None
-    return None if old == new else f"{prefix.rstrip('.')}: {old!r} in the plan, {new!r} now"
+                yield name, f"{name}: {shown[0]} in the plan, {shown[1]} now"
+            else:
+                yield from differences(old[key], new[key], f"{name}.")
+    elif old != new:
+        name = prefix.rstrip(".")
+        yield name, f"{name}: {old!r} in the plan, {new!r} now"
+
+
+def first_difference(old, new, prefix: str = "") -> str | None:
+    """The first of :func:`differences` as its text; None when equal."""
+    return next((text for _, text in differences(old, new, prefix)), None)
+
+
+def _sources_reading(dotted: str) -> set[str] | None:
+    """The depth sources whose runs alone read the benchmark setting `dotted` (``conf.<section>.<key>...``):
+    the map's monocular sensor model and its depth-edge filter apply only to sources with flying pixels
+    (:meth:`~frontiernet.mapping.checks.MapSettings.ray_model`), a source's own ``depth`` section only to
+    it; None for every other setting."""
+    from ..depth import SOURCES
+
+    parts = dotted.split(".")
+    if len(parts) > 2 and parts[:2] == ["conf", "map"] and (parts[2].startswith("monocular_")
+                                                           or parts[2] == "depth_edge_rtol"):
+        return {name for name, source in SOURCES.items() if source.flying_pixels}
+    if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
+        return {parts[2]}
+    return None
+
+
+def sources_changed(stored: dict, settings: dict) -> list[str] | None:
+    """The depth sources of a stored plan whose runs alone this run's `settings` change: when every
+    setting in which the two differ is read only by the runs of some sources (:func:`_sources_reading`),
+    the plan's sources among them (empty: the change reaches none of its runs, e.g. a monocular key of
+    a ground-truth plan); None when any other setting differs (another benchmark). `stored`: the plan's
+    settings as :func:`with_idle_keys` and :func:`with_keys_added_after` leave them."""
+    from omegaconf import OmegaConf
+
+    changed = set()
+    for dotted, _ in differences(stored, settings):
+        sources = _sources_reading(dotted)
+        if sources is None:
+            return None
+        changed |= sources
+    return [name for name in depth_sources(stored["depth"], OmegaConf.create(stored["conf"])) if name in changed]
 
 
 def scene_key(spec: str) -> str:
@@ -339,4 +377,4 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
 
 
 __all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
-           "with_keys_added_after", "first_difference"]
+           "with_keys_added_after", "differences", "first_difference", "sources_changed"]

@@ -247,6 +247,31 @@ class FinishedRuns:
             return self._pack(pack_path(self.out, key)).get(key)
 
 
+def discard_runs(out: str | Path, keys) -> int:
+    """Remove the finished runs `keys` of benchmark folder `out` (their ``metrics.json``, or their
+    records from their packs, each pack rewritten atomically or removed once empty), so that a resumed
+    benchmark runs them again; their other outputs are written over then. Returns how many were finished."""
+    out, count = Path(out), 0
+    by_pack = defaultdict(set)
+    for key in keys:
+        path = out / "runs" / key / "metrics.json"
+        if path.is_file():
+            path.unlink()
+            count += 1
+        by_pack[pack_path(out, key)].add(key)
+    for path, dropped in by_pack.items():
+        if not path.is_file():
+            continue
+        records = read_pack(path)
+        kept = {key: record for key, record in records.items() if key not in dropped}
+        count += len(records) - len(kept)
+        if not kept:
+            path.unlink()
+        elif len(kept) < len(records):
+            write_pack(path, kept)
+    return count
+
+
 def pack(out: str | Path) -> dict:
     """Move the ``metrics.json`` of every finished run of the plan in benchmark folder `out` into
     its (scene, method) pack (module docstring), then remove those files; a run's other outputs
@@ -302,5 +327,5 @@ def pack(out: str | Path) -> dict:
             "packed": sum(packed.values()), "plan": _pack_plan(out)}
 
 
-__all__ = ["FinishedRuns", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",
+__all__ = ["FinishedRuns", "discard_runs", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",
            "pack_path", "PACK_SUFFIX", "encode_curves", "decode_curves"]

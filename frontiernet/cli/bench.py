@@ -66,6 +66,10 @@ def _exploration_options(parser) -> None:
                        help="with --out only: move the finished runs' metrics.json into one compressed file per "
                             "scene and method (runs/<scene>/<method>.jsonl.gz), which --report and a resumed "
                             "benchmark read; runs nothing (before --report when both are given)")
+    group.add_argument("--redo-changed", action="store_true",
+                       help="resume a benchmark whose settings changed only where the runs of some depth sources "
+                            "alone read them (map.monocular_*, a source's depth.* section): those runs are "
+                            "discarded and run again, the others kept")
     options.parallel(group)
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
     options.model_option(group, what="model file of the learned methods")
@@ -109,7 +113,8 @@ def run_exploration_benchmark(args) -> int:
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
-                  model=args.model, depth=args.depth, scene_starts=args.scene_starts, progress=True)
+                  model=args.model, depth=args.depth, scene_starts=args.scene_starts,
+                  redo_changed=args.redo_changed, progress=True)
     failed = sum(row["status"] != "done" for row in result["rows"])
     copies = sum(bool(row["copy_of"]) for row in result["rows"])
     copied = f", {copies} identical repeats taken from repeat 0" if copies else ""
