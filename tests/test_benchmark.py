@@ -177,17 +177,17 @@ def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_other
     assert bench("--pack", "--out", out)[0] == 0
     packs = {depth: out / "runs" / (key.rsplit("/", 1)[0] + ".jsonl.gz") for depth, key in runs.items()}
     before = {depth: path.read_bytes() for depth, path in packs.items()}
-    change = ["--set", "map.monocular_log_odds_miss=-0.85"]
+    change = ["--set", "map.monocular_log_odds_miss=-1.2"]
     code, _, stderr = bench(*args, *change)
-    assert code == 2 and "conf.map.monocular_log_odds_miss: None in the plan, -0.85 now" in stderr
+    assert code == 2 and "conf.map.monocular_log_odds_miss: -0.85 in the plan, -1.2 now" in stderr
     assert "only its emulated-depth runs read: --redo-changed" in stderr
     code, _, stderr = bench(*args, *change, "--redo-changed")
     assert code == 0 and "1 finished runs of them discarded" in caplog.text and "bench 1/1" in stderr
     assert packs["ground_truth"].read_bytes() == before["ground_truth"]
     assert not packs["emulated"].exists() or runs["emulated"] not in read_pack(packs["emulated"])
     redone = out / "runs" / runs["emulated"]
-    assert "monocular_log_odds_miss: -0.85" in (redone / "config.yaml").read_text()
-    assert read_plan(out)["settings"]["conf"]["map"]["monocular_log_odds_miss"] == -0.85
+    assert "monocular_log_odds_miss: -1.2" in (redone / "config.yaml").read_text()
+    assert read_plan(out)["settings"]["conf"]["map"]["monocular_log_odds_miss"] == -1.2
     code, _, stderr = bench(*args, *change)  # the plan has the new value: a plain resume, nothing to run
     assert code == 0 and "bench 1/" not in stderr
     code, _, stderr = bench(*args, *change, "planner.clearance_m=0.35", "--redo-changed")
@@ -377,16 +377,19 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
 
     folders = REPO_ROOT / "docs" / "benchmark"
     regimes, record = folders / "regimes", folders / "regimes_exponent1"
-    one_rule = ("sim.voxels.storey_floor_share=null", "sim.voxels.storey_slab_share=null")
+    # the rules they were made under: one storey's keys null (issue 55), and the monocular map's (issue 54:
+    # the symmetric miss and oblique pixels, default since 2026-12-06, change their emulated-depth runs)
+    one_rule = ("sim.voxels.storey_floor_share=null", "sim.voxels.storey_slab_share=null",
+                "map.monocular_log_odds_miss=null", "map.monocular_max_incidence_deg=null")
     with pytest.raises(InputError, match=r"\(conf.sim.voxels.storey_floor_share: None in the plan, 0.5 now\)"):
         resumable_plan(regimes, protocol())
     assert resumable_plan(regimes, protocol(*one_rule))["start_poses"] == resumable_plan(
         record, protocol("planner.gain_exponent=1.0", *one_rule))["start_poses"]  # the same starts: they pair
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
         resumable_plan(record, protocol(*one_rule))
-    assert 'SETTINGS="sim.voxels.storey_floor_share=null sim.voxels.storey_slab_share=null"' in (
-        regimes / "resume.sh").read_text()
-    assert "SETTINGS=planner.gain_exponent=1" in (record / "resume.sh").read_text()
+    assert f'SETTINGS="{" ".join(one_rule)}"' in (regimes / "resume.sh").read_text()
+    assert 'SETTINGS="planner.gain_exponent=1 map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null"' \
+        in (record / "resume.sh").read_text()
 
 
 def test_a_second_benchmark_on_a_folder_in_use_is_refused_at_once(plan_spec, tmp_path):

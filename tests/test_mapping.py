@@ -42,6 +42,11 @@ def map_conf(**changes) -> dict:
     return conf
 
 
+PLAIN_MONOCULAR = dict(monocular_log_odds_miss=None, monocular_max_incidence_deg=None)
+"""The map keys of the monocular sensor model that are on by default, off: a monocular frame then
+updates the map as the ground truth's does, but for the depth-edge filter."""
+
+
 def integrated(renderer, poses, **changes) -> OccupancyMap:
     occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf(**changes))
     for T in poses:
@@ -170,7 +175,7 @@ def test_flying_pixels_are_hits_in_free_space_unless_depth_edges_are_skipped():
     bounds = np.array([[-0.05, -3.05, -3.05], [6.05, 3.05, 3.05]])
     maps = {}
     for skip in (False, True):
-        maps[skip] = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1))
+        maps[skip] = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, **PLAIN_MONOCULAR))
         maps[skip].integrate(smeared_doorway(), K, T, monocular=skip)
     occupied_x = {skip: occupancy.index_to_world(np.argwhere(occupancy.occupied_mask()))[:, 0]
                   for skip, occupancy in maps.items()}
@@ -178,7 +183,7 @@ def test_flying_pixels_are_hits_in_free_space_unless_depth_edges_are_skipped():
     assert between[False] > 0, "flying pixels become occupied voxels in free space"
     assert between[True] == 0
     assert np.any(np.abs(occupied_x[True] - 1.0) < 0.1) and np.any(np.abs(occupied_x[True] - 3.0) < 0.1)
-    off = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None))
+    off = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None, **PLAIN_MONOCULAR))
     off.integrate(smeared_doorway(), K, T, monocular=True)
     np.testing.assert_array_equal(off.log_odds, maps[False].log_odds)  # null: no filter
 
@@ -204,7 +209,7 @@ def test_the_monocular_sensor_model_places_near_hits_only_and_frees_short_of_far
     assert maps[True].state_at(probes).tolist() == [FREE, FREE, UNKNOWN, UNKNOWN]
     occupied_x = maps[True].index_to_world(np.argwhere(maps[True].occupied_mask()))[:, 0]
     assert len(occupied_x) and np.all(np.abs(occupied_x - 1.5) < 0.1), "only the near post is a hit"
-    plain = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None))
+    plain = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, depth_edge_rtol=None, **PLAIN_MONOCULAR))
     plain.integrate(depth, K, T, monocular=True)
     np.testing.assert_array_equal(plain.log_odds, maps[False].log_odds)  # null keys: the plain rule
     miss = OccupancyMap.from_bounds(bounds, map_conf(ray_stride_px=1, monocular_log_odds_miss=-0.85))

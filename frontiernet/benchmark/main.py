@@ -15,7 +15,7 @@ from ..exploration.run import RUN_SECTIONS, load_run_config
 from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
-from .plan import (MIN_BUDGET, depth_sources, first_difference, plan_runs, sources_changed, with_idle_keys,
+from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, sources_changed, with_idle_keys,
                    with_keys_added_after)
 from .budget import BudgetRule
 from .report import write_report
@@ -150,7 +150,7 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
         raise InputError(f"{out} holds a benchmark made under another protocol ({made}); {give}, or use another "
                          "--out: its runs are not mixed with this protocol's")
     if previous["settings"] != settings:
-        difference = first_difference(previous["settings"], settings)
+        difference = blocking_difference(previous["settings"], settings)
         redo = sources_changed(previous["settings"], settings)
         if redo is None:
             raise InputError(f"{out} holds a benchmark with other settings ({difference}); use another --out or "

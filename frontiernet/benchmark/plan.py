@@ -254,6 +254,14 @@ def _sources_reading(dotted: str) -> set[str] | None:
     return None
 
 
+def blocking_difference(stored: dict, settings: dict) -> str | None:
+    """The first of :func:`differences` that :func:`sources_changed` cannot redo (a setting that runs of
+    every source read), as its text; else the first difference; None when equal."""
+    found = list(differences(stored, settings))
+    blocking = [text for dotted, text in found if _sources_reading(dotted) is None]
+    return (blocking or [text for _, text in found] or [None])[0]
+
+
 def sources_changed(stored: dict, settings: dict) -> list[str] | None:
     """The depth sources of a stored plan whose runs alone this run's `settings` change: when every
     setting in which the two differ is read only by the runs of some sources (:func:`_sources_reading`),
@@ -377,4 +385,4 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
 
 
 __all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
-           "with_keys_added_after", "differences", "first_difference", "sources_changed"]
+           "with_keys_added_after", "differences", "first_difference", "blocking_difference", "sources_changed"]

@@ -11,7 +11,8 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 # Since 2026-12-06 (the explorable space of one storey, issue 55) today's defaults change its
-# procedural_1005 runs: it resumes as a record, with the rule it was made under (the keys null).
+# procedural_1005 runs, and (the monocular map's symmetric miss and oblique pixels, issue 54) its
+# emulated-depth runs: it resumes as a record, with the rules it was made under (the keys null).
 OUT_DIR=${OUT_DIR:-docs/benchmark/regimes} DEPTH=gt,emulated REPEATS=${REPEATS:-1} \
-    SETTINGS="sim.voxels.storey_floor_share=null sim.voxels.storey_slab_share=null" \
+    SETTINGS="sim.voxels.storey_floor_share=null sim.voxels.storey_slab_share=null map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null" \
     exec ../published/resume.sh
