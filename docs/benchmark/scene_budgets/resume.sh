@@ -10,10 +10,12 @@
 # FRONTIERNET: the command (default: the code this folder's runs were made with, pinned with
 # scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
 # sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
+# --redo-changed: where the pinned code changed settings that only the emulated-depth runs read (8a28c0f,
+# the monocular map's symmetric miss and oblique pixels), those runs are redone, the others kept.
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 4540b20 ../pinned_scene_budgets_4540b20}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 8a28c0f ../pinned_scene_budgets_8a28c0f}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
@@ -23,5 +25,5 @@ $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods "${METHODS:-classic,random-frontier,nbvp,omniscient,frontiernet,oracle}" \
     --starts "${STARTS:-1}" --repeats "${REPEATS:-1}" --scene-starts --model runs/shipped.onnx \
-    --depth gt,emulated --workers "${WORKERS:-2}" --out "$OUT_DIR"
+    --depth gt,emulated --workers "${WORKERS:-2}" --redo-changed --out "$OUT_DIR"
 exec $FRONTIERNET bench --pack --out "$OUT_DIR"
