@@ -90,6 +90,25 @@ def two_room_scene() -> Scene:
     return box_scene(lower, upper, "two-room")
 
 
+def seal_the_door(context, frames: int = 6) -> None:
+    """Integrate into ``context.map`` `frames` looks at the two-room partition from the first room,
+    rendered with the door closed: the map's door is then occupied, as a noisy depth source's walls
+    shut a doorway the robot came through (issue 54)."""
+    from frontiernet.config import load_config
+    from frontiernet.geometry import pose_from_heading
+    from frontiernet.simulator.camera import PinholeCamera, Renderer
+
+    lower, upper = room_boxes(6.0, 4.0, 2.5)
+    (px0, px1) = TWO_ROOM["partition_x"]
+    sealed = box_scene(lower + [(px0, 0, 0)], upper + [(px1, 4.0, 2.5)], "two-room-sealed")
+    sim = load_config("sim")
+    renderer = Renderer(sealed, PinholeCamera.from_config(sim.camera), (0, 0, 0))
+    for _ in range(frames):
+        T = pose_from_heading(1.5, 2.0, 1.2, 0.0, np.radians(float(context.conf.motion.pitch_deg)))
+        frame = renderer.render(T)
+        context.map.integrate(frame.depth, frame.K, T)
+
+
 @pytest.fixture(scope="session")
 def two_room_voxels(two_room_scene):
     """The two-room scene voxelised with the shipped config."""

@@ -194,6 +194,28 @@ def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_other
     assert code == 2 and "conf.planner.clearance_m: 0.3 in the plan, 0.35 now" in stderr and "--redo-changed" not in stderr
 
 
+def test_the_monocular_keys_of_map_and_planner_change_only_the_runs_of_monocular_sources():
+    """What --redo-changed may redo: a ``monocular_*`` key of the map or the planner (read only with a
+    depth source that has flying pixels) changes a gt,emulated plan's emulated runs only; any other
+    key, its every run."""
+    from omegaconf import OmegaConf
+
+    from frontiernet.benchmark.plan import sources_changed
+    from frontiernet.exploration.run import load_run_config
+
+    stored = {"depth": "gt,emulated", "conf": OmegaConf.to_container(load_run_config(), resolve=True)}
+
+    def changed(key: str, value) -> list | None:
+        conf = OmegaConf.create(stored["conf"])
+        OmegaConf.update(conf, key, value)
+        return sources_changed(stored, {**stored, "conf": OmegaConf.to_container(conf)})
+
+    assert changed("planner.monocular_traversed_is_free", True) == ["emulated"]
+    assert changed("map.monocular_log_odds_miss", -1.2) == ["emulated"]
+    assert changed("planner.traversed_is_free", True) is None
+    assert changed("planner.clearance_m", 0.35) is None
+
+
 @pytest.mark.slow
 def test_the_published_benchmarks_report_is_rebuilt_byte_for_byte(tmp_path, request):
     """docs/benchmark/published (one depth source, packed) reports as it did before several sources."""

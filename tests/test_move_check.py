@@ -210,8 +210,9 @@ def test_the_map_free_memory_forgets_after_its_frames():
     assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == "ok"
 
 
-def explorer_facing_the_pillar(**planner) -> Explorer:
-    """A classic explorer at ROBOT that has looked west, at the pillar 0.25 m away, with `planner` keys set."""
+def explorer_facing_the_pillar(depth: str = "ground_truth", **planner) -> Explorer:
+    """A classic explorer at ROBOT that has looked west, at the pillar 0.25 m away, with `planner` keys
+    set and the `depth` source."""
     from omegaconf import OmegaConf
 
     scene = room_scene(True)
@@ -220,7 +221,7 @@ def explorer_facing_the_pillar(**planner) -> Explorer:
     voxels = voxelize_scene(scene, sim.voxels)
     context = MethodContext(conf, sim, scene=scene, voxels=voxels)
     explorer = Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic", context),
-                        make_depth_source("ground_truth", load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi))
+                        make_depth_source(depth, load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi))
     explorer.sense()
     return explorer
 
@@ -243,3 +244,13 @@ def test_a_move_into_a_cell_the_robot_has_passed_through_passes_whatever_the_map
     # the explorer adds each pose it senses from
     turn(explorer, 0.0)
     assert explorer.traversed.contains((x, y))
+
+
+def test_monocular_traversed_is_free_keeps_the_way_back_open_for_monocular_depth_only():
+    """``planner.monocular_traversed_is_free``: only a depth source with flying pixels (whose map smears
+    walls into the doorways the robot came through) gets the record."""
+    explorer = explorer_facing_the_pillar(monocular_traversed_is_free=True)
+    assert explorer.traversed is None  # ground truth: the map alone
+    explorer = explorer_facing_the_pillar("emulated", monocular_traversed_is_free=True, traversed_is_free=False)
+    assert explorer.traversed is not None and explorer.traversed.contains(explorer.agent.position[:2])
+    assert explorer_facing_the_pillar("emulated", monocular_traversed_is_free=False).traversed is None

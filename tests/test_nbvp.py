@@ -19,6 +19,8 @@ from frontiernet.exploration.run import load_run_config
 from frontiernet.geometry import pose_from_heading, poses_from_headings
 from frontiernet.mapping import FREE
 from frontiernet.simulator.camera import PinholeCamera, Renderer
+from conftest import seal_the_door
+from frontiernet.planning.traversed import TraversedCells
 from test_methods import run_method
 
 Z = 1.2  # the camera height of the fixtures' poses, metres
@@ -91,6 +93,24 @@ def test_the_tree_lies_in_known_free_space_with_edges_of_at_most_the_extension(l
     radius, band = body_radius(conf.planner, 0.1, 0.0), float(conf.planner.height_band_m)
     assert not any(context.map.cylinder_touches_occupied(p, radius, Z - band, Z + band) for p in points)
     assert tree.length_m.max() > planner.settings.extension_m  # branches of more than one edge
+
+
+def test_the_tree_grows_back_through_a_door_the_map_sealed_where_the_robot_has_been(looked_around):
+    """With the context's ``traversed`` (``planner.monocular_traversed_is_free`` on a monocular source), the
+    cells the robot passed through are free space for the tree, as for the planner and the move check."""
+    method, context, T = looked_around
+    planner, xy = method.source.planner, T[:2, 3]
+
+    def farthest_east() -> float:  # of the node positions drawn, over the free space the robot's region holds
+        return float(planner.samples(planner.free_space(xy, Z), xy)[0][:, 0].max())
+
+    assert farthest_east() > 3.1  # the door is open: the second room is in reach
+    seal_the_door(context)
+    assert farthest_east() < 2.9  # sealed in the map: the first room only
+    context.traversed = TraversedCells.like(context.map)
+    for x in (4.5, 1.5):  # the robot came from the second room through the door
+        context.traversed.add((x, 2.0))
+    assert farthest_east() > 3.1
 
 
 def test_a_nodes_gain_is_its_parents_plus_its_view_discounted_by_the_branch_length(looked_around):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import explore_section
+from conftest import explore_section, seal_the_door
 from frontiernet.config import load_config
 from frontiernet.exploration.methods import MethodContext, make_method
 from frontiernet.exploration.omniscient import OmniscientSource, lattice_cells, near_unseen
@@ -14,6 +14,7 @@ from frontiernet.exploration.run import load_run_config
 from frontiernet.geometry import pose_from_heading
 from frontiernet.mapping import OccupancyMap
 from frontiernet.planning.planner import FrontierPlanner
+from frontiernet.planning.traversed import TraversedCells
 from frontiernet.simulator.camera import PinholeCamera, Renderer
 from test_methods import frontier, run_method
 
@@ -68,6 +69,26 @@ def test_a_views_gain_is_the_unseen_explorable_volume_its_camera_would_add(omnis
         assert before > 0 and gain == pytest.approx(added, rel=0.15)
     # the second room, behind the partition, is what the best views look into
     assert candidates.xy[0][0] > 1.5
+
+
+def test_views_beyond_a_door_the_map_sealed_are_reachable_where_the_robot_has_been(omniscient):
+    """The views lie on the cells the robot can reach; with the context's ``traversed`` those include
+    the cells it passed through, as for the explorer's planner (issue 54: a monocular map seals doors)."""
+    method, context, renderer = omniscient
+    source, pitch = method.source, np.radians(float(context.conf.motion.pitch_deg))
+    for turn in range(8):
+        T = pose_from_heading(1.5, 2.0, 1.2, turn * np.pi / 4, pitch)
+        frame = renderer.render(T)
+        context.map.integrate(frame.depth, frame.K, T)
+        source.seen.integrate(frame.depth, frame.K, T)
+    T_start = pose_from_heading(1.5, 2.0, 1.2, 0.0, pitch)
+    assert source.candidates(T_start).xy[:, 0].max() > 3.1  # views in the second room, through the door
+    seal_the_door(context)
+    assert not len(source.candidates(T_start).xy) or source.candidates(T_start).xy[:, 0].max() < 2.9
+    context.traversed = TraversedCells.like(context.map)
+    for x in (4.5, 1.5):  # the robot came from the second room through the door
+        context.traversed.add((x, 2.0))
+    assert source.candidates(T_start).xy[:, 0].max() > 3.1
 
 
 def test_a_fully_seen_scene_leaves_no_candidate(omniscient):

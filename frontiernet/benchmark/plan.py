@@ -67,6 +67,7 @@ KEYS_ADDED_AFTER_PLANS = {
     "map.monocular_max_incidence_deg": None,
     "map.monocular_normal_window_px": 9,
     "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
+    "planner.monocular_traversed_is_free": False,  # issue 54: monocular maps alone decide what is traversable, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "max_samples": 5000,
@@ -241,13 +242,14 @@ def first_difference(old, new, prefix: str = "") -> str | None:
 def _sources_reading(dotted: str) -> set[str] | None:
     """The depth sources whose runs alone read the benchmark setting `dotted` (``conf.<section>.<key>...``):
     the map's monocular sensor model and its depth-edge filter apply only to sources with flying pixels
-    (:meth:`~frontiernet.mapping.checks.MapSettings.ray_model`), a source's own ``depth`` section only to
+    (:meth:`~frontiernet.mapping.checks.MapSettings.ray_model`), as the planner's ``monocular_*`` keys
+    (:class:`~frontiernet.exploration.explorer.Explorer`), a source's own ``depth`` section only to
     it; None for every other setting."""
     from ..depth import SOURCES
 
     parts = dotted.split(".")
-    if len(parts) > 2 and parts[:2] == ["conf", "map"] and (parts[2].startswith("monocular_")
-                                                           or parts[2] == "depth_edge_rtol"):
+    section, key = (parts[1], parts[2]) if len(parts) > 2 and parts[0] == "conf" else (None, "")
+    if (section in ("map", "planner") and key.startswith("monocular_")) or (section, key) == ("map", "depth_edge_rtol"):
         return {name for name, source in SOURCES.items() if source.flying_pixels}
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
         return {parts[2]}

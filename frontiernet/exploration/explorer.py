@@ -104,9 +104,13 @@ class Explorer:
         self.body_radius = body_radius(conf.planner, float(conf.map.voxel_size), self.agent.radius)
         self.motion = Motion(conf.motion, float(T_start[2, 3]))
         self.map = context.map
-        # where the robot has been, open to the planner and the move check (planner.traversed_is_free)
-        self.traversed = TraversedCells.like(self.map) \
-            if bool(conf.planner.traversed_is_free) and not self.map_free else None
+        # where the robot has been, open to the planner, the move check and the methods that plan their
+        # own free space (planner.traversed_is_free; planner.monocular_traversed_is_free: with a depth
+        # source whose map smears walls into the doorways the robot came through)
+        keep_open = bool(conf.planner.traversed_is_free) or (
+            bool(conf.planner.monocular_traversed_is_free) and bool(depth_source.flying_pixels))
+        context.traversed = TraversedCells.like(self.map) if keep_open and not self.map_free else None
+        self.traversed = context.traversed
         self.move_check = MoveCheck(self.map, self.motion, conf.planner, self.body_radius, self.traversed)
         self.score = context.ground_truth()  # the metrics; the robot never reads them
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)

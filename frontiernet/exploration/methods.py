@@ -85,6 +85,11 @@ class MethodContext:
         score: the run's :class:`~frontiernet.exploration.score.GroundTruthScore`, which the explorer
             keeps and only a reference that knows the truth reads (``omniscient``); None: built on
             first use (:meth:`ground_truth`).
+        traversed: where the robot has been (:class:`~frontiernet.planning.traversed.TraversedCells`),
+            open to the planner, the move check and the methods that plan their own free space
+            (``nbvp``, ``omniscient``), which read it each time; set by the explorer
+            (``planner.traversed_is_free``, or ``planner.monocular_traversed_is_free`` with a depth
+            source with flying pixels; map mode only); None: off.
     """
 
     conf: Any
@@ -95,6 +100,7 @@ class MethodContext:
     rng: np.random.Generator | None = None
     map: Any = None
     score: Any = None
+    traversed: Any = None
 
     def __post_init__(self) -> None:
         if self.rng is None:

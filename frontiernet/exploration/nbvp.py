@@ -95,17 +95,19 @@ class NbvpSource(FrontierSource):
     Args:
         occupancy: the run's map (:attr:`MethodContext.map`). conf: the run config (``nbvp``,
             ``planner``, ``tracking``, ``motion``, ``map.voxel_size``). camera: the sim config's
-            ``camera``. rng: the run's generator.
+            ``camera``. rng: the run's generator. context: the run's
+            :class:`~frontiernet.exploration.methods.MethodContext` (its ``traversed``, read for each
+            tree: :meth:`NbvpPlanner.free_space`); None: the map alone.
     Attributes:
         planner: the :class:`NbvpPlanner`. target: the current :class:`ViewTarget` (None: none).
         tree: the latest tree grown (None before the first). trees: how many were grown.
         poses: (P, 3) float64 [x, y, yaw] of every frame so far (the tracker's visited poses).
     """
 
-    def __init__(self, occupancy, conf, camera, rng: np.random.Generator) -> None:
+    def __init__(self, occupancy, conf, camera, rng: np.random.Generator, context=None) -> None:
         if occupancy is None:
             raise InputError("nbvp needs the run's map (a MethodContext with voxels)")
-        self.planner = NbvpPlanner(occupancy, conf, camera, rng)
+        self.planner = NbvpPlanner(occupancy, conf, camera, rng, context)
         self.map, self.conf = occupancy, conf
         self.body_m = body_radius(conf.planner, float(occupancy.voxel_size), 0.0)
         self.band = float(conf.planner.height_band_m)
@@ -182,7 +184,7 @@ class NbvpSource(FrontierSource):
 def make_nbvp(context) -> Method:
     """The ``nbvp`` method (:data:`~frontiernet.exploration.methods.METHODS`): one target a frame,
     the first node of the tree's best branch, routed to by the planner (goal rule ``utility``)."""
-    source = NbvpSource(context.map, context.conf, context.sim_conf.camera, context.rng)
+    source = NbvpSource(context.map, context.conf, context.sim_conf.camera, context.rng, context)
     return Method("nbvp", source, "utility", fresh_frontiers=True)
 
 

@@ -225,10 +225,12 @@ class NbvpPlanner:
         conf: the run config (``nbvp``, ``planner``, ``tracking.min_gain_m3``, ``motion.pitch_deg``).
         camera: the sim config's ``camera`` (the gain view's field of view).
         rng: the run's generator (positions and yaws).
+        context: where to read the cells the robot has been from, each time (its ``traversed``:
+            the run's :class:`~frontiernet.exploration.methods.MethodContext`); None: the map alone.
     """
 
-    def __init__(self, occupancy, conf, camera, rng: np.random.Generator) -> None:
-        self.map, self.conf, self.rng = occupancy, conf, rng
+    def __init__(self, occupancy, conf, camera, rng: np.random.Generator, context=None) -> None:
+        self.map, self.conf, self.rng, self.context = occupancy, conf, rng, context
         self.settings = NbvpSettings.from_config(conf.get("nbvp"))
         self.threshold = float(conf.tracking.min_gain_m3)
         self.pitch = np.radians(float(conf.motion.pitch_deg))
@@ -243,7 +245,9 @@ class NbvpPlanner:
         Unlike the planning grid, the band's top and bottom need not be known: the camera never sees
         them within ~0.45 m of itself, and the explorer's move check does not ask for them. Within
         ``clearance_m`` of the robot, cells no nearer to an obstacle than the robot's own are free
-        too: it may leave a spot it stands on (as the grid keeps the robot's cell open)."""
+        too: it may leave a spot it stands on (as the grid keeps the robot's cell open); so are the
+        cells the robot has passed through when the context keeps them open (``traversed``, as the
+        grid and the move check do)."""
         band, clearance_m = float(self.conf.planner.height_band_m), float(self.conf.planner.clearance_m)
         cell = float(self.map.voxel_size)
         layer_free, layer_occupied = self.map.slice_2d(z, z)
@@ -262,6 +266,9 @@ class NbvpPlanner:
             near = np.hypot(*(origin + (cells + 0.5) * cell - xy).transpose(2, 0, 1)) < clearance_m
             free[window] |= near & layer_free[window] & (to_occupied[window] >= to_occupied[i, j])
             free[i, j] = True  # the robot stands in free space whatever the map says
+        traversed = getattr(self.context, "traversed", None)
+        if traversed is not None:
+            free |= traversed.mask
         return FreeSpace(free, origin, cell)
 
     def samples(self, space: FreeSpace, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -86,11 +86,14 @@ class OmniscientSource(FrontierSource):
             which the explorer fills before the method proposes.
         conf: the run config (``omniscient``, ``planner``, ``motion.pitch_deg``).
         camera: the sim config's ``camera`` (field of view and range of the views).
+        context: the run's :class:`~frontiernet.exploration.methods.MethodContext`, whose ``traversed``
+            (where the robot has been, read each frame) the views' grid keeps open as the explorer's
+            planner does; None: the map alone.
     """
 
-    def __init__(self, voxels, occupancy, seen, conf, camera) -> None:
+    def __init__(self, voxels, occupancy, seen, conf, camera, context=None) -> None:
         settings = conf.omniscient
-        self.voxels, self.map, self.seen, self.conf = voxels, occupancy, seen, conf
+        self.voxels, self.map, self.seen, self.conf, self.context = voxels, occupancy, seen, conf, context
         self.width = int(positive_number(settings.view_width_px, "omniscient.view_width_px"))
         self.focal = float(camera.focal_px) * self.width / float(camera.width)  # the camera's field of view
         self.max_depth = float(camera.max_depth)
@@ -184,7 +187,8 @@ class OmniscientSource(FrontierSource):
         best heading sees at least ``tracking.min_gain_m3``, the ``omniscient.max_candidates``
         largest gains."""
         xy, z = T_world_cam[:2, 3], float(T_world_cam[2, 3])
-        grid = PlanningGrid.from_map(self.map, z, self.conf.planner, xy)
+        traversed = getattr(self.context, "traversed", None)
+        grid = PlanningGrid.from_map(self.map, z, self.conf.planner, xy, None if traversed is None else traversed.mask)
         start = grid.cell(xy)
         empty = ViewCandidates(np.zeros((0, 2)), np.zeros(0), np.zeros(0))
         if not grid.inside(*start):
@@ -211,7 +215,7 @@ def make_omniscient(context):
     if context.voxels is None or context.map is None:
         raise InputError("the omniscient method needs the scene's voxels and the run's map")
     source = OmniscientSource(context.voxels, context.map, context.ground_truth().coverage_map, context.conf,
-                              context.sim_conf.camera)
+                              context.sim_conf.camera, context)
     return Method("omniscient", source, "rate", fresh_frontiers=True)
 
 
