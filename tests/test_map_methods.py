@@ -95,6 +95,45 @@ def test_a_missing_or_wrong_predictor_is_one_line_and_exit_2_before_the_scene_lo
         assert not (tmp_path / "out").exists()  # nothing written
 
 
+def test_show_prediction_draws_the_predicted_map_beside_the_robots_own(plan_spec, predictors, tmp_path, capsys):
+    """``explore --show-prediction``: a third panel in exploration.mp4, as wide as the map's; a predictor
+    of the wrong kind, or no video to draw into, is one line and exit 2 with nothing written."""
+    import cv2
+
+    frames = {}
+    for name, options in (("plain", []), ("shown", ["--show-prediction", str(predictors["mapex"])])):
+        code = main(["explore", "--scene", plan_spec, "--method", "classic", "--max-steps", "3",
+                     "--out", str(tmp_path / name), *options])
+        assert code == 0, capsys.readouterr().err
+        ok, frames[name] = cv2.VideoCapture(str(tmp_path / name / "exploration.mp4")).read()
+        assert ok
+    map_width = frames["plain"].shape[1] - 480
+    assert frames["shown"].shape == (480, 480 + 2 * map_width, 3)
+    difference = np.abs(frames["shown"][:, :480 + map_width].astype(int) - frames["plain"]).mean()
+    assert difference < 3  # the same run's first two panels (the video is lossy)
+    for options, message in ((["--show-prediction", str(predictors["seer"])], "a seer predictor, expected a mapex"),
+                             (["--show-prediction", str(predictors["mapex"]), "--no-video"], "leave out --no-video")):
+        code = main(["explore", "--scene", plan_spec, "--method", "classic", "--out", str(tmp_path / "refused"),
+                     *options])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and "\n" not in err and message in err, err
+        assert not (tmp_path / "refused").exists()
+
+
+def test_the_predicted_panel_colours_unknown_cells_by_their_predicted_occupancy():
+    from frontiernet.exploration.drawing import FREE, OCCUPIED, PREDICTED_FREE, PREDICTED_OCCUPIED, TopDown
+
+    top = TopDown(np.zeros(2), (4, 2), 0.1, height_px=2)  # one pixel per cell
+    free, occupied = np.zeros((4, 2), bool), np.zeros((4, 2), bool)
+    free[0, :], occupied[1, :] = True, True
+    probability = np.array([[0.0, 0.0], [1.0, 1.0], [0.0, 0.0], [1.0, 1.0]])
+    image = top.prediction(free, occupied, probability)  # rows: +y up, columns: +x
+    assert image.shape == (2, 4, 3)
+    assert [tuple(image[0, i]) for i in range(4)] == [FREE, OCCUPIED, PREDICTED_FREE, PREDICTED_OCCUPIED]
+    half = top.prediction(np.zeros((4, 2), bool), np.zeros((4, 2), bool), np.full((4, 2), 0.5))[0, 0]
+    assert np.allclose(half, (np.add(PREDICTED_FREE, PREDICTED_OCCUPIED)) / 2, atol=1)
+
+
 # --------------------------------------------------------------------------- MapEx's score
 
 def test_rays_stop_before_a_cell_predicted_occupied():

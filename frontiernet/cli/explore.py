@@ -2,7 +2,8 @@
 
 Writes to ``--out``: ``metrics.json`` (coverage per step, Vox@25/50/100, path length,
 collisions, time per stage), ``trajectory.json``, ``frontiers.json``, ``coverage.png`` and
-``exploration.mp4`` (camera view with frontier pixels beside the robot's map from above); with
+``exploration.mp4`` (camera view with frontier pixels beside the robot's map from above, and with
+``--show-prediction`` the map as a map predictor completes it); with
 ``--mcap`` ``exploration.mcap`` (ROS 2 messages, :mod:`frontiernet.sequences.ros_explore`).
 """
 
@@ -35,6 +36,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--mcap", action="store_true",
                         help="also write exploration.mcap: the frontiers, the camera overlay, the map and the "
                              "camera's tf as ROS 2 messages for Foxglove and RViz (as frontiernet sequence writes)")
+    parser.add_argument("--show-prediction", nargs="?", const=True, metavar="PREDICTOR",
+                        help="draw the map as a mapex predictor completes it beside the robot's own in "
+                             "exploration.mp4 (default predictor: mapex.predictor, else the shipped one; "
+                             "docs/mapprediction.md)")
     options.config_file(parser, options.EXPLORE_CONFIG)
     options.output_folder(parser, force=True)
     options.config_overrides(parser, "planner.clearance_m=0.3 sim.camera.max_depth=5 depth.emulated.fill_depth=20 "
@@ -62,8 +67,8 @@ def run(args) -> int:
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # --map-free wins
     conf = load_run_config(args.config, overrides)
     settings = {"method": args.method, "model": args.model, "depth": args.depth, "max_steps": args.max_steps,
-                "start": args.start, "seed": args.seed, "rerun": args.rerun}
-    check_run(conf, **settings)  # before the folder is made
+                "start": args.start, "seed": args.seed, "rerun": args.rerun, "show_prediction": args.show_prediction}
+    check_run(conf, video=not args.no_video, **settings)  # before the folder is made
     with claim_output_folder(args.out, args.force) as out:  # one run at a time writes there
         mcap = []
         if args.mcap:  # the ROS messages of frontiernet sequence (a layer above the explorer)

@@ -11,6 +11,8 @@ UNKNOWN_INSIDE = (176, 176, 184)  # unknown to the robot, explorable in the scen
 PATH = (40, 90, 230)
 ROBOT = (30, 170, 60)
 GOAL = (230, 40, 40)
+PREDICTED_FREE = (190, 222, 246)  # unknown to the robot, predicted free (probability 0) ...
+PREDICTED_OCCUPIED = (96, 48, 128)  # ... predicted occupied (probability 1); blended in between
 
 
 class TopDown:
@@ -43,6 +45,20 @@ class TopDown:
             image[layout] = UNKNOWN_INSIDE
         image[free] = FREE
         image[occupied] = OCCUPIED
+        image = np.ascontiguousarray(np.transpose(image, (1, 0, 2))[::-1])  # rows: +y up
+        return cv2.resize(image, self.size, interpolation=cv2.INTER_NEAREST)
+
+    def prediction(self, known_free: np.ndarray, known_occupied: np.ndarray, probability: np.ndarray) -> np.ndarray:
+        """(H, W, 3) uint8 picture of a predicted map: the (X, Y) bool cells the robot knows free or
+        occupied as in :meth:`background`, every other cell blended from :data:`PREDICTED_FREE` to
+        :data:`PREDICTED_OCCUPIED` by its (X, Y) predicted occupancy `probability` (0 .. 1)."""
+        import cv2
+
+        p = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)[..., None]
+        image = ((1.0 - p) * np.asarray(PREDICTED_FREE, np.float32) + p * np.asarray(PREDICTED_OCCUPIED, np.float32))
+        image = image.round().astype(np.uint8)
+        image[known_free] = FREE
+        image[known_occupied] = OCCUPIED
         image = np.ascontiguousarray(np.transpose(image, (1, 0, 2))[::-1])  # rows: +y up
         return cv2.resize(image, self.size, interpolation=cv2.INTER_NEAREST)
 

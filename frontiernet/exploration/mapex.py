@@ -44,10 +44,9 @@ from omegaconf import OmegaConf
 
 from ..errors import InputError, positive_number
 from ..frontiers.map_frontiers import map_frontiers
-from ..mapping.occupancy import FREE, OCCUPIED, UNKNOWN
 from ..mapprediction import map_topdown_states
 from .perception import plain_view
-from .predicted import check_predictor, open_predictor
+from .predicted import check_predictor, open_predictor, topdown_prediction
 from .sources import FrontierSource, Method
 
 
@@ -87,20 +86,17 @@ class MapexSource(FrontierSource):
             raise InputError("mapex needs the run's map (a MethodContext with voxels)")
         s = conf.mapex
         self.predictor, self.map, self.conf = predictor, occupancy, conf
-        cell = float(occupancy.voxel_size)
-        self.range_cells = positive_number(s.get("visibility_range_m"), "mapex.visibility_range_m", "metres") / cell
+        self.topdown = topdown_prediction(OmegaConf.merge(conf, {"map": {"voxel_size": float(occupancy.voxel_size)}}),
+                                          predictor)
+        self.range_cells = self.topdown.range_cells
         self.num_rays = int(positive_number(s.get("num_rays"), "mapex.num_rays"))
         self.hit = positive_number(s.get("hit_probability"), "mapex.hit_probability")
-        self.repredict = int(positive_number(s.get("repredict_new_cells"), "mapex.repredict_new_cells"))
         self.floor = positive_number(s.get("value_floor"), "mapex.value_floor")
         self.min_gain = float(conf.tracking.min_gain_m3)
         # MapEx's frontier regions: its size threshold, no cutting of long regions
         self.frontier_conf = OmegaConf.merge(conf, {"map_frontiers": {
             "min_cells": int(positive_number(s.get("min_cells"), "mapex.min_cells")),
             "max_extent_m": positive_number(s.get("max_extent_m"), "mapex.max_extent_m", "metres")}})
-        self.mean = self.variance = None  # (X, Y) float32, the last prediction over the whole map
-        self.known_at = -1  # known band cells at the last prediction
-        self.predictions = 0
 
     def __call__(self, frame, depth, stopwatch):
         T = frame.T_world_cam
@@ -114,29 +110,8 @@ class MapexSource(FrontierSource):
         return observations, plain_view(frame, depth)
 
     def prediction(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(mean, variance) (X, Y) of the map with top-down `states`: the cached prediction, made anew when
-        ``repredict_new_cells`` more cells are known than at the last one, with the known cells' state."""
-        known = states != UNKNOWN
-        count = int(known.sum())
-        if self.mean is None or count - self.known_at >= self.repredict:
-            self.mean = np.full(states.shape, 0.5, np.float32)
-            self.variance = np.zeros(states.shape, np.float32)
-            window = self._window(known)
-            if window is not None:
-                mean, variance = self.predictor.predict_topdown_states(states[window], self.map.voxel_size)
-                self.mean[window], self.variance[window] = mean, variance
-            self.known_at, self.predictions = count, self.predictions + 1
-        mean = np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, self.mean)).astype(np.float32)
-        return mean, np.where(known, 0.0, self.variance).astype(np.float32)
-
-    def _window(self, known: np.ndarray):
-        """The (slice, slice) of the map within ``visibility_range_m`` of a known cell (None: none known)."""
-        if not known.any():
-            return None
-        rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
-        margin = int(np.ceil(self.range_cells)) + 1
-        return (slice(max(rows[0] - margin, 0), min(rows[-1] + margin + 1, known.shape[0])),
-                slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, known.shape[1])))
+        """(mean, variance) (X, Y) of the map with top-down `states` (:class:`~.predicted.TopdownPrediction`)."""
+        return self.topdown(states)
 
     def values(self, positions: np.ndarray, mean: np.ndarray, variance: np.ndarray) -> np.ndarray:
         """(F,) MapEx's frontier value before the distance: the variance summed over the unknown cells

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, positive_number
+from ..mapping.occupancy import FREE, OCCUPIED, UNKNOWN
 from ..mapprediction import MapPredictor, load_predictor
 
 
@@ -46,6 +47,63 @@ def open_predictor(conf, kind: str, model=None) -> MapPredictor:
     return predictor
 
 
+class TopdownPrediction:
+    """A ``mapex`` predictor's mean and variance of a map's top-down cells, predicted anew only once the map
+    knows `repredict_new_cells` more cells than at the last prediction (MapEx predicts once per goal
+    choice), over the window of the map within `range_cells` of a known cell (cells farther are never
+    read: they keep 0.5 and no variance). In between, the cached prediction is read with the cells the
+    map now knows (mean 0 free, 1 occupied; variance 0). ``--method mapex`` scores its frontiers with it;
+    ``explore --show-prediction`` draws it.
+
+    Args:
+        predictor: a loaded ``mapex`` :class:`~frontiernet.mapprediction.MapPredictor` (or anything with
+            ``predict_topdown_states(states, voxel_size)``); cell_m: the map's voxel size, metres.
+    Attributes:
+        predictions: how many predictions were made.
+    """
+
+    def __init__(self, predictor, cell_m: float, range_cells: float, repredict_new_cells: int) -> None:
+        self.predictor, self.cell_m = predictor, float(cell_m)
+        self.range_cells, self.repredict = float(range_cells), int(repredict_new_cells)
+        self.mean = self.variance = None  # (X, Y) float32, the last prediction over the whole map
+        self.known_at = -1  # known cells at the last prediction
+        self.predictions = 0
+
+    def __call__(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(mean, variance), (X, Y) float32, for (X, Y) int8 top-down `states`
+        (:func:`~frontiernet.mapprediction.map_topdown_states`)."""
+        known = states != UNKNOWN
+        count = int(known.sum())
+        if self.mean is None or self.mean.shape != states.shape or count - self.known_at >= self.repredict:
+            self.mean = np.full(states.shape, 0.5, np.float32)
+            self.variance = np.zeros(states.shape, np.float32)
+            window = self._window(known)
+            if window is not None:
+                mean, variance = self.predictor.predict_topdown_states(states[window], self.cell_m)
+                self.mean[window], self.variance[window] = mean, variance
+            self.known_at, self.predictions = count, self.predictions + 1
+        mean = np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, self.mean)).astype(np.float32)
+        return mean, np.where(known, 0.0, self.variance).astype(np.float32)
+
+    def _window(self, known: np.ndarray):
+        """The (slice, slice) of the map within the range of a known cell (None: none known)."""
+        if not known.any():
+            return None
+        rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
+        margin = int(np.ceil(self.range_cells)) + 1
+        return (slice(max(rows[0] - margin, 0), min(rows[-1] + margin + 1, known.shape[0])),
+                slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, known.shape[1])))
+
+
+def topdown_prediction(conf, predictor) -> TopdownPrediction:
+    """The :class:`TopdownPrediction` of a run with config `conf` (``mapex.visibility_range_m``,
+    ``mapex.repredict_new_cells``, ``map.voxel_size``) and a loaded ``mapex`` `predictor`."""
+    s, cell = conf.mapex, float(conf.map.voxel_size)
+    range_cells = positive_number(s.get("visibility_range_m"), "mapex.visibility_range_m", "metres") / cell
+    repredict = int(positive_number(s.get("repredict_new_cells"), "mapex.repredict_new_cells"))
+    return TopdownPrediction(predictor, cell, range_cells, repredict)
+
+
 def check_predictor(kind: str):
     """``check(conf, model)``: what :func:`~frontiernet.exploration.methods.check_method` runs before a
     `kind` run's setup (loads the predictor once and drops it; a few milliseconds)."""
@@ -54,4 +112,4 @@ def check_predictor(kind: str):
     return check
 
 
-__all__ = ["check_predictor", "open_predictor", "predictor_file"]
+__all__ = ["TopdownPrediction", "check_predictor", "open_predictor", "predictor_file", "topdown_prediction"]

@@ -84,12 +84,14 @@ def run_depth_source(depth: str | None, conf) -> str:
 
 def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | None = None,
               max_steps: int | None = None, start: str | None = None, seed: int | None = None,
-              rerun: bool = False) -> tuple[int, int, str]:
+              rerun: bool = False, show_prediction=None, video: bool = True) -> tuple[int, int, str]:
     """Before a run's setup (:func:`main` calls it first; a command before it makes any folder): the
     run's step budget, seed and depth source name, resolved; InputError for a budget < 1, a seed
     < 0, an unknown depth source or method, a `model` the method does not run or that is no file,
     a malformed `start`, a ``planner.clearance_m`` too small for the agent, `rerun` without
-    rerun-sdk. (What needs the scene, such as a start outside it, is checked after it loads.)"""
+    rerun-sdk, a `show_prediction` without the video or whose predictor does not load
+    (:func:`~.predicted.open_predictor`). (What needs the scene, such as a start outside it, is
+    checked after it loads.)"""
     from ..errors import positive_number
     from ..io import input_file
     from .methods import check_method
@@ -111,7 +113,19 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
         from .recording import require_rerun
 
         require_rerun()
+    if show_prediction is not None:
+        if not video:
+            raise InputError("--show-prediction draws the predicted map into exploration.mp4; leave out --no-video")
+        shown_predictor(conf, show_prediction)
     return budget, seed, depth_name
+
+
+def shown_predictor(conf, show_prediction):
+    """The loaded ``mapex`` predictor that ``explore --show-prediction`` draws: `show_prediction` True
+    takes ``mapex.predictor`` (null: the shipped one), a path that file (:func:`~.predicted.open_predictor`)."""
+    from .predicted import open_predictor
+
+    return open_predictor(conf, "mapex", None if show_prediction is True else show_prediction)
 
 
 def explore(scene: str, out: str | Path, user_file=None, overrides=(), **options) -> dict:
@@ -127,7 +141,7 @@ def explore(scene: str, out: str | Path, user_file=None, overrides=(), **options
 
 def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", model=None, depth: str | None = None,
          max_steps: int | None = None, start: str | None = None, seed: int | None = None, video: bool = True,
-         rerun: bool = False, progress: bool = True, step_outputs=()) -> dict:
+         rerun: bool = False, progress: bool = True, step_outputs=(), show_prediction=None) -> dict:
     """Explore `scene` (a scene spec) and write the run's outputs to `out`; returns the metrics.
 
     Beside the outputs of :func:`~frontiernet.exploration.outputs.write_run`, ``config.yaml`` holds
@@ -147,6 +161,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         start: ``"x,y,z,yaw"`` (metres; yaw in degrees or with a ``rad`` suffix, see
             :func:`~frontiernet.geometry.parse_pose_text`; None: sampled with the seed).
         video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
+        show_prediction: draw a ``mapex`` predictor's completion of the map into the video (a third
+            panel): True for ``mapex.predictor`` (null: the shipped one), or a predictor file; None: off.
         step_outputs: more per-iteration outputs, ``on_step`` consumers of the explorer with a
             ``close()`` called after the run (``explore --mcap``'s
             :class:`~frontiernet.sequences.ros_explore.ExplorationMcap`, from a layer above).
@@ -161,7 +177,8 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from .video import StepPictures
 
     budget, seed, depth_name = check_run(conf, method=method, model=model, depth=depth, max_steps=max_steps,
-                                         start=start, seed=seed, rerun=rerun)
+                                         start=start, seed=seed, rerun=rerun, show_prediction=show_prediction,
+                                         video=video)
     # the explorer's own draws read run.seed; config.yaml records what the run used
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
     sim = run_section(conf, "sim")
@@ -184,7 +201,12 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     out = ensure_dir(out)
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
-    pictures = StepPictures(voxels, conf, writer, budget, progress=progress)
+    prediction = None
+    if show_prediction is not None:
+        from .predicted import topdown_prediction
+
+        prediction = topdown_prediction(conf, shown_predictor(conf, show_prediction))
+    pictures = StepPictures(voxels, conf, writer, budget, progress=progress, prediction=prediction)
     on_step = ((pictures,) if recorder is None else (pictures, recorder)) + tuple(step_outputs)
     explorer = Explorer(context, world.renderer, exploration_method, depth_source, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock

@@ -9,13 +9,17 @@ from .drawing import TopDown, gain_colour_map, label
 
 class StepPictures:
     """Draws [camera view with frontier pixels | the robot's map from above] for every
-    ``run.video_every_steps``-th iteration into a video writer, and shows a progress bar.
+    ``run.video_every_steps``-th iteration into a video writer, and shows a progress bar. With a
+    `prediction` (:class:`~frontiernet.exploration.predicted.TopdownPrediction`, ``explore
+    --show-prediction``) a third panel shows the map as the predictor completes it: the cells the robot
+    knows as in the second, the others by their predicted occupancy (light blue free, purple occupied).
 
     Use as a context manager around :meth:`Explorer.run`.
     """
 
-    def __init__(self, voxels, conf, writer, budget: int, progress: bool = True) -> None:
+    def __init__(self, voxels, conf, writer, budget: int, progress: bool = True, prediction=None) -> None:
         self.voxels, self.conf, self.writer, self.budget = voxels, conf, writer, int(budget)
+        self.prediction = prediction
         self.every = max(1, int(conf.run.video_every_steps))
         self.band = float(conf.planner.height_band_m)
         self.topdown = TopDown(voxels.origin[:2], voxels.shape[:2], voxels.voxel_size, height_px=480)
@@ -47,7 +51,7 @@ class StepPictures:
         self.writer.add(self.picture(explorer, record, seen))
 
     def picture(self, explorer, record, seen) -> np.ndarray:
-        """(480, 480 + map width, 3) uint8 frame of one iteration."""
+        """(480, 480 + map width (x 2 with a prediction), 3) uint8 frame of one iteration."""
         import cv2
 
         from ..model.overlay import frontier_overlay
@@ -67,4 +71,13 @@ class StepPictures:
             self._layout = self.voxels.explorable[:, :, self.voxels.layer(z)]
         top = self.topdown.draw(self.topdown.background(free, occupied, self._layout), path, path[-1], record.yaw,
                                 list(explorer.tracker), record.goal, self._colour)
-        return np.concatenate([camera, top], axis=1)
+        if self.prediction is None:
+            return np.concatenate([camera, top], axis=1)
+        from ..mapping.occupancy import FREE, OCCUPIED
+        from ..mapprediction import map_topdown_states
+
+        states = map_topdown_states(explorer.map, z, self.prediction.predictor.spec.band_m)  # the predictor's band
+        mean, _ = self.prediction(states)
+        predicted = self.topdown.draw(self.topdown.prediction(states == FREE, states == OCCUPIED, mean), path,
+                                      path[-1], record.yaw, [], None, self._colour)
+        return np.concatenate([camera, top, label(predicted, "predicted map")], axis=1)
