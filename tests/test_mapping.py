@@ -261,6 +261,12 @@ def test_oblique_monocular_pixels_are_left_out_and_ground_truth_keeps_them():
     clear = on_floor & (np.abs(angle - 60.0) > 2.0)  # and off the threshold
     assert np.array_equal(flagged[clear], angle[clear] > 60.0) and flagged[on_floor].any()
     assert not flagged[interior & (floor > 3.5)].any()  # the wall is frontal
+    noisy = (depth * np.random.default_rng(0).uniform(0.9, 1.1, depth.shape))[:235, :231].astype(np.float32)
+    for stride in (2, 3):  # the map's ray stride: the judged pixels' verdicts are the full image's, the rest False
+        full, strided = grazing_pixels(noisy, K, 60.0, 9), grazing_pixels(noisy, K, 60.0, 9, stride)
+        assert np.array_equal(strided[::stride, ::stride], full[::stride, ::stride]) and full[::stride, ::stride].any()
+        strided[::stride, ::stride] = False
+        assert not strided.any()
     T = pose_from_heading(0.0, 0.0, 0.0, yaw=0.0)  # camera z = world +x, image down = world -z
     bounds = np.array([[-0.05, -3.05, -1.55], [6.05, 3.05, 1.55]])
     keys = dict(ray_stride_px=1, depth_edge_rtol=None, monocular_max_incidence_deg=60.0)

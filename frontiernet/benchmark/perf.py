@@ -131,7 +131,7 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
 
     Returns ``scene``, ``resolution`` [W, H], ``frames``, ``render_ms``, per stride
     ``integrate_stride{s}_ms`` and ``integrate_stride{s}_over_render``, ``integrate_edges_ms`` and
-    ``_over_render`` (the explore stride, depth edges left out as for monocular depth), ``views``,
+    ``_over_render`` (the explore stride, as for monocular depth: depth edges and oblique pixels left out), ``views``,
     ``visible_known_volume_ms`` and ``_over_render``, ``known_m3`` (after the stride-4 frames).
     """
     from omegaconf import OmegaConf
@@ -157,7 +157,7 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
                                                                                        frame.T_world_cam), rendered)
         result[f"integrate_stride{stride}_ms"] = round(update * 1e3, 2)
         result[f"integrate_stride{stride}_over_render"] = round(update / render, 3)
-    edges = OccupancyMap.like(voxels, explore.map)  # the explore stride, leaving out depth edges (monocular depth)
+    edges = OccupancyMap.like(voxels, explore.map)  # the explore stride, monocular: depth edges and oblique pixels out
     update, _ = median_each(lambda frame: edges.integrate(frame.depth, frame.K, frame.T_world_cam, True), rendered)
     result.update({"integrate_edges_ms": round(update * 1e3, 2), "integrate_edges_over_render": round(update / render, 3)})
     view = explore.tracking.gain_view

@@ -178,7 +178,8 @@ def depth_edges(depth: np.ndarray, rtol: float, kernel_px: int = 3) -> np.ndarra
         return valid & (highest - lowest > rtol * depth)  # NaN (invalid) pixels compare False
 
 
-def grazing_pixels(depth: np.ndarray, K: np.ndarray, max_incidence_deg: float, window_px: int) -> np.ndarray:
+def grazing_pixels(depth: np.ndarray, K: np.ndarray, max_incidence_deg: float, window_px: int,
+                   stride: int = 1) -> np.ndarray:
     """Pixels that see their surface at more than `max_incidence_deg` from its normal: (H, W) bool.
 
     A range error moves a point along its ray; seen at incidence theta, that is an error of
@@ -193,6 +194,9 @@ def grazing_pixels(depth: np.ndarray, K: np.ndarray, max_incidence_deg: float, w
         K: (3, 3) pinhole intrinsics, pixels.
         max_incidence_deg: angle between the viewing ray and the surface normal, degrees, in (0, 90).
         window_px: odd smoothing window and difference span, pixels.
+        stride: only the pixels of rows and columns 0, stride, 2 * stride, ... are judged (the others
+            are False): those whose rays the map walks (``map.ray_stride_px``). The smoothing still
+            reads every pixel, so a judged pixel's verdict is the same at any stride.
     """
     depth = np.asarray(depth, np.float32)
     H, W = depth.shape
@@ -206,13 +210,23 @@ def grazing_pixels(depth: np.ndarray, K: np.ndarray, max_incidence_deg: float, w
     points = cv2.blur(points, box, borderType=cv2.BORDER_REPLICATE)  # box filters run on sums: no NaN in
     whole = cv2.blur(valid.astype(np.float32), box, borderType=cv2.BORDER_REPLICATE) > 1.0 - 1e-4
     points[~whole] = np.nan  # a window with an invalid pixel has no normal
-    h = window_px // 2
-    along_u = np.full_like(points, np.nan)
-    along_v = np.full_like(points, np.nan)
-    along_u[:, h:W - h] = points[:, 2 * h:] - points[:, :W - 2 * h]
-    along_v[h:H - h] = points[2 * h:] - points[:H - 2 * h]
+    h, stride = window_px // 2, int(stride)
+    judged = points[::stride, ::stride]
+    # central differences over the window: the smoothed points h pixels either side, NaN where one is off
+    # the image; on the judged grid, the indices k0 .. k1 - 1 of the rows (columns) that have both
+    along_u, along_v = np.full_like(judged, np.nan), np.full_like(judged, np.nan)
+    k0, k1 = -(-h // stride), -(-(W - h) // stride)  # ceil: the first judged column >= h, the first >= W - h
+    if k1 > k0:
+        a, b = k0 * stride, (k1 - 1) * stride + 1
+        along_u[:, k0:k1] = points[::stride, a + h:b + h:stride] - points[::stride, a - h:b - h:stride]
+    k0, k1 = -(-h // stride), -(-(H - h) // stride)
+    if k1 > k0:
+        a, b = k0 * stride, (k1 - 1) * stride + 1
+        along_v[k0:k1] = points[a + h:b + h:stride, ::stride] - points[a - h:b - h:stride, ::stride]
     normal = np.cross(along_u, along_v)
     with np.errstate(invalid="ignore", divide="ignore"):
-        cos = np.abs(np.einsum("hwc,hwc->hw", normal, points)) / (
-            np.linalg.norm(normal, axis=-1) * np.linalg.norm(points, axis=-1))
-        return cos < np.cos(np.radians(max_incidence_deg))  # NaN (invalid near) compares False
+        cos = np.abs(np.einsum("hwc,hwc->hw", normal, judged)) / (
+            np.linalg.norm(normal, axis=-1) * np.linalg.norm(judged, axis=-1))
+    out = np.zeros((H, W), bool)
+    out[::stride, ::stride] = cos < np.cos(np.radians(max_incidence_deg))  # NaN (invalid near) compares False
+    return out

@@ -242,7 +242,7 @@ class OccupancyMap:
         rays = s.ray_model(monocular)
         skip = depth_edges(depth, rays.depth_edge_rtol) if rays.depth_edge_rtol is not None else np.zeros((0, 0), bool)
         if rays.max_incidence_deg is not None:
-            grazing = grazing_pixels(depth, K, rays.max_incidence_deg, rays.normal_window_px)
+            grazing = grazing_pixels(depth, K, rays.max_incidence_deg, rays.normal_window_px, s.ray_stride_px)
             skip = skip | grazing if skip.size else grazing
         weak = rays.far_hit_max is not None
         far = np.zeros_like(passed) if weak else np.zeros((0, 0, 0), bool)
