@@ -458,3 +458,19 @@ def test_bench_explore_times_the_monocular_emulation_as_a_stage_of_the_step(plan
     assert result["mean_ms"]["depth"] > 0 and result["over_render"]["render"] == 1.0
     assert main(["bench", "explore", "--scene", plan_spec, "--method", "classic", "--steps", "2", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["depth"] == "ground_truth"  # run.depth of explore.yaml
+
+
+def test_bench_explore_against_a_baseline_scene_gives_each_stages_ratio(plan_spec, closet_spec, capsys):
+    """`bench explore --against SPEC`: the same method and steps on a baseline scene first, then each
+    stage's cost on --scene as a ratio to it (issue 55: a step's cost against the building's size)."""
+    assert main(["bench", "explore", "--scene", plan_spec, "--against", closet_spec, "--method", "classic",
+                 "--steps", "3", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["scene"]["scene"] == plan_spec and result["against"]["scene"] == closet_spec
+    assert result["step_ratio"] == pytest.approx(result["scene"]["step_ms_without_motion"]
+                                                 / result["against"]["step_ms_without_motion"], abs=0.01)
+    render = result["stage_ratio"]["render"]
+    assert render == pytest.approx(result["scene"]["mean_ms"]["render"] / result["against"]["mean_ms"]["render"], abs=0.01)
+    assert main(["bench", "explore", "--scene", plan_spec, "--against", closet_spec, "--method", "classic",
+                 "--steps", "2"]) == 0
+    assert "goal <= 1.5x" in capsys.readouterr().out

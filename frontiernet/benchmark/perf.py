@@ -193,3 +193,19 @@ def bench_explore(spec: str | None, method: str, steps: int, depth: str | None =
             "over_render": {k: round(v / max(mean["render"], 1e-9), 3) for k, v in mean.items()},
             "step_ms_without_motion": timing["step_ms_without_motion"],
             "image_to_frontiers_hz": timing["image_to_frontiers_hz"]}
+
+
+def bench_explore_against(spec: str | None, against: str, method: str, steps: int, depth: str | None = None) -> dict:
+    """:func:`bench_explore` on `against` (the baseline, run first) and on `spec`, side by side: how a
+    step's cost grows with the scene (issue 55: a 60 x 60 m floor within 1.5x of a 10 x 10 m one).
+
+    Returns ``scene`` and ``against`` (each :func:`bench_explore`'s result), ``step_ratio`` (the
+    scene's ``step_ms_without_motion`` over the baseline's) and ``stage_ratio`` (each stage's mean
+    over the baseline's; None where the baseline's is below 0.01 ms).
+    """
+    base = bench_explore(against, method, steps, depth)
+    result = bench_explore(spec, method, steps, depth)
+    ratio = {stage: (round(ms / base["mean_ms"][stage], 2) if base["mean_ms"].get(stage, 0.0) >= 0.01 else None)
+             for stage, ms in result["mean_ms"].items()}
+    return {"scene": result, "against": base, "stage_ratio": ratio,
+            "step_ratio": round(result["step_ms_without_motion"] / max(base["step_ms_without_motion"], 1e-9), 2)}

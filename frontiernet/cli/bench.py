@@ -40,6 +40,10 @@ def add_parser(subparsers) -> None:
     explore.add_argument("--steps", type=int, default=60, help="steps explored (means over them are reported)")
     explore.add_argument("--depth", help="depth source: gt (default: run.depth of configs/explore.yaml) or emulated "
                                          "(the monocular emulation's cost is the depth stage)")
+    explore.add_argument("--against", metavar="SPEC",
+                         help="a baseline scene explored first the same way: each stage's cost on --scene as a "
+                              "ratio to it (how a step's cost grows with the building; e.g. a 60 m floor against a "
+                              "10 m one, tests/bench/grid_floor.py)")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)
 
@@ -194,9 +198,12 @@ def run_map(args) -> int:
 def run_explore(args) -> int:
     """Explore ``--steps`` steps and print each stage's mean time per step as a ratio to the render
     of the same run (:func:`~frontiernet.benchmark.perf.bench_explore`)."""
-    from ..benchmark.perf import bench_explore
+    from ..benchmark.perf import bench_explore, bench_explore_against
 
     counts(steps=args.steps)
+    if args.against is not None:
+        return _print_explore_against(bench_explore_against(args.scene, args.against, args.method, args.steps,
+                                                            args.depth), args)
     result = bench_explore(args.scene, args.method, args.steps, args.depth)
     if args.json:
         print(json.dumps(result))
@@ -207,4 +214,21 @@ def run_explore(args) -> int:
         print(f"  {stage:<12} {ms:8.2f} ms   {result['over_render'][stage]:6.2f}x of a render")
     print(f"  step without motion {result['step_ms_without_motion']:.1f} ms; image to 3D frontiers "
           f"(perception + anchoring) {result['image_to_frontiers_hz']} Hz   goal >= 5 Hz")
+    return 0
+
+
+def _print_explore_against(result: dict, args) -> int:
+    """``bench explore --against``: both scenes' stage costs and their ratios."""
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    scene, base = result["scene"], result["against"]
+    print(f"bench explore: {args.method}, {scene['depth']} depth: {scene['scene']} ({scene['steps']} steps) against "
+          f"{base['scene']} ({base['steps']} steps), mean per step")
+    for stage, ms in scene["mean_ms"].items():
+        ratio = result["stage_ratio"][stage]
+        print(f"  {stage:<12} {ms:8.2f} ms against {base['mean_ms'].get(stage, 0.0):8.2f} ms   "
+              f"{'-' if ratio is None else f'{ratio:.2f}x'}")
+    print(f"  step without motion {scene['step_ms_without_motion']:.1f} ms against {base['step_ms_without_motion']:.1f} ms:"
+          f" {result['step_ratio']:.2f}x   goal <= 1.5x")
     return 0
