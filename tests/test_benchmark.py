@@ -400,9 +400,11 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
     folders = REPO_ROOT / "docs" / "benchmark"
     regimes, record = folders / "regimes", folders / "regimes_exponent1"
     # the rules they were made under: one storey's keys null (issue 55), and the monocular map's (issue 54:
-    # the symmetric miss and oblique pixels, default since 2026-12-06, change their emulated-depth runs)
+    # the symmetric miss, oblique pixels and the way back kept open, default since 2026-12-06, change their
+    # emulated-depth runs)
     one_rule = ("sim.voxels.storey_floor_share=null", "sim.voxels.storey_slab_share=null",
-                "map.monocular_log_odds_miss=null", "map.monocular_max_incidence_deg=null")
+                "map.monocular_log_odds_miss=null", "map.monocular_max_incidence_deg=null",
+                "planner.monocular_traversed_is_free=false")
     with pytest.raises(InputError, match=r"\(conf.sim.voxels.storey_floor_share: None in the plan, 0.5 now\)"):
         resumable_plan(regimes, protocol())
     assert resumable_plan(regimes, protocol(*one_rule))["start_poses"] == resumable_plan(
@@ -410,8 +412,8 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
         resumable_plan(record, protocol(*one_rule))
     assert f'SETTINGS="{" ".join(one_rule)}"' in (regimes / "resume.sh").read_text()
-    assert 'SETTINGS="planner.gain_exponent=1 map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null"' \
-        in (record / "resume.sh").read_text()
+    assert 'SETTINGS="planner.gain_exponent=1 map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null ' \
+        'planner.monocular_traversed_is_free=false"' in (record / "resume.sh").read_text()
 
 
 def test_a_second_benchmark_on_a_folder_in_use_is_refused_at_once(plan_spec, tmp_path):

@@ -12,7 +12,8 @@ set -euo pipefail
 cd "$(dirname "$0")"
 # Since 2026-12-06 (the explorable space of one storey, issue 55) today's defaults change its
 # procedural_1005 runs, and (the monocular map's symmetric miss and oblique pixels, issue 54) its
-# emulated-depth runs: it resumes as a record, with the rules it was made under (the keys null).
+# emulated-depth runs, as (the way back kept open behind the robot on monocular maps) its emulated-depth
+# runs again: it resumes as a record, with the rules it was made under (the keys null or off).
 OUT_DIR=${OUT_DIR:-docs/benchmark/regimes} DEPTH=gt,emulated REPEATS=${REPEATS:-1} \
-    SETTINGS="sim.voxels.storey_floor_share=null sim.voxels.storey_slab_share=null map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null" \
+    SETTINGS="sim.voxels.storey_floor_share=null sim.voxels.storey_slab_share=null map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null planner.monocular_traversed_is_free=false" \
     exec ../published/resume.sh

@@ -9,5 +9,5 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 OUT_DIR=${OUT_DIR:-docs/benchmark/regimes_exponent1} DEPTH=gt,emulated REPEATS=${REPEATS:-1} \
-    SETTINGS="planner.gain_exponent=1 map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null" \
+    SETTINGS="planner.gain_exponent=1 map.monocular_log_odds_miss=null map.monocular_max_incidence_deg=null planner.monocular_traversed_is_free=false" \
     exec ../published/resume.sh
