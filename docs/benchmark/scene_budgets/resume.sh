@@ -11,11 +11,12 @@
 # scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
 # sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
 # --redo-changed: where the pinned code changed settings that only the emulated-depth runs read (8a28c0f,
-# the monocular map's symmetric miss and oblique pixels), those runs are redone, the others kept.
+# the monocular map's symmetric miss and oblique pixels; 2d183fa, the way back kept open on monocular
+# maps), those runs are redone, the others kept.
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 8a28c0f ../pinned_scene_budgets_8a28c0f}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 2d183fa ../pinned_scene_budgets_2d183fa}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
