@@ -210,7 +210,8 @@ def test_the_monocular_keys_of_map_and_planner_change_only_the_runs_of_monocular
         OmegaConf.update(conf, key, value)
         return sources_changed(stored, {**stored, "conf": OmegaConf.to_container(conf)})
 
-    assert changed("planner.monocular_traversed_is_free", True) == ["emulated"]
+    flipped = not stored["conf"]["planner"]["monocular_traversed_is_free"]
+    assert changed("planner.monocular_traversed_is_free", flipped) == ["emulated"]
     assert changed("map.monocular_log_odds_miss", -1.2) == ["emulated"]
     assert changed("planner.traversed_is_free", True) is None
     assert changed("planner.clearance_m", 0.35) is None

@@ -239,3 +239,51 @@ def test_an_exploration_never_calls_back_into_a_library_file_it_came_from(plan_s
 
     returns = returns_during(run)
     assert returns == {}, "\n".join(f"{where}: {chain}" for where, chain in returns.items())
+
+
+# --------------------------------------------------------------------------- frontiernet-mapex
+
+def test_frontiernet_mapex_with_no_weight_is_frontiernet_step_for_step(plan_spec, predictors, tmp_path):
+    """``frontiernet-mapex`` is FrontierNet with the predicted space blended into its gains: at
+    ``frontiernet_mapex.weight=0`` the same run as ``frontiernet``; at the default it explores too."""
+    runs = {}
+    for name, method, options in (("plain", "frontiernet", []),
+                                  ("w0", "frontiernet-mapex", ["frontiernet_mapex.weight=0"]),
+                                  ("blend", "frontiernet-mapex", [])):
+        code, log = explore(plan_spec, tmp_path / name, method, 12, f"mapex.predictor={predictors['mapex']}", *options)
+        assert code == 0, log
+        runs[name] = json.loads((tmp_path / name / "metrics.json").read_text())
+    assert runs["w0"]["coverage_per_step"] == runs["plain"]["coverage_per_step"]
+    assert runs["blend"]["method"] == "frontiernet-mapex" and runs["blend"]["collisions"] == 0
+    assert runs["blend"]["coverage"] > runs["blend"]["coverage_per_step"][0]
+
+
+def test_the_predicted_space_counts_free_unknown_cells_in_view_up_to_a_predicted_wall():
+    from frontiernet.exploration.predicted_space import PredictedSpaceGain
+    from frontiernet.mapping.occupancy import FREE, UNKNOWN
+
+    occupancy = empty_map((6.0, 4.0, 2.4))
+    prediction = SimpleNamespace(range_cells=35.0)
+    source = PredictedSpaceGain(None, prediction, occupancy, CONF, np.radians(90.0))
+    states = np.full((60, 40), UNKNOWN, np.int8)
+    states[:10] = FREE  # the robot knows the first metre
+    mean = np.where(states == FREE, 0.0, 0.2).astype(np.float32)  # the rest: predicted free (p = 0.2)
+    east, west = np.array([[1.0, 0.0]]), np.array([[-1.0, 0.0]])
+    at = np.array([[0.95, 2.05]])
+    ahead = source.predicted_volume(at, east, mean, states)[0]
+    cell_m3 = 0.1 * 0.1 * float(CONF.frontiernet_mapex.column_height_m)
+    i, j = np.meshgrid(np.arange(60) + 0.5 - 9.5, np.arange(40) + 0.5 - 20.5, indexing="ij")  # from the start cell
+    wedge = (np.hypot(i, j) <= 35) & (np.abs(np.arctan2(j, i)) <= np.radians(45)) & (states == UNKNOWN)
+    assert ahead == pytest.approx(wedge.sum() * 0.8 * cell_m3, rel=0.1)  # the 90 deg wedge of 3.5 m, unknown part...
+    assert source.predicted_volume(at, west, mean, states)[0] == 0.0  # ... and behind it only known cells
+    walled = mean.copy()
+    walled[15, :] = 0.9  # a predicted wall 0.5 m ahead
+    assert source.predicted_volume(at, east, walled, states)[0] < 0.1 * ahead
+
+
+def test_frontiernet_mapex_without_its_predictor_is_one_line_and_exit_2_before_the_scene_loads(tmp_path, capsys):
+    code = main(["explore", "--scene", "floorplan:/no/such/plan.png", "--method", "frontiernet-mapex", "--no-video",
+                 "--out", str(tmp_path / "out"), f"mapex.predictor={tmp_path / 'gone.safetensors'}"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and "gone.safetensors: predictor file not found" in err, err
+    assert not (tmp_path / "out").exists()

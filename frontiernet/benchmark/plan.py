@@ -85,6 +85,8 @@ KEYS_ADDED_AFTER_PLANS = {
              "max_predictions_per_step": 2, "reuse_distance_m": 1.0},
     "mapex": {"predictor": None, "min_cells": 11, "max_extent_m": 1000.0, "visibility_range_m": 3.5, "num_rays": 256,
               "hit_probability": 0.8, "repredict_new_cells": 300, "value_floor": 1e-06},
+    # issue 56: frontiernet-mapex's settings (they change no run of any other method)
+    "frontiernet_mapex": {"weight": 0.5, "column_height_m": 2.5},
     # the step account's thresholds (exploration/steps.py: metrics.json's step_account): reporting only, no run changes
     "steps": {"translation_m": 0.02, "new_volume_m3": 0.05, "revisit_cell_m": 0.5, "revisit_after_steps": 10,
               "livelock_window_steps": 50, "livelock_gain_m3": 1.0, "livelock_radius_m": 2.0,

@@ -51,11 +51,13 @@ from .sources import FrontierSource, Method
 
 
 def visible_cells(mean: np.ndarray, start: np.ndarray, num_rays: int, range_cells: float,
-                  hit_probability: float) -> np.ndarray:
+                  hit_probability: float, angles: np.ndarray | None = None) -> np.ndarray:
     """(X, Y) bool: the cells `num_rays` rays from cell `start` ((2,) int) see in the (X, Y) occupancy
     probability `mean`, each up to `range_cells` cells, stopping before the first cell of probability
-    >= `hit_probability` or off the map (MapEx's ``get_free_points`` with ``use_prob``)."""
-    angles = np.linspace(0.0, 2 * np.pi, int(num_rays), endpoint=False)
+    >= `hit_probability` or off the map (MapEx's ``get_free_points`` with ``use_prob``). `angles`: the
+    rays' directions ((R,) radians in the map's x-y frame; None: `num_rays` spread evenly around)."""
+    if angles is None:
+        angles = np.linspace(0.0, 2 * np.pi, int(num_rays), endpoint=False)
     steps = np.arange(0.0, float(range_cells) + 1e-9, 0.5)  # half a cell: no cell of a ray is skipped
     points = np.asarray(start, np.float64) + 0.5 + steps[None, :, None] \
         * np.stack([np.cos(angles), np.sin(angles)], axis=1)[:, None, :]

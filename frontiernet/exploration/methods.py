@@ -31,6 +31,9 @@ seer                     views on circles around the map's     unknown volume se
 mapex                    the map's frontiers                   ensemble variance of    variance / distance (castacks/MapEx
                                                                the predicted map in    visvarprob, :mod:`.mapex`)
                                                                sight, still unknown
+frontiernet-mapex        the model on the image, anchored      predicted (class),      gain^e / distance
+                                                               blended with the        (:mod:`.predicted_space`)
+                                                               predicted unseen space
 =======================  ====================================  ======================  ====================
 
 The first five are the paper's system and its Fig. 9 ablations, the next two the oracle's
@@ -49,7 +52,7 @@ scene and voxels); the built-in methods are built the same way.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +65,7 @@ from .mapex import make_mapex
 from .nbvp import make_nbvp
 from .omniscient import make_omniscient
 from .perception import Perception, PerceptionResult
+from .predicted_space import check_predicted_space, predicted_space_gain
 from .seer import make_seer
 from .sources import GOAL_RULES, FrontierSource, ImageSource, MapSource, Method
 from .vacuum import VacuumMoves
@@ -178,6 +182,15 @@ def _discontinuity_gain(context: MethodContext) -> Method:
 _frontiernet.uses_model = _df_uniform.uses_model = _discontinuity_gain.uses_model = True
 
 
+def _frontiernet_mapex(context: MethodContext) -> Method:
+    method = image_method("frontiernet-mapex", model_perception(context), context, uses_model=True)
+    return replace(method, source=predicted_space_gain(method.source, context))
+
+
+_frontiernet_mapex.uses_model = True  # --model names its FrontierNet model (the predictor: mapex.predictor)
+_frontiernet_mapex.check = check_predicted_space  # before the scene loads (check_method)
+
+
 def _discontinuity_uniform(context: MethodContext) -> Method:
     perception = uniform_gain(discontinuity_frontiers(None, context.conf), context.conf)
     return image_method("discontinuity-uniform", perception, context)
@@ -196,7 +209,8 @@ def _vacuum(context: MethodContext) -> Method:
 METHODS = Registry("exploration method", "frontiernet.methods", {
     "frontiernet": _frontiernet, "df-uniform": _df_uniform, "discontinuity-gain": _discontinuity_gain,
     "discontinuity-uniform": _discontinuity_uniform, **{name: _map_method(name) for name in MAP_METHODS},
-    "vacuum": _vacuum, "omniscient": make_omniscient, "nbvp": make_nbvp, "seer": make_seer, "mapex": make_mapex})
+    "vacuum": _vacuum, "omniscient": make_omniscient, "nbvp": make_nbvp, "seer": make_seer, "mapex": make_mapex,
+    "frontiernet-mapex": _frontiernet_mapex})
 """Every exploration method: name -> factory ``make(context: MethodContext) -> Method``. Built in:
 the paper's system and its Fig. 9 ablations (:mod:`.ablations`; only ``discontinuity-uniform``
 loads no model), the map methods, ``vacuum``, ``omniscient``, ``nbvp``, ``seer`` and ``mapex``
