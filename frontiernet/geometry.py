@@ -232,3 +232,24 @@ def squared_distance_to_cells(cells: np.ndarray, origin_xy: np.ndarray, cell_m: 
     :func:`disks_touch_cells`); 0 inside a square. The two broadcast against each other."""
     gaps = np.maximum(np.abs(origin_xy + (cells + 0.5) * cell_m - xy) - cell_m / 2, 0.0)  # to each square
     return (gaps ** 2).sum(-1)
+
+
+def distance_to_false(mask: np.ndarray) -> np.ndarray:
+    """(H, W) float64: each cell's Euclidean distance, in cells, to the nearest False cell of the (H, W)
+    bool `mask` (0 on False cells): ``scipy.ndimage.distance_transform_edt(mask)``, bit for bit, from
+    OpenCV's exact transform (Felzenszwalb and Huttenlocher's, ``DIST_MASK_PRECISE``), ~3x faster on a
+    planning grid. OpenCV gives float32 distances; their squares round to the exact integer squared
+    distances, whose float64 roots are scipy's values. A mask with no False cell, not 2D or with a diagonal of
+    2,000 cells or more (200 m at 0.1 m: near 2,700 the float32 squares no longer round back) goes to scipy.
+    """
+    import cv2
+
+    mask = np.asarray(mask, bool)
+    if mask.ndim != 2 or mask.all() or math.hypot(*mask.shape) >= 2000.0:
+        from scipy import ndimage
+
+        return ndimage.distance_transform_edt(mask)
+    distance = cv2.distanceTransform(np.ascontiguousarray(mask).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    np.square(distance, out=distance)
+    np.rint(distance, out=distance)  # the integer squared distance
+    return np.sqrt(distance.astype(np.float64))

@@ -561,3 +561,27 @@ def test_resample_short_route_is_its_last_waypoint():
     resampled = resample_route(route, np.zeros(2), 0.11)
     np.testing.assert_allclose(resampled.waypoints, [[0.05, 0.02]])
     assert resampled.mapped_until == 1
+
+
+def test_distance_to_false_is_scipys_euclidean_distance_transform_bit_for_bit():
+    """The planning grids' clearance (frontiernet.geometry.distance_to_false, OpenCV's exact transform):
+    the same float64 values as scipy's, so runs do not change, on masks of every kind."""
+    from scipy import ndimage
+
+    from frontiernet.geometry import distance_to_false
+
+    rng = np.random.default_rng(0)
+    masks = [np.ones((7, 9), bool), np.zeros((7, 9), bool), np.ones((1, 40), bool) & (np.arange(40) != 3)]
+    for k in range(40):
+        shape = tuple(rng.integers(2, 400, 2))
+        mask = rng.random(shape) > rng.uniform(0.0005, 0.5)
+        if k % 2:  # walls: blobs of False
+            mask = ~ndimage.binary_dilation(~mask, iterations=int(rng.integers(1, 6)))
+        masks.append(mask)
+    far = np.ones((1300, 1300), bool)
+    far[0, 0] = False  # distances up to 1,838 cells
+    masks.append(far)
+    for mask in masks:
+        expected = ndimage.distance_transform_edt(mask)
+        got = distance_to_false(mask)
+        assert got.dtype == np.float64 and np.array_equal(got, expected)

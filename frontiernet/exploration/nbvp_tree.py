@@ -12,7 +12,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number, whole_number
-from ..geometry import cells_inside, grid_cells, poses_from_headings
+from ..geometry import cells_inside, distance_to_false, grid_cells, poses_from_headings
 from .motion import yaw_of
 
 
@@ -252,8 +252,8 @@ class NbvpPlanner:
         cell = float(self.map.voxel_size)
         layer_free, layer_occupied = self.map.slice_2d(z, z)
         occupied = self.map.slice_2d(z - band, z + band)[1]
-        to_occupied = ndimage.distance_transform_edt(~occupied) * cell
-        to_unknown = ndimage.distance_transform_edt(layer_free | layer_occupied) * cell
+        to_occupied = distance_to_false(~occupied) * cell
+        to_unknown = distance_to_false(layer_free | layer_occupied) * cell
         to_obstacle = np.minimum(to_occupied, to_unknown)
         free = layer_free & (to_obstacle >= clearance_m)
         origin = np.asarray(self.map.origin[:2], np.float64)

@@ -30,11 +30,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import InputError, positive_number
 from ..frontiers.anchoring import FrontierObservation
-from ..geometry import poses_from_headings
+from ..geometry import distance_to_false, poses_from_headings
 from ..mapping.traversal import frustum_volume
 from ..planning.grid import geodesic_distance
 from ..planning.planner import PlanningGrid
@@ -70,7 +69,7 @@ def near_unseen(unseen_columns: np.ndarray, cells: np.ndarray, reach_cells: floa
     each of the (N, 2) `cells` (a view farther than its sensor's reach from all of them sees none)."""
     if not unseen_columns.any():
         return np.zeros(len(cells), bool)
-    distance = ndimage.distance_transform_edt(~unseen_columns)
+    distance = distance_to_false(~unseen_columns)
     return distance[cells[:, 0], cells[:, 1]] <= reach_cells
 
 

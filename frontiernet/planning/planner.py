@@ -28,9 +28,8 @@ from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
-from scipy import ndimage
 
-from ..geometry import arc_lengths, disks_touch_cells, grid_cells, grid_values, points_at_arc
+from ..geometry import arc_lengths, disks_touch_cells, distance_to_false, grid_cells, grid_values, points_at_arc
 from .grid import clearance_cost, geodesic_paths
 from .tree import PoseGraph, edge_points, walk_back
 
@@ -75,11 +74,11 @@ class PlanningGrid:
         band = float(conf["height_band_m"])
         free, occupied = occupancy.slice_2d(z - band, z + band)
         cell = float(occupancy.voxel_size)
-        clearance = ndimage.distance_transform_edt(~occupied) * cell
+        clearance = distance_to_false(~occupied) * cell
         to_obstacle = clearance
         if bool(conf.get("unknown_is_obstacle", False)):
             layer_free, layer_occupied = occupancy.slice_2d(z, z)
-            to_obstacle = np.minimum(clearance, ndimage.distance_transform_edt(layer_free | layer_occupied) * cell)
+            to_obstacle = np.minimum(clearance, distance_to_false(layer_free | layer_occupied) * cell)
         cost = clearance_cost(to_obstacle, float(conf["clearance_m"]), float(conf["centre_weight"]))
         cost[~free] = np.inf
         if traversed is not None:
