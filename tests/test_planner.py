@@ -585,3 +585,18 @@ def test_distance_to_false_is_scipys_euclidean_distance_transform_bit_for_bit():
         expected = ndimage.distance_transform_edt(mask)
         got = distance_to_false(mask)
         assert got.dtype == np.float64 and np.array_equal(got, expected)
+
+
+def test_the_reachable_region_is_where_the_geodesic_search_reaches():
+    """planning.grid.reachable_region (labelling) against the minimum-cost-path search it replaces for
+    reachability (omniscient's views): the same cells on random grids, from open and blocked starts."""
+    from frontiernet.planning.grid import geodesic_distance, reachable_region
+
+    rng = np.random.default_rng(1)
+    for _ in range(150):
+        shape = tuple(rng.integers(3, 120, 2))
+        open_cells = rng.random(shape) > rng.uniform(0.1, 0.7)
+        start = (int(rng.integers(0, shape[0])), int(rng.integers(0, shape[1])))
+        expected = np.isfinite(geodesic_distance(np.where(open_cells, 1.0, np.inf), start))
+        assert np.array_equal(reachable_region(open_cells, start), expected)
+    assert not reachable_region(np.ones((4, 4), bool), (9, 0)).any()  # a start off the grid

@@ -35,7 +35,7 @@ from ..errors import InputError, positive_number
 from ..frontiers.anchoring import FrontierObservation
 from ..geometry import distance_to_false, poses_from_headings
 from ..mapping.traversal import frustum_volume
-from ..planning.grid import geodesic_distance
+from ..planning.grid import reachable_region
 from ..planning.planner import PlanningGrid
 from .sources import FrontierSource, Method
 from .perception import plain_view
@@ -193,7 +193,7 @@ class OmniscientSource(FrontierSource):
         if not grid.inside(*start):
             return empty
         open_cells = np.isfinite(grid.cost) | (self._ring(grid, xy) if self.ring_m > 0 else False)
-        reachable = np.isfinite(geodesic_distance(np.where(open_cells, 1.0, np.inf), start))
+        reachable = reachable_region(open_cells, start)
         unseen = np.ascontiguousarray(self.unseen())
         cells = lattice_cells(reachable, self.spacing)
         cells = cells[near_unseen(unseen.any(axis=2), cells, self.reach_cells)]

@@ -27,6 +27,24 @@ def geodesic_distance(cost: np.ndarray, start: tuple[int, int]) -> np.ndarray:
     return cumulative
 
 
+def reachable_region(open_cells: np.ndarray, start: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the cells reachable from `start` (row, col) by 8-neighbour moves through the (H, W)
+    bool `open_cells`: ``np.isfinite(geodesic_distance(np.where(open_cells, 1.0, np.inf), start))``
+    exactly (a blocked `start` reaches on through its open neighbours, as the search does; off the grid:
+    nothing), by connected-component labelling, tens of times faster than the search."""
+    from scipy import ndimage
+
+    open_cells = np.asarray(open_cells, bool)
+    i, j = (int(v) for v in start)
+    if not (0 <= i < open_cells.shape[0] and 0 <= j < open_cells.shape[1]):
+        return np.zeros(open_cells.shape, bool)
+    labels, _ = ndimage.label(open_cells, structure=np.ones((3, 3), bool))
+    if open_cells[i, j]:
+        return labels == labels[i, j]
+    around = labels[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+    return np.isin(labels, np.unique(around[around > 0]))
+
+
 def geodesic_paths(cost: np.ndarray, start: tuple[int, int]):
     """One search from `start` for many goals: ``(cumulative, path_to)`` where `cumulative` is
     :func:`geodesic_distance`'s array and ``path_to(goal)`` the (N, 2) int64 cells from `start`
