@@ -45,6 +45,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
+from ..geometry import distance_to_false
 from ._conf import number
 from .base import DepthSource, check_gt_depth, check_rgb
 
@@ -103,7 +104,7 @@ def bleed_edges(depth: np.ndarray, threshold: float, band_px: float, sigma_px: f
     edges = depth_edges(depth, threshold)
     if not edges.any():
         return depth
-    band = ndimage.distance_transform_edt(~edges) <= band_px
+    band = distance_to_false(~edges) <= band_px  # scipy's transform, bit for bit, faster
     smeared = nan_gaussian(depth, sigma_px)
     return np.where(band, smeared, depth).astype(np.float32)
 
