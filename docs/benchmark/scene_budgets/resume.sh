@@ -16,7 +16,7 @@
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 2d183fa ../pinned_scene_budgets_2d183fa}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh c088ef8 ../pinned_scene_budgets_c088ef8}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
