@@ -88,8 +88,7 @@ class MapexSource(FrontierSource):
             raise InputError("mapex needs the run's map (a MethodContext with voxels)")
         s = conf.mapex
         self.predictor, self.map, self.conf = predictor, occupancy, conf
-        self.topdown = topdown_prediction(OmegaConf.merge(conf, {"map": {"voxel_size": float(occupancy.voxel_size)}}),
-                                          predictor)
+        self.topdown = topdown_prediction(conf, predictor, occupancy.voxel_size)
         self.range_cells = self.topdown.range_cells
         self.num_rays = int(positive_number(s.get("num_rays"), "mapex.num_rays"))
         self.hit = positive_number(s.get("hit_probability"), "mapex.hit_probability")

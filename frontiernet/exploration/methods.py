@@ -65,7 +65,8 @@ from .mapex import make_mapex
 from .nbvp import make_nbvp
 from .omniscient import make_omniscient
 from .perception import Perception, PerceptionResult
-from .predicted_space import check_predicted_space, predicted_space_gain
+from .predicted import check_predictor
+from .predicted_space import predicted_space_gain
 from .seer import make_seer
 from .sources import GOAL_RULES, FrontierSource, ImageSource, MapSource, Method
 from .vacuum import VacuumMoves
@@ -188,7 +189,7 @@ def _frontiernet_mapex(context: MethodContext) -> Method:
 
 
 _frontiernet_mapex.uses_model = True  # --model names its FrontierNet model (the predictor: mapex.predictor)
-_frontiernet_mapex.check = check_predicted_space  # before the scene loads (check_method)
+_frontiernet_mapex.check = check_predictor("mapex", model_is_predictor=False)  # before the scene loads (check_method)
 
 
 def _discontinuity_uniform(context: MethodContext) -> Method:

@@ -95,20 +95,22 @@ class TopdownPrediction:
                 slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, known.shape[1])))
 
 
-def topdown_prediction(conf, predictor) -> TopdownPrediction:
+def topdown_prediction(conf, predictor, cell_m: float) -> TopdownPrediction:
     """The :class:`TopdownPrediction` of a run with config `conf` (``mapex.visibility_range_m``,
-    ``mapex.repredict_new_cells``, ``map.voxel_size``) and a loaded ``mapex`` `predictor`."""
-    s, cell = conf.mapex, float(conf.map.voxel_size)
+    ``mapex.repredict_new_cells``), a loaded ``mapex`` `predictor` and the run's map of `cell_m` voxels."""
+    s, cell = conf.mapex, float(cell_m)
     range_cells = positive_number(s.get("visibility_range_m"), "mapex.visibility_range_m", "metres") / cell
     repredict = int(positive_number(s.get("repredict_new_cells"), "mapex.repredict_new_cells"))
     return TopdownPrediction(predictor, cell, range_cells, repredict)
 
 
-def check_predictor(kind: str):
+def check_predictor(kind: str, model_is_predictor: bool = True):
     """``check(conf, model)``: what :func:`~frontiernet.exploration.methods.check_method` runs before a
-    `kind` run's setup (loads the predictor once and drops it; a few milliseconds)."""
+    `kind` run's setup (loads the predictor once and drops it; a few milliseconds). `model_is_predictor`
+    False: ``--model`` is another file (``frontiernet-mapex``'s FrontierNet model), so the predictor is
+    the config key's (``<kind>.predictor``)."""
     def check(conf, model=None) -> None:
-        open_predictor(conf, kind, model)
+        open_predictor(conf, kind, model if model_is_predictor else None)
     return check
 
 

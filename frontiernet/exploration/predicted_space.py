@@ -88,18 +88,13 @@ class PredictedSpaceGain(FrontierSource):
         return out
 
 
-def check_predicted_space(conf, model=None) -> None:
-    """Before the scene loads: the ``mapex.predictor`` file loads and fits the map (``--model`` is the
-    FrontierNet model's, checked as every method's)."""
-    open_predictor(conf, "mapex")
-
-
 def predicted_space_gain(source, context) -> PredictedSpaceGain:
     """`source` (FrontierNet's frontiers) with the predicted space of the run's ``mapex.predictor``
     (null: the shipped one) blended into its gains, for the run of `context`."""
     conf, camera = context.conf, context.sim_conf.camera
     hfov = 2.0 * np.arctan(float(camera.width) / 2.0 / float(camera.focal_px))
-    return PredictedSpaceGain(source, topdown_prediction(conf, open_predictor(conf, "mapex")), context.map, conf, hfov)
+    prediction = topdown_prediction(conf, open_predictor(conf, "mapex"), context.map.voxel_size)
+    return PredictedSpaceGain(source, prediction, context.map, conf, hfov)
 
 
-__all__ = ["PredictedSpaceGain", "check_predicted_space", "predicted_space_gain"]
+__all__ = ["PredictedSpaceGain", "predicted_space_gain"]

@@ -205,7 +205,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     if show_prediction is not None:
         from .predicted import topdown_prediction
 
-        prediction = topdown_prediction(conf, shown_predictor(conf, show_prediction))
+        prediction = topdown_prediction(conf, shown_predictor(conf, show_prediction), context.map.voxel_size)
     pictures = StepPictures(voxels, conf, writer, budget, progress=progress, prediction=prediction)
     on_step = ((pictures,) if recorder is None else (pictures, recorder)) + tuple(step_outputs)
     explorer = Explorer(context, world.renderer, exploration_method, depth_source, T_start, on_step=on_step)
