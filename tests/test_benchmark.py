@@ -194,27 +194,36 @@ def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_other
     assert code == 2 and "conf.planner.clearance_m: 0.3 in the plan, 0.35 now" in stderr and "--redo-changed" not in stderr
 
 
-def test_the_monocular_keys_of_map_and_planner_change_only_the_runs_of_monocular_sources():
+def test_monocular_keys_change_only_monocular_runs_and_a_methods_section_only_its_runs():
     """What --redo-changed may redo: a ``monocular_*`` key of the map or the planner (read only with a
-    depth source that has flying pixels) changes a gt,emulated plan's emulated runs only; any other
-    key, its every run."""
+    depth source that has flying pixels) changes a gt,emulated plan's emulated runs only; a method's own
+    section (``nbvp``) its runs only; any other key, its every run."""
     from omegaconf import OmegaConf
 
-    from frontiernet.benchmark.plan import sources_changed
+    from frontiernet.benchmark.plan import runs_changed
     from frontiernet.exploration.run import load_run_config
 
     stored = {"depth": "gt,emulated", "conf": OmegaConf.to_container(load_run_config(), resolve=True)}
+    runs = [{"key": f"{method}@{depth}", "method": method, "depth": depth}
+            for method in ("classic", "nbvp") for depth in ("ground_truth", "emulated")]
+    plan = {"settings": stored, "runs": runs}
 
-    def changed(key: str, value) -> list | None:
-        conf = OmegaConf.create(stored["conf"])
+    def changed(key: str, value, plan=plan) -> list | None:
+        conf = OmegaConf.create(plan["settings"]["conf"])
         OmegaConf.update(conf, key, value)
-        return sources_changed(stored, {**stored, "conf": OmegaConf.to_container(conf)})
+        found = runs_changed(plan, {**plan["settings"], "conf": OmegaConf.to_container(conf)})
+        return None if found is None else found[0]
 
     flipped = not stored["conf"]["planner"]["monocular_traversed_is_free"]
-    assert changed("planner.monocular_traversed_is_free", flipped) == ["emulated"]
-    assert changed("map.monocular_log_odds_miss", -1.2) == ["emulated"]
+    assert changed("planner.monocular_traversed_is_free", flipped) == ["classic@emulated", "nbvp@emulated"]
+    assert changed("map.monocular_log_odds_miss", -1.2) == ["classic@emulated", "nbvp@emulated"]
+    assert changed("nbvp.degressive_coeff", 0.25) == ["nbvp@ground_truth", "nbvp@emulated"]
+    assert changed("omniscient.yaw_count", 4) == []  # a method the plan does not run
     assert changed("planner.traversed_is_free", True) is None
     assert changed("planner.clearance_m", 0.35) is None
+    gt_only = {"settings": {**stored, "depth": "gt"}, "runs": [{"key": "nbvp", "method": "nbvp"}]}
+    assert changed("map.monocular_log_odds_miss", -1.2, gt_only) == []
+    assert changed("nbvp.extension_m", 0.5, gt_only) == ["nbvp"]
 
 
 @pytest.mark.slow

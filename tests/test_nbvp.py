@@ -4,6 +4,7 @@ exp(-lambda x branch length), and the method explores, repeats with its seed and
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -52,6 +53,7 @@ def test_nbvp_is_a_method_with_one_fresh_target_and_its_settings_from_the_config
     assert (settings.extension_m, settings.degressive_coeff) == (1.0, 0.5)  # nbvplanner's
     assert (settings.init_iterations, settings.cutoff_iterations) == (15, 200)
     assert settings.found_on == "views" and settings.yaw_window_deg == 45.0  # ours (configs/explore.yaml)
+    assert settings.sample_region == "box"  # nbvplanner's
 
 
 def test_bad_found_on_or_yaw_window_is_refused_and_missing_keys_keep_nbvplanners_rules():
@@ -75,9 +77,11 @@ def test_a_sampled_nodes_yaw_lies_within_the_window_of_its_incoming_edge(looked_
     assert np.all(np.abs(off) <= window + 1e-9) and np.abs(off).max() > 0.5 * window
 
 
-def test_the_tree_lies_in_known_free_space_with_edges_of_at_most_the_extension(looked_around):
+@pytest.mark.parametrize("region", ["box", "known_free"])
+def test_the_tree_lies_in_known_free_space_with_edges_of_at_most_the_extension(looked_around, region):
     method, context, T = looked_around
     conf, planner = context.conf, method.source.planner
+    planner.settings = dataclasses.replace(planner.settings, sample_region=region)
     tree = planner.grow(T)
     assert tree.found and len(tree.xy) >= 1 + planner.settings.init_iterations
     parents = tree.parent[1:]
@@ -100,6 +104,7 @@ def test_the_tree_grows_back_through_a_door_the_map_sealed_where_the_robot_has_b
     cells the robot passed through are free space for the tree, as for the planner and the move check."""
     method, context, T = looked_around
     planner, xy = method.source.planner, T[:2, 3]
+    planner.settings = dataclasses.replace(planner.settings, sample_region="known_free")  # draws in the region
 
     def farthest_east() -> float:  # of the node positions drawn, over the free space the robot's region holds
         return float(planner.samples(planner.free_space(xy, Z), xy)[0][:, 0].max())
@@ -200,3 +205,25 @@ def test_nbvp_stops_with_no_frontiers_left_in_a_small_closed_room(closet_spec, t
     metrics = run_method(closet_spec, tmp_path / "closet", "nbvp", 300, "--depth", "gt")
     assert metrics["stop_reason"] == "no frontiers left" and metrics["steps"] < 300
     assert metrics["collisions"] == 0 and metrics["coverage"] > 0.6
+
+
+
+def test_box_sampling_draws_goals_over_the_whole_map_most_of_them_outside_the_known_free_space(looked_around):
+    """``nbvp.sample_region: box`` (nbvplanner's RrtTree::iterate, the default): goals uniform over the map's
+    XY extent, so the tree's nearest nodes are steered towards unexplored space; ``known_free`` draws them
+    in the robot's known free region only."""
+    method, context, T = looked_around
+    planner = method.source.planner
+    space = planner.free_space(T[:2, 3], Z)
+    extent = np.asarray(space.free.shape) * space.cell_m
+    drawn = {}
+    for region in ("box", "known_free"):
+        planner.settings = dataclasses.replace(planner.settings, sample_region=region)
+        drawn[region], yaws = planner.samples(space, T[:2, 3])
+        assert len(drawn[region]) == planner.settings.max_samples and np.all(np.abs(yaws) <= np.pi)
+    cells = {region: tuple(((xy - space.origin_xy) // space.cell_m).astype(int).T) for region, xy in drawn.items()}
+    assert np.all(space.free[cells["known_free"]])
+    box = drawn["box"]
+    assert np.all((box >= space.origin_xy) & (box < space.origin_xy + extent))
+    np.testing.assert_allclose(box.mean(axis=0), space.origin_xy + extent / 2, atol=0.05 * extent.max())
+    assert np.mean(space.free[cells["box"]]) == pytest.approx(space.free.mean(), abs=0.03) and space.free.mean() < 0.5

@@ -15,7 +15,7 @@ from ..exploration.run import RUN_SECTIONS, load_run_config
 from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
-from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, sources_changed, with_idle_keys,
+from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, runs_changed, with_idle_keys,
                    with_keys_added_after)
 from .budget import BudgetRule
 from .report import write_report
@@ -53,10 +53,11 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             (:func:`~frontiernet.benchmark.plan.depth_sources`, :mod:`.plan`).
         workers, backend: parallel runs, ``local`` or ``ray``.
         scene_starts: start from the positions a scene ships (KTH plans: MapEx's) first.
-        redo_changed: resume a benchmark whose settings differ only in settings that the runs of some
-            depth sources alone read (``map.monocular_*``, a source's ``depth`` section:
-            :func:`~frontiernet.benchmark.plan.sources_changed`): its finished runs of those sources
-            are discarded and run again under this run's settings, the others kept.
+        redo_changed: resume a benchmark whose settings differ only in settings that some of its
+            runs alone read (``map.monocular_*`` and a source's ``depth`` section: that source's runs;
+            a method's own section, ``nbvp``, ``omniscient``...: that method's runs;
+            :func:`~frontiernet.benchmark.plan.runs_changed`): those finished runs are discarded and
+            run again under this run's settings, the others kept.
     Returns:
         ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
     Raises:
@@ -102,12 +103,11 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
             previous = resumable_plan(out, settings, redo_changed)
             poses, budgets = previous["start_poses"], previous.get("budgets")
-            redo = previous.get("redo_sources")
+            redo = previous.get("redo_runs")
             if redo:  # before the plan takes the new settings: a run stopped between redoes the rest
-                single = depth_sources(previous["settings"]["depth"], OmegaConf.create(previous["settings"]["conf"]))
-                keys = [run["key"] for run in previous["runs"] if (run.get("depth") or single[0]) in redo]
-                log.warning("%s: the settings of its %s-depth runs changed; %d finished runs of them discarded, "
-                            "to run again", out, " and ".join(redo), discard_runs(out, keys))
+                keys, readers = redo
+                log.warning("%s: the settings of its %s changed; %d finished runs of them discarded, to run again",
+                            out, ", ".join(map(str, readers)), discard_runs(out, keys))
         clock = time.perf_counter()
         runs, start_poses, budgets = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses,
                                                scene_starts, depths, budgets, rule)
@@ -125,9 +125,10 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
 def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dict:
     """The plan stored in benchmark folder `out` (``plan.json``) when a benchmark with `settings`
     (as :func:`main` builds them) may resume it; InputError naming the first setting that differs.
-    Settings that only the runs of some of its depth sources read may differ with `redo_changed`
-    (:func:`~frontiernet.benchmark.plan.sources_changed`): the plan then carries ``redo_sources``, the
-    sources whose finished runs are stale (:func:`main` discards them).
+    Settings that only some of its runs read (those of some depth sources or methods) may differ with
+    `redo_changed` (:func:`~frontiernet.benchmark.plan.runs_changed`): the plan then carries
+    ``redo_runs``, the keys of the runs they change and their description (:func:`main` discards
+    those finished).
 
     A plan made before the run config had a section of
     :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
@@ -151,15 +152,15 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
                          "--out: its runs are not mixed with this protocol's")
     if previous["settings"] != settings:
         difference = blocking_difference(previous["settings"], settings)
-        redo = sources_changed(previous["settings"], settings)
+        redo = runs_changed(previous, settings)
         if redo is None:
             raise InputError(f"{out} holds a benchmark with other settings ({difference}); use another --out or "
                              "remove it")
-        if redo and not redo_changed:
+        if redo[0] and not redo_changed:
             raise InputError(f"{out} holds a benchmark with other settings ({difference}), which only its "
-                             f"{' and '.join(redo)}-depth runs read: --redo-changed runs those again (their finished "
+                             f"{', '.join(map(str, redo[1]))} read: --redo-changed runs those again (their finished "
                              "runs are discarded) and keeps the others; or use another --out")
-        previous["redo_sources"] = redo
+        previous["redo_runs"] = redo
     return previous
 
 

@@ -77,6 +77,7 @@ KEYS_ADDED_AFTER_PLANS = {
     # the section ran no nbvp: the section above, today's settings)
     "nbvp.found_on": "discounted",
     "nbvp.yaw_window_deg": 180.0,
+    "nbvp.sample_region": "known_free",  # issue 54: the tree's goals drawn over the known-free cells, as before the key
     # issue 56: the map-predicting methods' settings (they change no run of any other method)
     "seer": {"predictor": None, "candidate_rmin_m": 0.5, "candidate_rmax_m": 1.2, "candidate_rnum": 3,
              "candidate_dphi_deg": 15.0, "yaw_offsets_deg": [-50.0, -30.0, -10.0, 10.0, 30.0, 50.0],
@@ -241,46 +242,87 @@ def first_difference(old, new, prefix: str = "") -> str | None:
     return next((text for _, text in differences(old, new, prefix)), None)
 
 
-def _sources_reading(dotted: str) -> set[str] | None:
-    """The depth sources whose runs alone read the benchmark setting `dotted` (``conf.<section>.<key>...``):
-    the map's monocular sensor model and its depth-edge filter apply only to sources with flying pixels
+METHOD_SECTIONS = {
+    "nbvp": ("nbvp",),
+    "omniscient": ("omniscient",),
+    "seer": ("seer",),
+    "mapex": ("mapex", "frontiernet-mapex"),  # frontiernet-mapex reads mapex's predictor settings
+    "frontiernet_mapex": ("frontiernet-mapex",),
+}
+"""The sections of ``configs/explore.yaml`` that only some methods' runs read, with those methods
+(the factories of :mod:`frontiernet.exploration.methods` that parse them)."""
+
+
+@dataclass(frozen=True)
+class Readers:
+    """The runs of a benchmark that read one setting: those of depth sources `sources` and methods
+    `methods` (None: every source, every method)."""
+
+    sources: frozenset | None = None
+    methods: frozenset | None = None
+
+    def reads(self, run: dict, single_source: str) -> bool:
+        """Whether the planned `run` (a plan's ``runs`` entry) is one of them; `single_source`: the
+        source of a plan whose runs carry none."""
+        return ((self.sources is None or (run.get("depth") or single_source) in self.sources)
+                and (self.methods is None or run["method"] in self.methods))
+
+    def __str__(self) -> str:
+        depth = f"{' and '.join(sorted(self.sources))}-depth " if self.sources is not None else ""
+        return f"{depth}{' and '.join(sorted(self.methods)) + ' ' if self.methods is not None else ''}runs"
+
+
+def _runs_reading(dotted: str) -> Readers | None:
+    """The benchmark runs that alone read the setting `dotted` (``conf.<section>.<key>...``): the map's
+    monocular sensor model and its depth-edge filter apply only to sources with flying pixels
     (:meth:`~frontiernet.mapping.checks.MapSettings.ray_model`), as the planner's ``monocular_*`` keys
     (:class:`~frontiernet.exploration.explorer.Explorer`), a source's own ``depth`` section only to
-    it; None for every other setting."""
+    it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs; None for every
+    other setting (read by every run)."""
     from ..depth import SOURCES
 
     parts = dotted.split(".")
     section, key = (parts[1], parts[2]) if len(parts) > 2 and parts[0] == "conf" else (None, "")
     if (section in ("map", "planner") and key.startswith("monocular_")) or (section, key) == ("map", "depth_edge_rtol"):
-        return {name for name, source in SOURCES.items() if source.flying_pixels}
+        return Readers(sources=frozenset(name for name, source in SOURCES.items() if source.flying_pixels))
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
-        return {parts[2]}
+        return Readers(sources=frozenset({parts[2]}))
+    if len(parts) > 1 and parts[0] == "conf" and parts[1] in METHOD_SECTIONS:
+        return Readers(methods=frozenset(METHOD_SECTIONS[parts[1]]))
     return None
 
 
 def blocking_difference(stored: dict, settings: dict) -> str | None:
-    """The first of :func:`differences` that :func:`sources_changed` cannot redo (a setting that runs of
-    every source read), as its text; else the first difference; None when equal."""
+    """The first of :func:`differences` that :func:`runs_changed` cannot redo (a setting that every
+    run reads), as its text; else the first difference; None when equal."""
     found = list(differences(stored, settings))
-    blocking = [text for dotted, text in found if _sources_reading(dotted) is None]
+    blocking = [text for dotted, text in found if _runs_reading(dotted) is None]
     return (blocking or [text for _, text in found] or [None])[0]
 
 
-def sources_changed(stored: dict, settings: dict) -> list[str] | None:
-    """The depth sources of a stored plan whose runs alone this run's `settings` change: when every
-    setting in which the two differ is read only by the runs of some sources (:func:`_sources_reading`),
-    the plan's sources among them (empty: the change reaches none of its runs, e.g. a monocular key of
-    a ground-truth plan); None when any other setting differs (another benchmark). `stored`: the plan's
-    settings as :func:`with_idle_keys` and :func:`with_keys_added_after` leave them."""
+def runs_changed(plan: dict, settings: dict) -> tuple[list[str], list[Readers]] | None:
+    """The planned runs of a stored `plan` (``settings`` as :func:`with_idle_keys` and
+    :func:`with_keys_added_after` leave them, and ``runs``) that this run's `settings` change, when
+    every setting in which the two differ is read by some runs alone (:func:`_runs_reading`): (their
+    keys, in plan order; the readers of the changed settings). Empty keys: the change reaches none of
+    its runs (a monocular key of a ground-truth plan, the section of a method it does not run). None
+    when a setting that every run reads differs (another benchmark)."""
     from omegaconf import OmegaConf
 
-    changed = set()
+    stored = plan["settings"]
+    sources = depth_sources(stored["depth"], OmegaConf.create(stored["conf"]))
+    methods = {run["method"] for run in plan["runs"]}
+    readers = []
     for dotted, _ in differences(stored, settings):
-        sources = _sources_reading(dotted)
-        if sources is None:
+        reader = _runs_reading(dotted)
+        if reader is None:
             return None
-        changed |= sources
-    return [name for name in depth_sources(stored["depth"], OmegaConf.create(stored["conf"])) if name in changed]
+        reader = Readers(None if reader.sources is None else reader.sources & frozenset(sources),
+                         None if reader.methods is None else reader.methods & frozenset(methods))
+        if reader.sources != frozenset() and reader.methods != frozenset() and reader not in readers:
+            readers.append(reader)  # (as described: the plan's own sources and methods among them)
+    keys = [run["key"] for run in plan["runs"] if any(reader.reads(run, sources[0]) for reader in readers)]
+    return keys, readers
 
 
 def scene_key(spec: str) -> str:
@@ -389,4 +431,5 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
 
 
 __all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
-           "with_keys_added_after", "differences", "first_difference", "blocking_difference", "sources_changed"]
+           "with_keys_added_after", "differences", "first_difference", "blocking_difference", "runs_changed", "Readers",
+           "METHOD_SECTIONS"]

@@ -71,9 +71,10 @@ def _exploration_options(parser) -> None:
                             "scene and method (runs/<scene>/<method>.jsonl.gz), which --report and a resumed "
                             "benchmark read; runs nothing (before --report when both are given)")
     group.add_argument("--redo-changed", action="store_true",
-                       help="resume a benchmark whose settings changed only where the runs of some depth sources "
-                            "alone read them (map.monocular_*, a source's depth.* section): those runs are "
-                            "discarded and run again, the others kept")
+                       help="resume a benchmark whose settings changed only where some of its runs alone read "
+                            "them (map.monocular_*, a source's depth.* section: that source's runs; a method's "
+                            "own section, nbvp.*, omniscient.*: that method's runs): those runs are discarded "
+                            "and run again, the others kept")
     options.parallel(group)
     group.add_argument("--seed", type=int, help="seed of the start poses and runs (default: run.seed)")
     options.model_option(group, what="model file of the learned methods")

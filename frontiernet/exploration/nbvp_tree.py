@@ -17,6 +17,7 @@ from .motion import yaw_of
 
 
 FOUND_ON = ("discounted", "views")
+SAMPLE_REGIONS = ("known_free", "box")
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,9 @@ class NbvpSettings:
             node's branch (see configs/explore.yaml).
         yaw_window_deg: a sampled node's yaw is drawn within this of its incoming edge's direction
             (180: uniform, nbvplanner's).
+        sample_region: where the tree's goals are drawn: ``box``, uniformly over the map's XY extent
+            (nbvplanner's sphere of the exploration box's diagonal around the root, clipped to the box);
+            ``known_free``, uniformly over the known-free cells connected to the robot's.
     """
 
     extension_m: float
@@ -50,6 +54,7 @@ class NbvpSettings:
     stall_frames: int
     found_on: str = "discounted"
     yaw_window_deg: float = 180.0
+    sample_region: str = "known_free"
 
     @classmethod
     def from_config(cls, section) -> "NbvpSettings":
@@ -68,7 +73,11 @@ class NbvpSettings:
                        count("init_iterations"), count("cutoff_iterations"), number("gain_range_m", "metres"),
                        count("gain_width_px"), count("yaw_samples"), number("overshoot_m", "metres", True),
                        count("max_samples"), count("stall_frames"), str(get("found_on") or "discounted"),
-                       180.0 if get("yaw_window_deg") is None else number("yaw_window_deg", "degrees"))
+                       180.0 if get("yaw_window_deg") is None else number("yaw_window_deg", "degrees"),
+                       str(get("sample_region") or "known_free"))
+        if settings.sample_region not in SAMPLE_REGIONS:
+            raise InputError(f"nbvp.sample_region must be one of {', '.join(SAMPLE_REGIONS)}, "
+                             f"got {settings.sample_region!r}")
         if settings.found_on not in FOUND_ON:
             raise InputError(f"nbvp.found_on must be one of {', '.join(FOUND_ON)}, got {settings.found_on!r}")
         if settings.yaw_window_deg > 180.0:
@@ -272,9 +281,16 @@ class NbvpPlanner:
         return FreeSpace(free, origin, cell)
 
     def samples(self, space: FreeSpace, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``max_samples`` draws: (S, 2) float64 world positions uniform over the free cells of
-        `space` connected (8-neighbours) to the robot's at `xy`, and (S, yaw_samples) float64 yaws in
-        [-pi, pi). Always the same number of draws (a run repeats with its seed)."""
+        """``max_samples`` draws: (S, 2) float64 world positions, and (S, yaw_samples) float64 yaws in
+        [-pi, pi). Positions are uniform over `space`'s whole grid with ``sample_region: box`` (most
+        fall outside free space: the tree steers its nearest node towards them, so it grows towards
+        the unexplored, RRT's Voronoi bias), else over the free cells of `space` connected
+        (8-neighbours) to the robot's at `xy`. Always the same number of draws (a run repeats with
+        its seed)."""
+        if self.settings.sample_region == "box":
+            count = self.settings.max_samples
+            positions = space.origin_xy + self.rng.random((count, 2)) * np.asarray(space.free.shape) * space.cell_m
+            return positions, self.rng.uniform(-np.pi, np.pi, (count, self.settings.yaw_samples))
         labels, _ = ndimage.label(space.free, structure=np.ones((3, 3), bool))
         i, j = grid_cells(xy, space.origin_xy, space.cell_m)[0]
         inside = bool(cells_inside(np.array([i, j]), space.free.shape)) and labels[i, j] > 0
