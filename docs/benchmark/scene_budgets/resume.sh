@@ -10,13 +10,14 @@
 # FRONTIERNET: the command (default: the code this folder's runs were made with, pinned with
 # scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
 # sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
-# --redo-changed: where the pinned code changed settings that only the emulated-depth runs read (8a28c0f,
-# the monocular map's symmetric miss and oblique pixels; 2d183fa, the way back kept open on monocular
-# maps), those runs are redone, the others kept.
+# --redo-changed: where the pinned code changed settings that only some runs read, those runs are
+# redone, the others kept: the emulated-depth runs (8a28c0f, the monocular map's symmetric miss and
+# oblique pixels; 2d183fa, the way back kept open on monocular maps), the nbvp runs (24f8bf2, NBVP's
+# goals drawn over the whole map).
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh c088ef8 ../pinned_scene_budgets_c088ef8}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 24f8bf2 ../pinned_scene_budgets_24f8bf2}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
