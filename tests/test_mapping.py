@@ -395,6 +395,28 @@ def test_slice_2d_patched_after_updates_equals_a_fresh_map_and_never_changes_wha
     assert not np.array_equal(kept.slice_2d(*bands[0])[0], first[0][0])
 
 
+def test_a_change_record_holds_every_voxel_the_updates_changed(renderer):
+    """``OccupancyMap.changes()``: what a consumer that patches derived arrays relies on: no voxel outside
+    the box taken changed since the last take, and nothing is reported before an update."""
+    poses = surround_poses()
+    occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf())
+    record = occupancy.changes()
+    assert record.take() is None
+    for step, pose in enumerate(poses):
+        before = occupancy.observed.copy(), occupancy.log_odds.copy()
+        if step % 3 == 2:
+            occupancy.clear_sphere(pose[:3, 3], 0.3)
+        else:
+            frame = renderer.render(pose)
+            occupancy.integrate(frame.depth, frame.K, pose)
+        box = record.take()
+        changed = (occupancy.observed != before[0]) | (occupancy.log_odds != before[1])
+        assert box is not None  # (a footprint already free changes nothing inside it)
+        changed[box] = False
+        assert not changed.any()
+        assert record.take() is None
+
+
 def test_state_at_off_the_grid_and_save_load(renderer, tmp_path):
     occupancy = integrated(renderer, [pose_from_heading(*CAMERA, yaw=0.0)])
     far = occupancy.state_at(np.array([[100.0, 0, 0], [np.nan, 1.0, 1.0], [-5.0, 1.5, 1.2]]))

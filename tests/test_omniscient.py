@@ -91,6 +91,27 @@ def test_views_beyond_a_door_the_map_sealed_are_reachable_where_the_robot_has_be
     assert source.candidates(T_start).xy[:, 0].max() > 3.1
 
 
+def test_unseen_voxels_and_gains_kept_across_frames_equal_a_fresh_scoring(omniscient, two_room_scene, two_room_voxels):
+    """The source patches its unseen voxels where the coverage map changed and keeps the gains of views no
+    newly seen voxel is within reach of: after each frame, the same unseen voxels and the same candidates
+    as a source made afresh on the same maps."""
+    method, context, renderer = omniscient
+    source, pitch = method.source, np.radians(float(context.conf.motion.pitch_deg))
+    for step, (x, yaw) in enumerate([(1.5, 0.0), (1.5, np.pi / 2), (2.2, 0.0), (2.2, np.pi), (4.5, np.pi / 4)]):
+        T = pose_from_heading(x, 2.0, 1.2, yaw, pitch)
+        frame = renderer.render(T)
+        context.map.integrate(frame.depth, frame.K, T)
+        source.seen.integrate(frame.depth, frame.K, T)
+        kept = source.candidates(T)
+        fresh_source = OmniscientSource(two_room_voxels, context.map, source.seen, context.conf,
+                                        context.sim_conf.camera, context)
+        fresh = fresh_source.candidates(T)
+        np.testing.assert_array_equal(source.unseen(), two_room_voxels.explorable & ~source.seen.observed)
+        for a, b in zip((kept.xy, kept.yaw, kept.gain_m3), (fresh.xy, fresh.yaw, fresh.gain_m3)):
+            np.testing.assert_array_equal(a, b)
+    assert len(kept.xy) and step == 4
+
+
 def test_a_fully_seen_scene_leaves_no_candidate(omniscient):
     method, context, _ = omniscient
     source = method.source

@@ -22,7 +22,9 @@ Cost: one frustum integration per (cell, heading) at a coarse raster (``view_wid
 is integrated along each ray, so the raster sets noise, not bias), numba-compiled; cells farther
 than the sensor's reach from any unseen explorable voxel are skipped without a ray, and a cell's
 gains are kept until a voxel within its reach is seen (a frame changes a few metres of a large
-scene, so most views are not integrated again).
+scene, so most views are not integrated again). The unseen voxels themselves are patched in the box
+each frame touched (:meth:`OccupancyMap.changes <frontiernet.mapping.OccupancyMap.changes>`), not
+recomputed over the whole scene.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ import numpy as np
 from ..errors import InputError, positive_number
 from ..frontiers.anchoring import FrontierObservation
 from ..geometry import distance_to_false, poses_from_headings
+from ..mapping.bands import read_only
 from ..mapping.traversal import frustum_volume
 from ..planning.grid import reachable_region
 from ..planning.planner import PlanningGrid
@@ -108,9 +111,13 @@ class OmniscientSource(FrontierSource):
         self.directions = self.seen._pixel_directions(self.width, self.focal)
         self.refresh_every = int(positive_number(settings.get("refresh_every_steps", 1), "omniscient.refresh_every_steps"))
         self.cached, self.frames_since = None, 0
-        # gains of earlier scorings per grid cell, and the unseen voxels and camera height they saw
+        # gains of earlier scorings per grid cell and the camera height they saw; the columns in which
+        # unseen voxels have been seen since
         self._gains: dict[tuple[int, int], np.ndarray] = {}
-        self._scored_unseen, self._scored_z = None, None
+        self._scored_z, self._seen_since = None, None
+        # the unseen explorable voxels and their columns, patched where the coverage map changes
+        self._changes = seen.changes()
+        self._unseen, self._unseen_columns = None, None
         # The camera never sees the planning band right under itself: its lowest ray (half the
         # vertical field of view below the pitch) reaches the band's bottom this far out, and the
         # grid keeps planner.clearance_m from that unknown. Within the ring the explorer leaves
@@ -150,24 +157,42 @@ class OmniscientSource(FrontierSource):
         return bool(np.any(near & facing))
 
     def unseen(self) -> np.ndarray:
-        """(X, Y, Z) bool: explorable voxels no ground-truth ray has observed yet."""
-        return self.voxels.explorable & ~self.seen.observed
+        """(X, Y, Z) bool: explorable voxels no ground-truth ray has observed yet (read-only)."""
+        self._update_unseen()
+        return read_only(self._unseen)
 
-    def _view_gains(self, cells: np.ndarray, centres: np.ndarray, z: float, unseen: np.ndarray) -> np.ndarray:
+    def _update_unseen(self) -> None:
+        """Bring the unseen voxels, their columns and the columns seen since the last scoring up to
+        date: whole on the first call, then only in the box the coverage map's updates touched (its
+        voxels are only ever observed, never forgotten, so nothing outside that box changes)."""
+        box = self._changes.take()
+        if self._unseen is None:
+            self._unseen = np.ascontiguousarray(self.voxels.explorable & ~self.seen.observed)
+            self._unseen_columns = self._unseen.any(axis=2)
+            self._seen_since = np.zeros_like(self._unseen_columns)
+        elif box is not None:
+            before = self._unseen[box]
+            after = before & ~self.seen.observed[box]
+            self._seen_since[box[:2]] |= (before & ~after).any(axis=2)
+            self._unseen[box] = after
+            self._unseen_columns[box[:2]] = self._unseen[box[:2]].any(axis=2)
+
+    def _view_gains(self, cells: np.ndarray, centres: np.ndarray, z: float) -> np.ndarray:
         """(N, yaw_count) float64 unseen volume (m^3) the views at the (N, 2) grid `cells` (world
         `centres`, camera height `z`) see in each heading. A view's gain changes only when a voxel
-        within its rays' reach is seen: the gains of earlier calls are kept for cells no newly seen
-        column lies within :attr:`reach_cells` of, and only the others are integrated again (the
+        within its rays' reach is seen: the gains of earlier calls are kept for cells no column seen
+        since lies within :attr:`reach_cells` of, and only the others are integrated again (the
         same values: each view's integral is its own)."""
-        if self._scored_unseen is not None and self._scored_z == z:
-            seen_since = (self._scored_unseen & ~unseen).any(axis=2)
-            if seen_since.any() and self._gains:
+        unseen = self._unseen  # brought up to date by the caller
+        if self._scored_z == z:
+            if self._seen_since.any() and self._gains:
                 kept = np.array(list(self._gains))
-                for cell in kept[near_unseen(seen_since, kept, self.reach_cells)]:
+                for cell in kept[near_unseen(self._seen_since, kept, self.reach_cells)]:
                     del self._gains[tuple(cell)]
         else:
             self._gains = {}
-        self._scored_unseen, self._scored_z = unseen, z
+        self._scored_z = z
+        self._seen_since[...] = False
         missing = [k for k, cell in enumerate(cells) if tuple(cell) not in self._gains]
         if missing:
             yaws = np.tile(self.yaws, len(missing))
@@ -194,13 +219,13 @@ class OmniscientSource(FrontierSource):
             return empty
         open_cells = np.isfinite(grid.cost) | (self._ring(grid, xy) if self.ring_m > 0 else False)
         reachable = reachable_region(open_cells, start)
-        unseen = np.ascontiguousarray(self.unseen())
+        self._update_unseen()
         cells = lattice_cells(reachable, self.spacing)
-        cells = cells[near_unseen(unseen.any(axis=2), cells, self.reach_cells)]
+        cells = cells[near_unseen(self._unseen_columns, cells, self.reach_cells)]
         if not len(cells):
             return empty
         centres = grid.centres(cells)
-        gains = self._view_gains(cells, centres, z, unseen)
+        gains = self._view_gains(cells, centres, z)
         best = np.argmax(gains, axis=1)
         gain = gains[np.arange(len(cells)), best]
         keep = np.flatnonzero(gain >= float(self.conf.tracking.min_gain_m3))

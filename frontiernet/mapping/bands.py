@@ -59,6 +59,25 @@ class BandViews:
                                                                    np.maximum(stale[1], hi[:2]))
 
 
+class ChangedBox:
+    """The index box (X, Y, Z) that a map's updates have touched since it was last taken: a consumer
+    that keeps something derived from the map patches that box only (:meth:`OccupancyMap.changes
+    <frontiernet.mapping.OccupancyMap.changes>`)."""
+
+    def __init__(self) -> None:
+        self._box: tuple[np.ndarray, np.ndarray] | None = None
+
+    def add(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """The voxels in the index box [lo, hi) ((3,) int) may have changed."""
+        lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
+        self._box = (lo, hi) if self._box is None else (np.minimum(self._box[0], lo), np.maximum(self._box[1], hi))
+
+    def take(self) -> tuple[slice, slice, slice] | None:
+        """The box as three slices, or None when nothing changed; the record starts again empty."""
+        box, self._box = self._box, None
+        return None if box is None else tuple(slice(int(a), int(b)) for a, b in zip(*box))
+
+
 def read_only(array: np.ndarray) -> np.ndarray:
     """A view of `array` that cannot be written through."""
     view = array.view()
