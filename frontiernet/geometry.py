@@ -132,6 +132,15 @@ def intrinsics_matrix(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], np.float64)
 
 
+def image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarray:
+    """(4, 3) float64 camera-frame directions (unit z) through the corner pixel centres of an (H, W)
+    image with (3, 3) intrinsics `K`."""
+    H, W = image_shape
+    u = np.array([0.0, W - 1, 0.0, W - 1])
+    v = np.array([0.0, 0.0, H - 1, H - 1])
+    return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1)
+
+
 def parse_intrinsics_text(text: str) -> tuple[float, float, float, float]:
     """``"fx,fy,cx,cy"`` as typed after ``--intrinsics`` -> four finite floats, pixels (focal
     lengths positive), or :class:`InputError` quoting `text`."""

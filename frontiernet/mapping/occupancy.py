@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import InputError, positive_number
 from ..io import atomic_path
 from ..simulator.voxels import VoxelGrid
-from ..geometry import disks_touch_cells, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
+from ..geometry import disks_touch_cells, image_corner_rays, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
 from .bands import BandViews, ChangedBox, band_layers, read_only
 from .checks import MapSettings, depth_edges, depth_image, grazing_pixels, finite_number, scalar
 from .traversal import apply_marks, frustum_volume, mark_depth_rays
@@ -234,7 +234,7 @@ class OccupancyMap:
         K = pinhole_intrinsics(K, depth.shape)
         T = rigid_pose(T_world_cam)
         s = self.settings
-        corners = _image_corner_rays(K, depth.shape) * s.max_range_m @ T[:3, :3].T + T[:3, 3]
+        corners = image_corner_rays(K, depth.shape) * s.max_range_m @ T[:3, :3].T + T[:3, 3]
         lo, hi = self._index_box(np.vstack([corners, T[:3, 3]]))
         if np.any(hi <= lo):
             return  # the frustum misses the grid
@@ -444,11 +444,3 @@ class OccupancyMap:
             camera = PinholeCamera(width, width, focal, focal, centre, centre, np.inf)  # directions only: no range
             self._view_directions[key] = camera.ray_directions().reshape(-1, 3).astype(np.float64)
         return self._view_directions[key]
-
-
-def _image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarray:
-    """(4, 3) camera-frame directions (unit z) through the corner pixel centres of an (H, W) image."""
-    H, W = image_shape
-    u = np.array([0.0, W - 1, 0.0, W - 1])
-    v = np.array([0.0, 0.0, H - 1, H - 1])
-    return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1)
