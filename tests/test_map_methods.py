@@ -120,6 +120,22 @@ def test_show_prediction_draws_the_predicted_map_beside_the_robots_own(plan_spec
         assert not (tmp_path / "refused").exists()
 
 
+@pytest.mark.parametrize("method", ["mapex", "frontiernet-mapex"])
+def test_show_prediction_alone_draws_the_methods_own_prediction_and_changes_nothing_of_the_run(
+        plan_spec, predictors, tmp_path, method, capsys):
+    """With a method that predicts the map itself, ``--show-prediction`` alone reads its prediction (mapex's
+    from ``--model``; no second predictor is loaded, so a missing shipped one is no error): the same run."""
+    chosen = ["--model", str(predictors["mapex"])] if method == "mapex" else [f"mapex.predictor={predictors['mapex']}"]
+    runs = {}
+    for name, options in (("plain", ["--no-video"]), ("shown", ["--show-prediction"])):
+        code = main(["explore", "--scene", plan_spec, "--method", method, "--max-steps", "8",
+                     "--out", str(tmp_path / name), *chosen, *options])
+        assert code == 0, capsys.readouterr().err
+        runs[name] = json.loads((tmp_path / name / "metrics.json").read_text())
+    assert runs["shown"]["coverage_per_step"] == runs["plain"]["coverage_per_step"]
+    assert (tmp_path / "shown" / "exploration.mp4").stat().st_size > 0
+
+
 def test_the_predicted_panel_colours_unknown_cells_by_their_predicted_occupancy():
     from frontiernet.exploration.drawing import FREE, OCCUPIED, PREDICTED_FREE, PREDICTED_OCCUPIED, TopDown
 
@@ -176,6 +192,8 @@ def test_mapex_predicts_again_only_once_the_map_has_learnt_enough():
     source = MapexSource(predictor, occupancy, OmegaConf.merge(CONF, {"mapex": {"repredict_new_cells": 50}}))
     states = np.zeros((120, 100), np.int8)
     states[20:25, 20:25] = 1  # 25 known cells: the window is them and the 3.5 m visibility range around
+    mean, variance = source.topdown(states, predict=False)  # a reader (the video) before any prediction
+    assert calls == [] and mean[22, 22] == 0.0 and mean[30, 30] == 0.5 and not variance.any()
     mean, variance = source.prediction(states)
     assert calls == [(20 + 5 + 36, 20 + 5 + 36)]
     assert mean[22, 22] == 0.0 and variance[22, 22] == 0.0 and mean[30, 30] == pytest.approx(0.3)
@@ -183,7 +201,8 @@ def test_mapex_predicts_again_only_once_the_map_has_learnt_enough():
     states[25:30, 20:25] = 1  # 25 more, below 50: the cached prediction, read with the new known cells
     mean, variance = source.prediction(states)
     assert len(calls) == 1 and mean[27, 22] == 0.0 and variance[27, 22] == 0.0
-    states[30:40, 20:25] = 1  # 75 since the prediction: predicted again
+    states[30:40, 20:25] = 1  # 75 since the prediction: predicted again, by the method, not by a reader
+    assert source.topdown(states, predict=False)[0][35, 22] == 0.0 and len(calls) == 1
     source.prediction(states)
     assert len(calls) == 2
 

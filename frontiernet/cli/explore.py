@@ -38,8 +38,8 @@ def add_parser(subparsers) -> None:
                              "camera's tf as ROS 2 messages for Foxglove and RViz (as frontiernet sequence writes)")
     parser.add_argument("--show-prediction", nargs="?", const=True, metavar="PREDICTOR",
                         help="draw the map as a mapex predictor completes it beside the robot's own in "
-                             "exploration.mp4 (default predictor: mapex.predictor, else the shipped one; "
-                             "docs/mapprediction.md)")
+                             "exploration.mp4 (alone: the method's own prediction for mapex and frontiernet-mapex, "
+                             "else mapex.predictor, else the shipped one; docs/mapprediction.md)")
     options.config_file(parser, options.EXPLORE_CONFIG)
     options.output_folder(parser, force=True)
     options.config_overrides(parser, "planner.clearance_m=0.3 sim.camera.max_depth=5 depth.emulated.fill_depth=20 "

@@ -144,6 +144,7 @@ def make_mapex(context) -> Method:
 
 make_mapex.uses_model = True  # --model names its predictor file (methods.uses_model)
 make_mapex.model_kind = "mapex predictor"  # not a FrontierNet model: bench --model is not for it
+make_mapex.topdown_prediction = True  # its source's `topdown`, which explore --show-prediction alone draws
 make_mapex.check = check_predictor("mapex")  # before the scene loads (methods.check_method)
 
 __all__ = ["MapexSource", "make_mapex", "visible_cells"]

@@ -190,6 +190,7 @@ def _frontiernet_mapex(context: MethodContext) -> Method:
 
 _frontiernet_mapex.uses_model = True  # --model names its FrontierNet model (the predictor: mapex.predictor)
 _frontiernet_mapex.check = check_predictor("mapex", model_is_predictor=False)  # before the scene loads (check_method)
+_frontiernet_mapex.topdown_prediction = True  # its source's `topdown`, which explore --show-prediction alone draws
 
 
 def _discontinuity_uniform(context: MethodContext) -> Method:
@@ -250,6 +251,13 @@ def runs_frontiernet_model(name: str) -> bool:
     ``seer`` and ``mapex`` mark theirs with ``model_kind``): the methods the benchmark's ``--model``
     goes to."""
     return uses_model(name) and getattr(METHODS.get(name), "model_kind", "frontiernet") == "frontiernet"
+
+
+def owns_topdown_prediction(name: str) -> bool:
+    """Whether method `name`'s source keeps a :class:`~.predicted.TopdownPrediction` as ``source.topdown``
+    (its factory has ``topdown_prediction = True``: mapex, frontiernet-mapex), which ``explore
+    --show-prediction`` alone draws instead of predicting again."""
+    return bool(getattr(METHODS.get(name), "topdown_prediction", False))
 
 
 def check_method(name: str, model=None, conf=None) -> None:

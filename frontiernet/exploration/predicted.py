@@ -69,12 +69,18 @@ class TopdownPrediction:
         self.known_at = -1  # known cells at the last prediction
         self.predictions = 0
 
-    def __call__(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, states: np.ndarray, predict: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """(mean, variance), (X, Y) float32, for (X, Y) int8 top-down `states`
-        (:func:`~frontiernet.mapprediction.map_topdown_states`)."""
+        (:func:`~frontiernet.mapprediction.map_topdown_states`). `predict` False: never predict anew, only
+        read the last prediction (none yet: 0.5 and no variance in the unknown), as a second reader of a
+        method's prediction does, so that reading it changes nothing of the run."""
         known = states != UNKNOWN
         count = int(known.sum())
-        if self.mean is None or self.mean.shape != states.shape or count - self.known_at >= self.repredict:
+        stale = self.mean is None or self.mean.shape != states.shape
+        if not predict and stale:  # nothing to read yet; nothing stored, so the owner's next call predicts
+            return (np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, 0.5)).astype(np.float32),
+                    np.zeros(states.shape, np.float32))
+        if predict and (stale or count - self.known_at >= self.repredict):
             self.mean = np.full(states.shape, 0.5, np.float32)
             self.variance = np.zeros(states.shape, np.float32)
             window = self._window(known)

@@ -49,7 +49,7 @@ class PredictedSpaceGain(FrontierSource):
         if occupancy is None:
             raise InputError("frontiernet-mapex needs the run's map (a MethodContext with voxels)")
         s = conf.frontiernet_mapex
-        self.source, self.prediction, self.map = source, prediction, occupancy
+        self.source, self.topdown, self.map = source, prediction, occupancy
         self.weight = float(s.weight)
         if not 0.0 <= self.weight <= 1.0:
             raise InputError(f"frontiernet_mapex.weight must be in [0, 1], got {s.weight}")
@@ -62,9 +62,9 @@ class PredictedSpaceGain(FrontierSource):
         observations, seen = self.source(frame, depth, stopwatch)
         if not observations or self.weight == 0.0:
             return observations, seen
-        states = map_topdown_states(self.map, float(frame.T_world_cam[2, 3]), self.prediction.predictor.spec.band_m)
+        states = map_topdown_states(self.map, float(frame.T_world_cam[2, 3]), self.topdown.predictor.spec.band_m)
         with stopwatch("perception"):
-            mean, _ = self.prediction(states)
+            mean, _ = self.topdown(states)
         with stopwatch("anchoring"):
             predicted = self.predicted_volume(np.array([o.position[:2] for o in observations]),
                                               np.array([o.direction[:2] for o in observations]), mean, states)
@@ -83,7 +83,7 @@ class PredictedSpaceGain(FrontierSource):
         for index, (start, (dx, dy)) in enumerate(zip(cells, directions)):
             yaw = np.arctan2(dy, dx)
             angles = yaw + np.linspace(-self.hfov / 2, self.hfov / 2, rays)
-            seen = visible_cells(mean, start, rays, self.prediction.range_cells, self.hit, angles)
+            seen = visible_cells(mean, start, rays, self.topdown.range_cells, self.hit, angles)
             out[index] = float(unknown_free[seen].sum()) * cell * cell * self.column_m
         return out
 

@@ -94,7 +94,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     checked after it loads.)"""
     from ..errors import positive_number
     from ..io import input_file
-    from .methods import check_method
+    from .methods import check_method, owns_topdown_prediction
     from .move_check import body_radius
 
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
@@ -116,13 +116,15 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     if show_prediction is not None:
         if not video:
             raise InputError("--show-prediction draws the predicted map into exploration.mp4; leave out --no-video")
-        shown_predictor(conf, show_prediction)
+        if not (show_prediction is True and owns_topdown_prediction(method)):  # (its own: check_method's)
+            shown_predictor(conf, show_prediction)
     return budget, seed, depth_name
 
 
 def shown_predictor(conf, show_prediction):
-    """The loaded ``mapex`` predictor that ``explore --show-prediction`` draws: `show_prediction` True
-    takes ``mapex.predictor`` (null: the shipped one), a path that file (:func:`~.predicted.open_predictor`)."""
+    """The loaded ``mapex`` predictor that ``explore --show-prediction`` draws when the method has no
+    prediction of its own (:func:`main`): `show_prediction` True takes ``mapex.predictor`` (null: the
+    shipped one), a path that file (:func:`~.predicted.open_predictor`)."""
     from .predicted import open_predictor
 
     return open_predictor(conf, "mapex", None if show_prediction is True else show_prediction)
@@ -172,7 +174,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from ..simulator.world import build_world
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
-    from .methods import MethodContext, make_method
+    from .methods import MethodContext, make_method, owns_topdown_prediction
     from .recording import RerunRecorder
     from .video import StepPictures
 
@@ -201,12 +203,16 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     out = ensure_dir(out)
     recorder = RerunRecorder(out / "recording.rrd") if rerun else None
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
-    prediction = None
-    if show_prediction is not None:
+    # --show-prediction alone: the method's own prediction where it has one (mapex, frontiernet-mapex),
+    # read, not predicted again; else a prediction of its own
+    own = exploration_method.source.topdown if show_prediction is True and owns_topdown_prediction(method) else None
+    prediction = own
+    if show_prediction is not None and own is None:
         from .predicted import topdown_prediction
 
         prediction = topdown_prediction(conf, shown_predictor(conf, show_prediction), context.map.voxel_size)
-    pictures = StepPictures(voxels, conf, writer, budget, progress=progress, prediction=prediction)
+    pictures = StepPictures(voxels, conf, writer, budget, progress=progress, prediction=prediction,
+                            predicts=own is None)
     on_step = ((pictures,) if recorder is None else (pictures, recorder)) + tuple(step_outputs)
     explorer = Explorer(context, world.renderer, exploration_method, depth_source, T_start, on_step=on_step)
     setup_s = time.perf_counter() - clock

@@ -12,14 +12,16 @@ class StepPictures:
     ``run.video_every_steps``-th iteration into a video writer, and shows a progress bar. With a
     `prediction` (:class:`~frontiernet.exploration.predicted.TopdownPrediction`, ``explore
     --show-prediction``) a third panel shows the map as the predictor completes it: the cells the robot
-    knows as in the second, the others by their predicted occupancy (light blue free, purple occupied).
+    knows as in the second, the others by their predicted occupancy (light blue free, purple occupied);
+    `predicts` False: the prediction is the method's own, which the panel only reads (the run unchanged).
 
     Use as a context manager around :meth:`Explorer.run`.
     """
 
-    def __init__(self, voxels, conf, writer, budget: int, progress: bool = True, prediction=None) -> None:
+    def __init__(self, voxels, conf, writer, budget: int, progress: bool = True, prediction=None,
+                 predicts: bool = True) -> None:
         self.voxels, self.conf, self.writer, self.budget = voxels, conf, writer, int(budget)
-        self.prediction = prediction
+        self.prediction, self.predicts = prediction, predicts
         self.every = max(1, int(conf.run.video_every_steps))
         self.band = float(conf.planner.height_band_m)
         self.topdown = TopDown(voxels.origin[:2], voxels.shape[:2], voxels.voxel_size, height_px=480)
@@ -77,7 +79,7 @@ class StepPictures:
         from ..mapprediction import map_topdown_states
 
         states = map_topdown_states(explorer.map, z, self.prediction.predictor.spec.band_m)  # the predictor's band
-        mean, _ = self.prediction(states)
+        mean, _ = self.prediction(states, predict=self.predicts)
         predicted = self.topdown.draw(self.topdown.prediction(states == FREE, states == OCCUPIED, mean), path,
                                       path[-1], record.yaw, [], None, self._colour)
         return np.concatenate([camera, top, label(predicted, "predicted map")], axis=1)
