@@ -71,6 +71,15 @@ def test_the_method_explores_the_two_room_plan_with_its_predictor(plan_spec, pre
     assert metrics["timing"]["mean_ms"]["perception"] > 0  # the prediction ran (timed as perception)
 
 
+def test_bench_explore_times_a_predictor_method_with_its_model_file(plan_spec, predictors, capsys):
+    """``bench explore --method mapex --model P``: the predictor given as to ``explore``; its prediction is
+    the step's ``perception`` stage (no shipped predictor is needed)."""
+    assert main(["bench", "explore", "--scene", plan_spec, "--method", "mapex", "--model", str(predictors["mapex"]),
+                 "--steps", "3", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["method"] == "mapex" and result["steps"] == 3 and result["mean_ms"]["perception"] > 0
+
+
 def test_the_predictor_file_comes_from_the_config_key_too(plan_spec, predictors, tmp_path):
     code, log = explore(plan_spec, tmp_path / "run", "mapex", 3, f"mapex.predictor={predictors['mapex']}")
     assert code == 0, log

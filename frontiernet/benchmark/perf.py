@@ -170,11 +170,12 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
     return result
 
 
-def bench_explore(spec: str | None, method: str, steps: int, depth: str | None = None) -> dict:
-    """Explore `steps` steps with `method` (no video) on depth source `depth` (None: ``run.depth``
-    of configs/explore.yaml, ground truth; ``emulated``: the monocular emulation, whose cost is the
-    ``depth`` stage) and give each stage's mean time per step as a ratio to the render of the same
-    run; goal: perception + anchoring >= 5 Hz at 320 px on 2 cores, map update below one render.
+def bench_explore(spec: str | None, method: str, steps: int, depth: str | None = None, model=None) -> dict:
+    """Explore `steps` steps with `method` (no video; `model`: its model file, as ``explore --model``,
+    None: the shipped one) on depth source `depth` (None: ``run.depth`` of configs/explore.yaml,
+    ground truth; ``emulated``: the monocular emulation, whose cost is the ``depth`` stage) and give
+    each stage's mean time per step as a ratio to the render of the same run; goal: perception +
+    anchoring >= 5 Hz at 320 px on 2 cores, map update below one render.
 
     Returns ``scene``, ``method``, ``depth``, ``steps`` (taken), ``mean_ms`` and ``over_render`` per
     stage, ``step_ms_without_motion``, ``image_to_frontiers_hz``.
@@ -185,8 +186,8 @@ def bench_explore(spec: str | None, method: str, steps: int, depth: str | None =
 
     spec = default_bench_scene(spec)
     with tempfile.TemporaryDirectory() as out:
-        record = main(load_config("explore"), spec, out, method=method, depth=depth, max_steps=steps, video=False,
-                      progress=False)
+        record = main(load_config("explore"), spec, out, method=method, model=model, depth=depth, max_steps=steps,
+                      video=False, progress=False)
     timing = record["timing"]
     mean = timing["mean_ms"]
     return {"scene": spec, "method": method, "depth": record["depth"], "steps": record["steps"], "mean_ms": mean,
@@ -195,7 +196,8 @@ def bench_explore(spec: str | None, method: str, steps: int, depth: str | None =
             "image_to_frontiers_hz": timing["image_to_frontiers_hz"]}
 
 
-def bench_explore_against(spec: str | None, against: str, method: str, steps: int, depth: str | None = None) -> dict:
+def bench_explore_against(spec: str | None, against: str, method: str, steps: int, depth: str | None = None,
+                          model=None) -> dict:
     """:func:`bench_explore` on `against` (the baseline, run first) and on `spec`, side by side: how a
     step's cost grows with the scene (issue 55: a 60 x 60 m floor within 1.5x of a 10 x 10 m one).
 
@@ -203,8 +205,8 @@ def bench_explore_against(spec: str | None, against: str, method: str, steps: in
     scene's ``step_ms_without_motion`` over the baseline's) and ``stage_ratio`` (each stage's mean
     over the baseline's; None where the baseline's is below 0.01 ms).
     """
-    base = bench_explore(against, method, steps, depth)
-    result = bench_explore(spec, method, steps, depth)
+    base = bench_explore(against, method, steps, depth, model)
+    result = bench_explore(spec, method, steps, depth, model)
     ratio = {stage: (round(ms / base["mean_ms"][stage], 2) if base["mean_ms"].get(stage, 0.0) >= 0.01 else None)
              for stage, ms in result["mean_ms"].items()}
     return {"scene": result, "against": base, "stage_ratio": ratio,

@@ -44,6 +44,8 @@ def add_parser(subparsers) -> None:
                          help="a baseline scene explored first the same way: each stage's cost on --scene as a "
                               "ratio to it (how a step's cost grows with the building; e.g. a 60 m floor against a "
                               "10 m one, tests/bench/grid_floor.py)")
+    explore.add_argument("--model", help="the method's model file, as explore --model takes it (a FrontierNet "
+                                         "model, or seer's and mapex's predictor; default: the shipped one)")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)
 
@@ -204,8 +206,8 @@ def run_explore(args) -> int:
     counts(steps=args.steps)
     if args.against is not None:
         return _print_explore_against(bench_explore_against(args.scene, args.against, args.method, args.steps,
-                                                            args.depth), args)
-    result = bench_explore(args.scene, args.method, args.steps, args.depth)
+                                                            args.depth, args.model), args)
+    result = bench_explore(args.scene, args.method, args.steps, args.depth, args.model)
     if args.json:
         print(json.dumps(result))
         return 0
