@@ -72,12 +72,16 @@ def test_the_method_explores_the_two_room_plan_with_its_predictor(plan_spec, pre
 
 
 def test_bench_explore_times_a_predictor_method_with_its_model_file(plan_spec, predictors, capsys):
-    """``bench explore --method mapex --model P``: the predictor given as to ``explore``; its prediction is
-    the step's ``perception`` stage (no shipped predictor is needed)."""
+    """``bench explore --method mapex --model P`` (or ``mapex.predictor=P``): the predictor given as to
+    ``explore``; its prediction is the step's ``perception`` stage (no shipped predictor is needed)."""
     assert main(["bench", "explore", "--scene", plan_spec, "--method", "mapex", "--model", str(predictors["mapex"]),
                  "--steps", "3", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["method"] == "mapex" and result["steps"] == 3 and result["mean_ms"]["perception"] > 0
+    # frontiernet-mapex's predictor is a config key (--model is its FrontierNet model), set as explore sets it
+    assert main(["bench", "explore", "--scene", plan_spec, "--method", "frontiernet-mapex", "--steps", "2", "--json",
+                 f"mapex.predictor={predictors['mapex']}"]) == 0
+    assert json.loads(capsys.readouterr().out)["method"] == "frontiernet-mapex"
 
 
 def test_the_predictor_file_comes_from_the_config_key_too(plan_spec, predictors, tmp_path):

@@ -170,9 +170,11 @@ def bench_map(spec: str | None, frames: int, views: int) -> dict:
     return result
 
 
-def bench_explore(spec: str | None, method: str, steps: int, depth: str | None = None, model=None) -> dict:
+def bench_explore(spec: str | None, method: str, steps: int, depth: str | None = None, model=None,
+                  overrides=()) -> dict:
     """Explore `steps` steps with `method` (no video; `model`: its model file, as ``explore --model``,
-    None: the shipped one) on depth source `depth` (None: ``run.depth`` of configs/explore.yaml,
+    None: the shipped one; `overrides`: ``key=value`` words over the run config, as ``explore``
+    takes them) on depth source `depth` (None: ``run.depth`` of configs/explore.yaml,
     ground truth; ``emulated``: the monocular emulation, whose cost is the ``depth`` stage) and give
     each stage's mean time per step as a ratio to the render of the same run; goal: perception +
     anchoring >= 5 Hz at 320 px on 2 cores, map update below one render.
@@ -182,12 +184,13 @@ def bench_explore(spec: str | None, method: str, steps: int, depth: str | None =
     """
     import tempfile
 
-    from ..exploration.run import main
+    from ..exploration.run import load_run_config, main
 
     spec = default_bench_scene(spec)
+    conf = load_run_config(None, overrides)
     with tempfile.TemporaryDirectory() as out:
-        record = main(load_config("explore"), spec, out, method=method, model=model, depth=depth, max_steps=steps,
-                      video=False, progress=False)
+        record = main(conf, spec, out, method=method, model=model, depth=depth, max_steps=steps, video=False,
+                      progress=False)
     timing = record["timing"]
     mean = timing["mean_ms"]
     return {"scene": spec, "method": method, "depth": record["depth"], "steps": record["steps"], "mean_ms": mean,
@@ -197,7 +200,7 @@ def bench_explore(spec: str | None, method: str, steps: int, depth: str | None =
 
 
 def bench_explore_against(spec: str | None, against: str, method: str, steps: int, depth: str | None = None,
-                          model=None) -> dict:
+                          model=None, overrides=()) -> dict:
     """:func:`bench_explore` on `against` (the baseline, run first) and on `spec`, side by side: how a
     step's cost grows with the scene (issue 55: a 60 x 60 m floor within 1.5x of a 10 x 10 m one).
 
@@ -205,8 +208,8 @@ def bench_explore_against(spec: str | None, against: str, method: str, steps: in
     scene's ``step_ms_without_motion`` over the baseline's) and ``stage_ratio`` (each stage's mean
     over the baseline's; None where the baseline's is below 0.01 ms).
     """
-    base = bench_explore(against, method, steps, depth, model)
-    result = bench_explore(spec, method, steps, depth, model)
+    base = bench_explore(against, method, steps, depth, model, overrides)
+    result = bench_explore(spec, method, steps, depth, model, overrides)
     ratio = {stage: (round(ms / base["mean_ms"][stage], 2) if base["mean_ms"].get(stage, 0.0) >= 0.01 else None)
              for stage, ms in result["mean_ms"].items()}
     return {"scene": result, "against": base, "stage_ratio": ratio,

@@ -46,6 +46,7 @@ def add_parser(subparsers) -> None:
                               "10 m one, tests/bench/grid_floor.py)")
     explore.add_argument("--model", help="the method's model file, as explore --model takes it (a FrontierNet "
                                          "model, or seer's and mapex's predictor; default: the shipped one)")
+    options.config_overrides(explore, "mapex.predictor=runs/mapex/predictor.safetensors planner.clearance_m=0.3")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)
 
@@ -206,8 +207,8 @@ def run_explore(args) -> int:
     counts(steps=args.steps)
     if args.against is not None:
         return _print_explore_against(bench_explore_against(args.scene, args.against, args.method, args.steps,
-                                                            args.depth, args.model), args)
-    result = bench_explore(args.scene, args.method, args.steps, args.depth, args.model)
+                                                            args.depth, args.model, args.overrides), args)
+    result = bench_explore(args.scene, args.method, args.steps, args.depth, args.model, args.overrides)
     if args.json:
         print(json.dumps(result))
         return 0
