@@ -15,7 +15,7 @@ from frontiernet.exploration.move_check import body_radius
 from frontiernet.exploration.nbvp import NbvpSource, visited
 from frontiernet.errors import InputError
 from frontiernet.exploration.motion import wrap_angle
-from frontiernet.exploration.nbvp_tree import NbvpSettings, accumulated_gains, stop_node
+from frontiernet.exploration.nbvp_tree import NbvpSettings, accumulated_gains, grow_tree, stop_node
 from frontiernet.exploration.run import load_run_config
 from frontiernet.geometry import pose_from_heading, poses_from_headings
 from frontiernet.mapping import FREE
@@ -135,6 +135,24 @@ def test_a_nodes_gain_is_its_parents_plus_its_view_discounted_by_the_branch_leng
     np.testing.assert_allclose(gains, [0.0, 2.0 * np.exp(-0.5), 2.0 * np.exp(-0.5) + 3.0 * np.exp(-1.0)])
 
 
+def test_a_tree_gives_up_after_its_attempts_per_node_as_nbvplanner_does():
+    """nbvplanner's planner loop gives up after 1000 x (nodes + 1) iterations (``nbvp.attempts_per_node``):
+    goals whose edge leaves the free space are attempts too, and each node added allows as many more."""
+    free = np.ones((10, 10), bool)  # a free 1 m square at the origin
+    outside = np.tile([[5.0, 5.0]], (5, 1))  # the edge towards them leaves the square: refused
+    goals = np.concatenate([outside, [[0.8, 0.5]], outside, [[0.5, 0.8]]])
+
+    def nodes(attempts_per_node: int) -> int:
+        xy, parent = np.zeros((10, 2)), np.full(10, -1, np.int64)
+        xy[0] = (0.5, 0.5)
+        return grow_tree(free, 0.0, 0.0, 0.1, goals, 1.0, 0.0, xy, parent, np.zeros(10), np.full(10, -1, np.int64),
+                         attempts_per_node)
+
+    assert nodes(5) == 1  # five refused goals: the root's five attempts spent
+    assert nodes(6) == 3  # the sixth is taken, and the second node allows six more: the last is taken too
+    assert load_run_config().nbvp.attempts_per_node == 1000  # nbvplanner's
+
+
 def test_growth_stops_at_the_first_node_with_enough_nodes_and_some_gain():
     gains = np.array([0.0, 0.0, 3.0, 0.5, 0.2, 0.0])
     assert stop_node(gains, 1, 6, init_iterations=3, threshold=1.0) == 3  # 3 nodes, node 2 above 1
@@ -220,7 +238,7 @@ def test_box_sampling_draws_goals_over_the_whole_map_most_of_them_outside_the_kn
     for region in ("box", "known_free"):
         planner.settings = dataclasses.replace(planner.settings, sample_region=region)
         drawn[region], yaws = planner.samples(space, T[:2, 3])
-        assert len(drawn[region]) == planner.settings.max_samples and np.all(np.abs(yaws) <= np.pi)
+        assert len(drawn[region]) == planner.draws and np.all(np.abs(yaws) <= np.pi)
     cells = {region: tuple(((xy - space.origin_xy) // space.cell_m).astype(int).T) for region, xy in drawn.items()}
     assert np.all(space.free[cells["known_free"]])
     box = drawn["box"]

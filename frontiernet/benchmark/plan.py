@@ -70,8 +70,8 @@ KEYS_ADDED_AFTER_PLANS = {
     "planner.monocular_traversed_is_free": False,  # issue 54: monocular maps alone decide what is traversable, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
-             "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "max_samples": 5000,
-             "stall_frames": 17, "found_on": "views", "yaw_window_deg": 45.0},
+             "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "attempts_per_node": 1000,
+             "stall_frames": 17, "found_on": "views", "yaw_window_deg": 45.0, "sample_region": "box"},
     # issue 54: NBVP's gain test on the branch's views and its node yaws within the drive window; a plan
     # made with the nbvp section before them ran the discounted test and uniform yaws (one without
     # the section ran no nbvp: the section above, today's settings)

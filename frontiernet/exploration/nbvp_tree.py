@@ -30,7 +30,8 @@ class NbvpSettings:
         gain_range_m: depth (metres) up to which a node's camera counts unknown volume.
         gain_width_px: raster of the gain view (the camera's field of view).
         yaw_samples: yaws drawn per node (the best is kept). overshoot_m: edges are checked this far
-            beyond their node, metres. max_samples: sampling attempts per planning call.
+            beyond their node, metres. attempts_per_node: a planning call gives up after this many
+            goals per node of its tree (nbvplanner's 1000 x (nodes + 1) iterations).
         stall_frames: a target is dropped after more on-the-spot frames than this.
         found_on: what must exceed the threshold (g_min) for "gain found": ``discounted``, the best
             node's discounted gain; ``views``, the undiscounted sum of the views along the best
@@ -50,7 +51,7 @@ class NbvpSettings:
     gain_width_px: int
     yaw_samples: int
     overshoot_m: float
-    max_samples: int
+    attempts_per_node: int
     stall_frames: int
     found_on: str = "discounted"
     yaw_window_deg: float = 180.0
@@ -72,7 +73,7 @@ class NbvpSettings:
         settings = cls(number("extension_m", "metres"), number("degressive_coeff", "1 / metres", True),
                        count("init_iterations"), count("cutoff_iterations"), number("gain_range_m", "metres"),
                        count("gain_width_px"), count("yaw_samples"), number("overshoot_m", "metres", True),
-                       count("max_samples"), count("stall_frames"), str(get("found_on") or "discounted"),
+                       count("attempts_per_node"), count("stall_frames"), str(get("found_on") or "discounted"),
                        180.0 if get("yaw_window_deg") is None else number("yaw_window_deg", "degrees"),
                        str(get("sample_region") or "known_free"))
         if settings.sample_region not in SAMPLE_REGIONS:
@@ -189,7 +190,7 @@ def _segment_free(free, origin_x, origin_y, cell_m, x0, y0, ux, uy, reach, step)
 
 @numba.njit(cache=True)
 def grow_tree(free, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m, xy, parent,
-              length, goal_of):  # pragma: no cover
+              length, goal_of, attempts_per_node):  # pragma: no cover
     """The RRT's geometry: for each goal in turn, a node steered from its nearest node.
 
     Args:
@@ -199,13 +200,15 @@ def grow_tree(free, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m,
         extension_m: longest edge; overshoot_m: the edge is checked this far beyond its node.
         xy, parent, length, goal_of: (C, 2) float64, (C,) int64, (C,) float64, (C,) int64 node
             arrays (C = the most nodes, the root included), written; row 0 holds the root on entry.
+        attempts_per_node: goals are taken while fewer than this many per node (the root included)
+            have been, as nbvplanner gives up after 1000 x (nodes + 1) iterations.
     Returns:
         the node count n (rows 0 .. n-1 written): goals are taken until C nodes exist.
     """
     n = 1
     step = 0.5 * cell_m
     for g in range(goals.shape[0]):
-        if n >= xy.shape[0]:
+        if n >= xy.shape[0] or g >= attempts_per_node * n:
             break
         best, best_d2 = 0, np.inf
         for i in range(n):
@@ -241,6 +244,8 @@ class NbvpPlanner:
     def __init__(self, occupancy, conf, camera, rng: np.random.Generator, context=None) -> None:
         self.map, self.conf, self.rng, self.context = occupancy, conf, rng, context
         self.settings = NbvpSettings.from_config(conf.get("nbvp"))
+        # goals drawn per planning call: the most a tree can take before it gives up (its cutoff's nodes)
+        self.draws = self.settings.attempts_per_node * (self.settings.cutoff_iterations + 1)
         self.threshold = float(conf.tracking.min_gain_m3)
         self.pitch = np.radians(float(conf.motion.pitch_deg))
         self.focal_px = float(camera.focal_px) * self.settings.gain_width_px / float(camera.width)
@@ -281,21 +286,21 @@ class NbvpPlanner:
         return FreeSpace(free, origin, cell)
 
     def samples(self, space: FreeSpace, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``max_samples`` draws: (S, 2) float64 world positions, and (S, yaw_samples) float64 yaws in
+        """:attr:`draws` draws: (S, 2) float64 world positions, and (S, yaw_samples) float64 yaws in
         [-pi, pi). Positions are uniform over `space`'s whole grid with ``sample_region: box`` (most
         fall outside free space: the tree steers its nearest node towards them, so it grows towards
         the unexplored, RRT's Voronoi bias), else over the free cells of `space` connected
         (8-neighbours) to the robot's at `xy`. Always the same number of draws (a run repeats with
         its seed)."""
         if self.settings.sample_region == "box":
-            count = self.settings.max_samples
+            count = self.draws
             positions = space.origin_xy + self.rng.random((count, 2)) * np.asarray(space.free.shape) * space.cell_m
             return positions, self.rng.uniform(-np.pi, np.pi, (count, self.settings.yaw_samples))
         labels, _ = ndimage.label(space.free, structure=np.ones((3, 3), bool))
         i, j = grid_cells(xy, space.origin_xy, space.cell_m)[0]
         inside = bool(cells_inside(np.array([i, j]), space.free.shape)) and labels[i, j] > 0
         cells = np.argwhere(labels == labels[i, j]) if inside else np.zeros((0, 2), np.int64)
-        count = self.settings.max_samples
+        count = self.draws
         picks = self.rng.integers(max(len(cells), 1), size=count)
         jitter = self.rng.random((count, 2))
         yaws = self.rng.uniform(-np.pi, np.pi, (count, self.settings.yaw_samples))
@@ -318,7 +323,7 @@ class NbvpPlanner:
         length, goal_of = np.zeros(capacity), np.full(capacity, -1, np.int64)
         xy[0] = root
         n = grow_tree(space.free, float(space.origin_xy[0]), float(space.origin_xy[1]), space.cell_m, goals,
-                      s.extension_m, s.overshoot_m, xy, parent, length, goal_of)
+                      s.extension_m, s.overshoot_m, xy, parent, length, goal_of, s.attempts_per_node)
         tree = RrtTree(xy[:n], np.full(n, yaw_of(T_world_cam)), parent[:n], length[:n], np.zeros(n), np.zeros(n), False,
                        np.zeros(n) if s.found_on == "views" else None)
         return self._score(tree, self.node_yaws(tree, goal_yaws, goal_of[:n], len(memory)), z)
