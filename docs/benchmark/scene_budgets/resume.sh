@@ -13,11 +13,11 @@
 # --redo-changed: where the pinned code changed settings that only some runs read, those runs are
 # redone, the others kept: the emulated-depth runs (8a28c0f, the monocular map's symmetric miss and
 # oblique pixels; 2d183fa, the way back kept open on monocular maps), the nbvp runs (24f8bf2, NBVP's
-# goals drawn over the whole map).
+# goals drawn over the whole map; 67b2bb9, its trees given up after 1000 goals a node).
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 24f8bf2 ../pinned_scene_budgets_24f8bf2}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 67b2bb9 ../pinned_scene_budgets_67b2bb9}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
