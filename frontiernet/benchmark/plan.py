@@ -267,9 +267,10 @@ class Readers:
         return ((self.sources is None or (run.get("depth") or single_source) in self.sources)
                 and (self.methods is None or run["method"] in self.methods))
 
-    def __str__(self) -> str:
-        depth = f"{' and '.join(sorted(self.sources))}-depth " if self.sources is not None else ""
-        return f"{depth}{' and '.join(sorted(self.methods)) + ' ' if self.methods is not None else ''}runs"
+    def __str__(self) -> str:  # "emulated-depth runs", "nbvp runs", "emulated-depth nbvp runs"
+        words = [] if self.sources is None else [" and ".join(sorted(self.sources)) + "-depth"]
+        words += [] if self.methods is None else [" and ".join(sorted(self.methods))]
+        return " ".join(words + ["runs"])
 
 
 def _runs_reading(dotted: str) -> Readers | None:

@@ -77,9 +77,6 @@ class TopdownPrediction:
         known = states != UNKNOWN
         count = int(known.sum())
         stale = self.mean is None or self.mean.shape != states.shape
-        if not predict and stale:  # nothing to read yet; nothing stored, so the owner's next call predicts
-            return (np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, 0.5)).astype(np.float32),
-                    np.zeros(states.shape, np.float32))
         if predict and (stale or count - self.known_at >= self.repredict):
             self.mean = np.full(states.shape, 0.5, np.float32)
             self.variance = np.zeros(states.shape, np.float32)
@@ -87,9 +84,11 @@ class TopdownPrediction:
             if window is not None:
                 mean, variance = self.predictor.predict_topdown_states(states[window], self.cell_m)
                 self.mean[window], self.variance[window] = mean, variance
-            self.known_at, self.predictions = count, self.predictions + 1
-        mean = np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, self.mean)).astype(np.float32)
-        return mean, np.where(known, 0.0, self.variance).astype(np.float32)
+            self.known_at, self.predictions, stale = count, self.predictions + 1, False
+        # a reader before any prediction: 0.5 and no variance, nothing stored (the owner's next call predicts)
+        last_mean, last_variance = (0.5, 0.0) if stale else (self.mean, self.variance)
+        mean = np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, last_mean)).astype(np.float32)
+        return mean, np.where(known, 0.0, last_variance).astype(np.float32)
 
     def _window(self, known: np.ndarray):
         """The (slice, slice) of the map within the range of a known cell (None: none known)."""

@@ -94,7 +94,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     checked after it loads.)"""
     from ..errors import positive_number
     from ..io import input_file
-    from .methods import check_method, owns_topdown_prediction
+    from .methods import check_method
     from .move_check import body_radius
 
     budget = int(conf.run.max_steps if max_steps is None else max_steps)
@@ -116,9 +116,18 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     if show_prediction is not None:
         if not video:
             raise InputError("--show-prediction draws the predicted map into exploration.mp4; leave out --no-video")
-        if not (show_prediction is True and owns_topdown_prediction(method)):  # (its own: check_method's)
+        if not shows_own_prediction(method, show_prediction):  # (its own: check_method's)
             shown_predictor(conf, show_prediction)
     return budget, seed, depth_name
+
+
+def shows_own_prediction(method: str, show_prediction) -> bool:
+    """Whether ``explore --show-prediction`` (alone: `show_prediction` True) draws the prediction the method
+    keeps itself (:func:`~.methods.owns_topdown_prediction`: mapex, frontiernet-mapex) rather than one of
+    its own (:func:`shown_predictor`)."""
+    from .methods import owns_topdown_prediction
+
+    return show_prediction is True and owns_topdown_prediction(method)
 
 
 def shown_predictor(conf, show_prediction):
@@ -174,7 +183,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     from ..simulator.world import build_world
     from .explorer import Explorer
     from .outputs import VideoWriter, write_run
-    from .methods import MethodContext, make_method, owns_topdown_prediction
+    from .methods import MethodContext, make_method
     from .recording import RerunRecorder
     from .video import StepPictures
 
@@ -205,7 +214,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     writer = VideoWriter(out / "exploration.mp4", float(conf.run.video_fps)) if video else None
     # --show-prediction alone: the method's own prediction where it has one (mapex, frontiernet-mapex),
     # read, not predicted again; else a prediction of its own
-    own = exploration_method.source.topdown if show_prediction is True and owns_topdown_prediction(method) else None
+    own = exploration_method.source.topdown if shows_own_prediction(method, show_prediction) else None
     prediction = own
     if show_prediction is not None and own is None:
         from .predicted import topdown_prediction

@@ -28,7 +28,7 @@ class BandViews:
 
     def __init__(self, observed: np.ndarray, log_odds: np.ndarray, occupied_threshold: float) -> None:
         self._observed, self._log_odds, self._threshold = observed, log_odds, float(occupied_threshold)
-        self._views: dict[tuple[int, int], list] = {}  # (k0, k1) -> [free, occupied, stale box or None]
+        self._views: dict[tuple[int, int], list] = {}  # (k0, k1) -> [free, occupied, ChangedBox of stale columns]
 
     def _columns(self, k0: int, k1: int, window: tuple) -> tuple[np.ndarray, np.ndarray]:
         """(free, occupied) bool columns of layers [k0, k1) over the (X, Y) `window` (two slices)."""
@@ -38,25 +38,23 @@ class BandViews:
 
     def view(self, k0: int, k1: int) -> tuple[np.ndarray, np.ndarray]:
         entry = self._views.get((k0, k1))
+        stale = None if entry is None else entry[2].take()
         if entry is None:
             free, occupied = self._columns(k0, k1, (slice(None), slice(None)))
-        elif entry[2] is not None:
-            window = tuple(slice(a, b) for a, b in zip(*entry[2]))
+        elif stale is not None:
+            window = stale[:2]
             free, occupied = entry[0].copy(), entry[1].copy()
             free[window], occupied[window] = self._columns(k0, k1, window)
         else:
             return entry[0], entry[1]
-        self._views[k0, k1] = entry = [read_only(free), read_only(occupied), None]
+        self._views[k0, k1] = entry = [read_only(free), read_only(occupied), ChangedBox()]
         return entry[0], entry[1]
 
     def changed(self, lo: np.ndarray, hi: np.ndarray) -> None:
         """The map's voxels in the index box [lo, hi) ((3,) int, (X, Y, Z)) may have changed."""
-        lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
         for (k0, k1), entry in self._views.items():
             if lo[2] < k1 and hi[2] > k0:
-                stale = entry[2]
-                entry[2] = (lo[:2], hi[:2]) if stale is None else (np.minimum(stale[0], lo[:2]),
-                                                                   np.maximum(stale[1], hi[:2]))
+                entry[2].add(lo, hi)
 
 
 class ChangedBox:
