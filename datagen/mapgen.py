@@ -52,11 +52,28 @@ def load_mapgen_config(user_file=None, overrides=()):
 
 
 def config_hash(conf) -> str:
-    """Short SHA-256 of the resolved config without :data:`RUNTIME_KEYS`: names a dataset's settings."""
+    """Short SHA-256 of the resolved config without :data:`RUNTIME_KEYS` and without the method sections
+    (:data:`~frontiernet.benchmark.plan.METHOD_SECTIONS`, e.g. ``nbvp``) that no run of ``mapgen.runs``
+    reads: names a dataset's settings, so a change to another method leaves the dataset resumable."""
+    from frontiernet.benchmark.plan import METHOD_SECTIONS
+
     settings = OmegaConf.to_container(conf, resolve=True)
     for section, key in RUNTIME_KEYS:
         settings.get(section, {}).pop(key, None)
+    methods_run = {run.get("method") for run in settings.get("mapgen", {}).get("runs") or [] if isinstance(run, dict)}
+    for section, readers in METHOD_SECTIONS.items():
+        if not methods_run & set(readers):
+            settings.pop(section, None)
     return hashlib.sha256(json.dumps(settings, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+
+
+def _read_info_rehashed(out: Path) -> dict:
+    """The dataset.json of `out` with its ``config_hash`` recomputed from its stored config by today's
+    :func:`config_hash`: a dataset made before a method section was left out of the hash still resumes."""
+    info = read_map_dataset_info(out)
+    if isinstance(info.get("config"), dict):
+        info = {**info, "config_hash": config_hash(OmegaConf.create(info["config"]))}
+    return info
 
 
 def check_runs(conf) -> list[dict]:
@@ -249,7 +266,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}
     created, existed = not (out / INFO_NAME).exists(), out.exists()
     prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
-                   read_map_dataset_info, write_map_dataset_info)
+                   _read_info_rehashed, write_map_dataset_info)
     remove_stale_temporaries(out / SHARDS_DIR)
     tasks = plan_map_tasks(specs, runs, seed, out)
     todo = [task for task in tasks if not map_shard_complete(task.path)]

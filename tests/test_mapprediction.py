@@ -125,6 +125,9 @@ def test_resume_makes_only_the_missing_runs_and_refuses_another_config(map_data,
     other = OmegaConf.merge(conf, {"mapgen": {"max_steps": 30}})
     with pytest.raises(InputError, match="different config_hash"):
         generate_maps(SCENES, copy, other, seed=1, resume=True, progress=False)
+    nbvp_changed = OmegaConf.merge(conf, {"nbvp": {"attempts_per_node": 7}})  # a method no run of it uses
+    summary = generate_maps(SCENES, copy, nbvp_changed, seed=1, resume=True, progress=False)
+    assert summary["runs_done_before"] == 2 and summary["runs_this_session"] == 0
 
 
 # --------------------------------------------------------------------------- encodings
