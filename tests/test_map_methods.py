@@ -168,10 +168,17 @@ def test_the_predicted_panel_colours_unknown_cells_by_their_predicted_occupancy(
 def test_rays_stop_before_a_cell_predicted_occupied():
     mean = np.zeros((21, 21), np.float32)
     mean[15, :] = 0.85  # a predicted wall 5 cells in +x from the centre
-    seen = visible_cells(mean, np.array([10, 10]), 64, 8.0, 0.8)
+    def seen_mask(probability):
+        rows, cols = visible_cells(probability, np.array([10, 10]), 64, 8.0, 0.8)
+        assert len(set(zip(rows.tolist(), cols.tolist()))) == len(rows)  # each cell once
+        mask = np.zeros(probability.shape, bool)
+        mask[rows, cols] = True
+        return mask
+
+    seen = seen_mask(mean)
     assert seen[10, 10] and seen[14, 10] and not seen[15, 10] and not seen[17, 10]
     assert seen[10, 17] and seen[3, 10] and not seen[10, 19]  # the other directions reach their range, no farther
-    assert visible_cells(np.where(mean > 0, 0.75, 0.0), np.array([10, 10]), 64, 8.0, 0.8)[17, 10]  # below 0.8: seen
+    assert seen_mask(np.where(mean > 0, 0.75, 0.0))[17, 10]  # below 0.8: seen
 
 
 def test_mapex_ranks_a_frontier_with_uncertain_unknown_space_in_sight_above_one_without():

@@ -51,11 +51,13 @@ from .sources import FrontierSource, Method
 
 
 def visible_cells(mean: np.ndarray, start: np.ndarray, num_rays: int, range_cells: float,
-                  hit_probability: float, angles: np.ndarray | None = None) -> np.ndarray:
-    """(X, Y) bool: the cells `num_rays` rays from cell `start` ((2,) int) see in the (X, Y) occupancy
-    probability `mean`, each up to `range_cells` cells, stopping before the first cell of probability
-    >= `hit_probability` or off the map (MapEx's ``get_free_points`` with ``use_prob``). `angles`: the
-    rays' directions ((R,) radians in the map's x-y frame; None: `num_rays` spread evenly around)."""
+                  hit_probability: float, angles: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The cells `num_rays` rays from cell `start` ((2,) int) see in the (X, Y) occupancy probability
+    `mean`, each up to `range_cells` cells, stopping before the first cell of probability >=
+    `hit_probability` or off the map (MapEx's ``get_free_points`` with ``use_prob``), as a pair of
+    (K,) int64 index arrays, each cell once (``array[seen]`` reads them; the cost is the rays', not the
+    map's). `angles`: the rays' directions ((R,) radians in the map's x-y frame; None: `num_rays`
+    spread evenly around)."""
     if angles is None:
         angles = np.linspace(0.0, 2 * np.pi, int(num_rays), endpoint=False)
     steps = np.arange(0.0, float(range_cells) + 1e-9, 0.5)  # half a cell: no cell of a ray is skipped
@@ -68,9 +70,8 @@ def visible_cells(mean: np.ndarray, start: np.ndarray, num_rays: int, range_cell
     stop[:, 0] = ~inside[:, 0]  # the frontier cell itself is free (the robot stands there)
     first = np.where(stop.any(axis=1), np.argmax(stop, axis=1), stop.shape[1])
     seen = np.arange(stop.shape[1])[None, :] < first[:, None]
-    out = np.zeros(mean.shape, bool)
-    out[clipped[seen][:, 0], clipped[seen][:, 1]] = True
-    return out
+    flat = np.unique(np.ravel_multi_index((clipped[seen][:, 0], clipped[seen][:, 1]), mean.shape))
+    return np.unravel_index(flat, mean.shape)
 
 
 class MapexSource(FrontierSource):
