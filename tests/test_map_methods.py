@@ -266,6 +266,19 @@ def test_seer_proposes_one_view_per_cluster_on_its_circles_away_from_the_robot()
     for view in views:
         assert np.hypot(*(view.position[:2] - [0.5, 2.0])) >= 0.75
         assert any(0.5 - 1e-6 <= np.hypot(*(view.position[:2] - c)) <= 1.2 + 1e-6 for c in centres)
+    # the views' gains are kept while the map does not change near them: the next frame integrates none
+    T_robot = poses_from_headings(np.array([[0.5, 2.0, 1.2]]), np.array([0.0]), 0.0)[0]
+    integrated = []
+    source.gains = lambda poses, crop, gains=source.gains: integrated.append(len(poses)) or gains(poses, crop)
+    again = source.views(source.clusters(1.2), [None] * len(clusters), T_robot)
+    assert [(v.position.tolist(), v.gain_m3) for v in again] == [(v.position.tolist(), v.gain_m3) for v in views]
+    assert integrated == []
+    T[:3, 3] = [1.0, 2.0, 1.2]
+    occupancy.integrate(np.full((64, 64), 2.0, np.float32), K, T)  # a wall mapped 2 m ahead: gains change
+    again = source.views(source.clusters(1.2), [None] * len(source.clusters(1.2)), T_robot)
+    assert integrated and again  # integrated afresh, not read from before the change
+    fresh = seer_source(occupancy).views(source.clusters(1.2), [None] * len(source.clusters(1.2)), T_robot)
+    assert [(v.position.tolist(), v.gain_m3) for v in again] == [(v.position.tolist(), v.gain_m3) for v in fresh]
 
 
 @pytest.mark.parametrize("method", ["seer", "mapex"])

@@ -61,6 +61,17 @@ from .sources import FrontierSource, Method
 
 
 @dataclass
+class ViewGains:
+    """The gains of one cluster's ring of views kept between frames: `crop` the prediction they were
+    integrated with, `box` ((2,) lo, (2,) hi) the map's xy index box their rays can reach, `gains`
+    {index into the ring: (headings,) m^3}."""
+
+    crop: object
+    box: tuple[np.ndarray, np.ndarray]
+    gains: dict
+
+
+@dataclass
 class Crop:
     """A cached crop prediction: `corner` (3,) int64 map index of its first voxel, `centre` (2,) world xy
     it was predicted around, `occupied` (X, Y, Z) bool predicted occupied (unknown voxels only),
@@ -126,6 +137,12 @@ class SeerSource(FrontierSource):
         self.min_gain = float(conf.tracking.min_gain_m3)
         self.crops: list[Crop] = []
         self.predictions = 0  # crops predicted so far
+        # a view's gain changes only when a voxel within its rays' reach changes: the gains of each
+        # cluster's ring of views are kept (per cluster cells and crop) until the map changes near it
+        self.reach = self.max_depth / np.cos(np.arctan(np.sqrt(2.0) * (self.width / 2.0) / self.focal))
+        self._changes = occupancy.changes()
+        self._view_gains: dict[bytes, ViewGains] = {}
+        self._used: set[bytes] = set()  # the keys of this frame's clusters
         # within this of the robot the grid's unknown band under the camera is open (omniscient.py's ring)
         lowest = np.arctan(float(camera.height) / 2.0 / float(camera.focal_px)) - self.pitch
         self.ring_m = float(conf.planner.clearance_m) + self.band / np.tan(lowest)
@@ -198,10 +215,9 @@ class SeerSource(FrontierSource):
         volumes = np.zeros(len(poses))
         if not len(poses):
             return volumes
-        reach = self.max_depth / np.cos(np.arctan(np.sqrt(2.0) * (self.width / 2.0) / self.focal))
         voxel, origin = float(self.map.voxel_size), np.asarray(self.map.origin, np.float64)
-        lo = np.floor((poses[:, :3, 3].min(axis=0) - reach - origin) / voxel).astype(np.int64)
-        hi = np.ceil((poses[:, :3, 3].max(axis=0) + reach - origin) / voxel).astype(np.int64) + 1
+        lo = np.floor((poses[:, :3, 3].min(axis=0) - self.reach - origin) / voxel).astype(np.int64)
+        hi = np.ceil((poses[:, :3, 3].max(axis=0) + self.reach - origin) / voxel).astype(np.int64) + 1
         lo, hi = np.clip(lo, 0, self.map.shape), np.clip(hi, 0, self.map.shape)
         box = tuple(slice(a, b) for a, b in zip(lo, hi))
         observed = self.map.observed[box]
@@ -244,18 +260,45 @@ class SeerSource(FrontierSource):
                     & (np.hypot(*(xy[keep] - robot).T) >= self.min_view_m)]
         if not len(keep):
             return None
-        xy = xy[keep]
         sample = cells[:: max(1, len(cells) // 64)]  # the bearing of the cluster (SEER: its down-sampled cells)
-        bearings = np.arctan2(sample[None, :, 1] - xy[:, None, 1], sample[None, :, 0] - xy[:, None, 0])
+        bearings = np.arctan2(sample[None, :, 1] - xy[keep, None, 1], sample[None, :, 0] - xy[keep, None, 0])
         mean = bearings[:, 0] + wrap(bearings - bearings[:, :1]).mean(axis=1)
-        yaws = (mean[:, None] + self.offsets[None, :]).reshape(-1)
-        poses = poses_from_headings(np.column_stack([np.repeat(xy, len(self.offsets), axis=0), np.full(len(yaws), z)]),
-                                    yaws, self.pitch)
-        gains = self.gains(poses, crop).reshape(len(xy), len(self.offsets))
+        yaws = mean[:, None] + self.offsets[None, :]  # (kept views, headings)
+        kept = self._kept_gains(cells, crop, centre, z)
+        missing = [k for k, ring_index in enumerate(keep) if ring_index not in kept.gains]
+        if missing:
+            poses = poses_from_headings(np.column_stack([np.repeat(xy[keep[missing]], len(self.offsets), axis=0),
+                                                         np.full(len(missing) * len(self.offsets), z)]),
+                                        yaws[missing].reshape(-1), self.pitch)
+            for k, view_gains in zip(missing, self.gains(poses, crop).reshape(len(missing), len(self.offsets))):
+                kept.gains[int(keep[k])] = view_gains
+        gains = np.array([kept.gains[int(ring_index)] for ring_index in keep])
         best = np.unravel_index(int(np.argmax(gains)), gains.shape)
         cell = index[keep[best[0]]]
-        return xy[best[0]], float(wrap(yaws.reshape(gains.shape)[best])), float(gains[best]), \
-            float(length[cell[0], cell[1]])
+        return xy[keep[best[0]]], float(wrap(yaws[best])), float(gains[best]), float(length[cell[0], cell[1]])
+
+    def _kept_gains(self, cells: np.ndarray, crop: Crop | None, centre: np.ndarray, z: float) -> ViewGains:
+        """The :class:`ViewGains` of the cluster of (N, 2) world xy `cells` with `crop` (a new, empty one
+        when none is kept for them, or it was integrated with another crop)."""
+        key = np.round(cells / float(self.map.voxel_size)).astype(np.int64).tobytes() + np.float64(z).tobytes()
+        kept = self._view_gains.get(key)
+        if kept is None or kept.crop is not crop:
+            reach = self.radii[-1] + self.reach
+            origin, voxel = np.asarray(self.map.origin[:2], np.float64), float(self.map.voxel_size)
+            box = (np.floor((centre - reach - origin) / voxel).astype(np.int64),
+                   np.ceil((centre + reach - origin) / voxel).astype(np.int64) + 1)
+            kept = self._view_gains[key] = ViewGains(crop, box, {})
+        self._used.add(key)
+        return kept
+
+    def _forget_changed(self) -> None:
+        """Drop the kept gains of clusters whose box the map's updates since the last frame touched."""
+        changed = self._changes.take()
+        if changed is None:
+            return
+        lo, hi = np.array([changed[0].start, changed[1].start]), np.array([changed[0].stop, changed[1].stop])
+        for key in [k for k, kept in self._view_gains.items() if np.all(kept.box[0] < hi) and np.all(lo < kept.box[1])]:
+            del self._view_gains[key]
 
     def views(self, clusters, crops, T: np.ndarray) -> list[FrontierObservation]:
         """One observation per cluster with a view of at least ``tracking.min_gain_m3`` (see the module
@@ -264,6 +307,8 @@ class SeerSource(FrontierSource):
         if not clusters:
             return []
         grid, length = self._open_cells(T, z)
+        self._forget_changed()
+        self._used = set()
         found = []
         for cells, crop in zip(clusters, crops):
             view = self.best_view(cells, crop, grid, length, robot, z)
@@ -275,6 +320,7 @@ class SeerSource(FrontierSource):
             weighted = gain * path / (path + self.vm * self.time_per_rad * theta)
             found.append(FrontierObservation(np.array([xy[0], xy[1], z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]),
                                              weighted, len(cells), np.full(2, np.nan), np.array(T, np.float64)))
+        self._view_gains = {key: kept for key, kept in self._view_gains.items() if key in self._used}  # this frame's
         if not found:
             return []
         scale = max(1.0, self.min_gain / min(o.gain_m3 for o in found))  # no proposal below g_min; order kept
