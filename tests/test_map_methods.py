@@ -227,6 +227,41 @@ def test_mapex_predicts_again_only_once_the_map_has_learnt_enough():
     assert len(calls) == 2
 
 
+def test_mapex_predicts_only_where_the_map_changed_as_a_prediction_of_the_whole_map_would(tmp_path):
+    """The cached prediction is redone only around the changed cells (their box grown by the rays' range
+    and the network's reach), and every cell the rays can read equals a prediction of the whole map."""
+    from frontiernet.exploration.predicted import TopdownPrediction
+    from frontiernet.mapprediction import load_predictor
+
+    torch.manual_seed(1)
+    spec = PredictorSpec("mapex", NetworkSettings(in_channels=2), 3)  # the shipped architecture, random weights
+    predictor = load_predictor(save_predictor(tmp_path / "m.safetensors", spec, spec.build().state_dict()))
+    radius = predictor.receptive_radius
+    probe = np.zeros((1, 2, 128, 128), np.float32)
+    poked = probe.copy()
+    poked[0, 0, 64, 64] = 1.0
+    moved = np.abs(predictor._run(poked) - predictor._run(probe))[:, 0].max(axis=0) > 1e-6
+    rows, cols = np.nonzero(moved)  # an input cell reaches no output farther than the bound
+    assert moved[64, 64] and np.abs(rows - 64).max() <= radius and np.abs(cols - 64).max() <= radius
+
+    shapes = []
+    record = predictor.predict_topdown_states
+    predictor.predict_topdown_states = lambda states, cell: shapes.append(states.shape) or record(states, cell)
+    topdown = TopdownPrediction(predictor, 0.1, 35.0, 1)
+    states = np.zeros((300, 240), np.int8)  # unknown (0)
+    states[20:60, 20:50] = 1  # a room seen, free (1), its walls occupied (2)
+    states[20:60, 20] = states[20, 20:50] = 2
+    topdown(states)
+    states[60:80, 30:40] = 1  # the robot maps a corridor on
+    mean, variance = topdown(states)
+    assert shapes[1][0] < states.shape[0] and shapes[1][1] < states.shape[1]  # not the whole map
+    whole_mean, whole_variance = record(states, 0.1)
+    from scipy import ndimage
+    in_range = ndimage.binary_dilation(states > 0, np.ones((73, 73), bool))  # within 36 cells of a known one
+    assert np.allclose(mean[in_range], whole_mean[in_range], atol=1e-5)
+    assert np.allclose(variance[in_range], whole_variance[in_range], atol=1e-6)
+
+
 # --------------------------------------------------------------------------- SEER's gain and views
 
 def seer_source(occupancy, **changes) -> SeerSource:

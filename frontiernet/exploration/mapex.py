@@ -5,11 +5,12 @@ Information Gain from Global Map Predictions", ICRA 2025; castacks/MapEx ``scrip
 
 Each frame (numbers: the ``mapex`` section of ``configs/explore.yaml``, with their sources):
 
-1. **Prediction.** The ``mapex`` ensemble predicts the whole top-down map at the camera's height
+1. **Prediction.** The ``mapex`` ensemble predicts the top-down map at the camera's height
    (:meth:`~frontiernet.mapprediction.MapPredictor.predict_topdown_states`: the mean occupancy over
    the members and their variance; MapEx's ``mean_map`` and ``var_map = torch.var`` over its LaMa
-   ensemble), on the window of the map within ``visibility_range_m`` of a known cell (no ray reads
-   farther). Cells the map now knows keep their state (mean 0 or 1, variance 0).
+   ensemble), as a prediction of the whole map would, but only around the cells mapped since the last
+   prediction (:class:`~.predicted.TopdownPrediction`): cells farther than ``visibility_range_m`` from a
+   known cell are never read. Cells the map now knows keep their state (mean 0 or 1, variance 0).
 2. **Frontiers** (``FrontierPlanner.get_frontier_centers_given_obs_map``): free cells beside unknown
    ones, 8-connected regions of at least ``min_cells`` cells (``region_size_threshold`` 10: more than
    10), each represented by its cell nearest the region's mean (:mod:`~frontiernet.frontiers.map_frontiers`).
@@ -29,10 +30,10 @@ score), and each gets ``value_floor`` first, so that frontiers with no variance 
 distance. A common factor leaves the ranking as it is.
 
 Cost per step: one ray cast of ``num_rays`` x (range / half a cell) samples per frontier (NumPy), and a
-prediction of the window (three 127k-parameter UNets: ~1-3 s for a 15 x 13 m map on 2 busy cores)
-only when the map's band has learnt ``repredict_new_cells`` cells since the last one (MapEx predicts
-once per goal choice); in between the cached mean and variance are read with the current map's
-known cells.
+prediction of the box the robot has mapped since the last one, grown by the rays' range and the
+network's reach (three 127k-parameter UNets), only when the map's band has learnt
+``repredict_new_cells`` cells since the last one (MapEx predicts once per goal choice); in between the
+cached mean and variance are read with the current map's known cells.
 """
 
 from __future__ import annotations

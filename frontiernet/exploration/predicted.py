@@ -50,14 +50,19 @@ def open_predictor(conf, kind: str, model=None) -> MapPredictor:
 class TopdownPrediction:
     """A ``mapex`` predictor's mean and variance of a map's top-down cells, predicted anew only once the map
     knows `repredict_new_cells` more cells than at the last prediction (MapEx predicts once per goal
-    choice), over the window of the map within `range_cells` of a known cell (cells farther are never
-    read: they keep 0.5 and no variance). In between, the cached prediction is read with the cells the
-    map now knows (mean 0 free, 1 occupied; variance 0). ``--method mapex`` scores its frontiers with it;
-    ``explore --show-prediction`` draws it.
+    choice), and then only where it can change: around the cells whose state changed since the last
+    prediction, within the network's receptive field (``receptive_radius``) and the rays' range
+    `range_cells` (cells within range of a known cell are read; farther ones keep 0.5 and no variance).
+    The predicted window and its context are aligned to the network's ``multiple`` on the map's grid, so
+    a cell's prediction is the one a prediction of the whole map would give it: the cost of a prediction
+    is that of the box the robot has just mapped, not of the map. In between, the cached prediction is
+    read with the cells the map now knows (mean 0 free, 1 occupied; variance 0). ``--method mapex``
+    scores its frontiers with it; ``explore --show-prediction`` draws it.
 
     Args:
         predictor: a loaded ``mapex`` :class:`~frontiernet.mapprediction.MapPredictor` (or anything with
-            ``predict_topdown_states(states, voxel_size)``); cell_m: the map's voxel size, metres.
+            ``predict_topdown_states(states, voxel_size)``, and optionally ``receptive_radius`` and
+            ``multiple``: 0 and 1 without them); cell_m: the map's voxel size, metres.
     Attributes:
         predictions: how many predictions were made.
     """
@@ -65,7 +70,10 @@ class TopdownPrediction:
     def __init__(self, predictor, cell_m: float, range_cells: float, repredict_new_cells: int) -> None:
         self.predictor, self.cell_m = predictor, float(cell_m)
         self.range_cells, self.repredict = float(range_cells), int(repredict_new_cells)
+        self.context = int(getattr(predictor, "receptive_radius", 0))
+        self.multiple = max(1, int(getattr(predictor, "multiple", 1)))
         self.mean = self.variance = None  # (X, Y) float32, the last prediction over the whole map
+        self.states = None  # (X, Y) int8, the states it was made from
         self.known_at = -1  # known cells at the last prediction
         self.predictions = 0
 
@@ -78,26 +86,39 @@ class TopdownPrediction:
         count = int(known.sum())
         stale = self.mean is None or self.mean.shape != states.shape
         if predict and (stale or count - self.known_at >= self.repredict):
-            self.mean = np.full(states.shape, 0.5, np.float32)
-            self.variance = np.zeros(states.shape, np.float32)
-            window = self._window(known)
-            if window is not None:
-                mean, variance = self.predictor.predict_topdown_states(states[window], self.cell_m)
-                self.mean[window], self.variance[window] = mean, variance
+            if stale:
+                self.mean = np.full(states.shape, 0.5, np.float32)
+                self.variance = np.zeros(states.shape, np.float32)
+                self.states = np.full(states.shape, UNKNOWN, np.int8)
+            changed = states != self.states
+            if changed.any():
+                self._predict(states, changed)
+            self.states = states.copy()
             self.known_at, self.predictions, stale = count, self.predictions + 1, False
         # a reader before any prediction: 0.5 and no variance, nothing stored (the owner's next call predicts)
         last_mean, last_variance = (0.5, 0.0) if stale else (self.mean, self.variance)
         mean = np.where(states == FREE, 0.0, np.where(states == OCCUPIED, 1.0, last_mean)).astype(np.float32)
         return mean, np.where(known, 0.0, last_variance).astype(np.float32)
 
-    def _window(self, known: np.ndarray):
-        """The (slice, slice) of the map within the range of a known cell (None: none known)."""
-        if not known.any():
-            return None
-        rows, cols = np.flatnonzero(known.any(axis=1)), np.flatnonzero(known.any(axis=0))
-        margin = int(np.ceil(self.range_cells)) + 1
-        return (slice(max(rows[0] - margin, 0), min(rows[-1] + margin + 1, known.shape[0])),
-                slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, known.shape[1])))
+    def _predict(self, states: np.ndarray, changed: np.ndarray) -> None:
+        """Predict the cells that the (X, Y) bool `changed` cells can change or bring into range: the box
+        of them grown by the rays' range and the receptive field, from that box grown by the field again
+        (its context), both aligned to the network's multiple."""
+        rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+        lo, hi = np.array([rows[0], cols[0]]), np.array([rows[-1], cols[-1]]) + 1
+        grow = max(int(np.ceil(self.range_cells)) + 1, self.context)
+        window = self._aligned(lo - grow, hi + grow, states.shape)
+        context = self._aligned(window[0] - self.context, window[1] + self.context, states.shape)
+        region = tuple(slice(a, b) for a, b in zip(*context))
+        mean, variance = self.predictor.predict_topdown_states(states[region], self.cell_m)
+        inner = tuple(slice(a - c, b - c) for a, b, c in zip(*window, context[0]))
+        target = tuple(slice(a, b) for a, b in zip(*window))
+        self.mean[target], self.variance[target] = mean[inner], variance[inner]
+
+    def _aligned(self, lo: np.ndarray, hi: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
+        """The index box [lo, hi) grown to multiples of :attr:`multiple` and clipped to the map `shape`."""
+        m = self.multiple
+        return np.maximum(lo // m * m, 0), np.minimum(-(-hi // m) * m, np.asarray(shape))
 
 
 def topdown_prediction(conf, predictor, cell_m: float) -> TopdownPrediction:

@@ -115,6 +115,13 @@ class UNet(nn.Module):
         self.merge = nn.ModuleList([_conv(dims, widths[0] + settings.in_channels, widths[0], kernel=1)]
                                    + [_conv(dims, 2 * w, w) for w in widths[1:-1]])
         self.head = (nn.Conv2d if dims == 2 else nn.Conv3d)(widths[0], 1, 1)
+        levels = len(widths)
+        self.receptive_radius = int(  # a bound, in full-resolution cells, on how far an input reaches an output:
+            sum(2 ** i for i in range(levels - 1))  # the strided 2x2 downs (one cell of level i: 2^i cells)
+            + sum(2 ** i for i in range(1, levels - 1))  # the 3x3 convolutions of the intermediate levels
+            + sum(settings.dilations) * 2 ** (levels - 1)  # the dilated 3x3 ones of the deepest level
+            + sum(2 ** (i + 1) for i in range(levels - 1))  # the transposed 2x2 ups
+            + sum(2 ** i for i in range(1, levels - 1)))  # the 3x3 merges (the full-resolution one is 1x1)
 
     def _dilation(self, d: int):
         # the crops are 24 voxels high (6 at /4): z dilates at most 2
@@ -168,6 +175,12 @@ class Ensemble(nn.Module):
     def multiple(self) -> int:
         """Input sizes must be multiples of this on every axis."""
         return self.members[0].multiple
+
+    @property
+    def receptive_radius(self) -> int:
+        """Input cells farther than this (on any axis, full resolution) from an output cell do not change
+        it (a bound: the UNet's strides, kernels and dilations summed)."""
+        return self.members[0].receptive_radius
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return torch.stack([member(x) for member in self.members])

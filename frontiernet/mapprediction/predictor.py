@@ -60,6 +60,17 @@ class MapPredictor:
         """Predicted probability above which a cell counts as occupied (``predictor.occupied_threshold``)."""
         return float(self.spec.extra.get("occupied_threshold", 0.5))
 
+    @property
+    def receptive_radius(self) -> int:
+        """Input cells farther than this from an output cell do not change it (:class:`~.networks.Ensemble`)."""
+        return self.net.receptive_radius
+
+    @property
+    def multiple(self) -> int:
+        """The network's input multiple: a crop of the map started on a multiple of it is predicted as
+        the whole map would be (the strided levels see the same blocks)."""
+        return self.net.multiple
+
     def _check(self, kind: str, voxel_size: float) -> None:
         if self.kind != kind:
             raise InputError(f"{self.path}: a {self.kind} predictor, not a {kind} one "
