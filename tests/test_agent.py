@@ -159,7 +159,7 @@ def test_long_move_never_passes_through_a_thin_wall():
     assert result.collided and result.T_world_cam[0, 3] < 4.0
     samples = np.linspace(1.0, result.T_world_cam[0, 3], 400)
     path = np.stack([samples, np.full(400, 2.0), np.full(400, 1.2)], axis=1)
-    assert distance_to_surface(scene, path).min() >= 0.2 - 1e-5
+    assert distance_to_surface(scene, path).min() >= float(AGENT.radius_m) - 1e-5
 
 
 def test_agent_leaving_free_space_is_stopped():

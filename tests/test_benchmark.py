@@ -16,6 +16,10 @@ from conftest import check_sigterm_ends_workers, scenes_config
 from frontiernet.cli.main import main
 from frontiernet.config import load_config
 
+OLD_ROBOT = ("sim.agent.radius_m=0.2", "sim.voxels.floor_clearance_m=0.2", "planner.clearance_m=0.3")
+"""The robot every fixed-budget folder ran with (0.1 m, 0.1 m and 0.2 m since 2026-12-06):
+docs/benchmark/published/resume.sh sets it back."""
+
 
 def bench(*args) -> tuple[int, str, str]:
     out, err = io.StringIO(), io.StringIO()
@@ -191,7 +195,7 @@ def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_other
     code, _, stderr = bench(*args, *change)  # the plan has the new value: a plain resume, nothing to run
     assert code == 0 and "bench 1/" not in stderr
     code, _, stderr = bench(*args, *change, "planner.clearance_m=0.35", "--redo-changed")
-    assert code == 2 and "conf.planner.clearance_m: 0.3 in the plan, 0.35 now" in stderr and "--redo-changed" not in stderr
+    assert code == 2 and "conf.planner.clearance_m: 0.2 in the plan, 0.35 now" in stderr and "--redo-changed" not in stderr
 
 
 def test_monocular_keys_change_only_monocular_runs_and_a_methods_section_only_its_runs():
@@ -337,7 +341,7 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         # (docs/benchmark/published/resume.sh adds --set planner.gain_exponent=1: the plan ran with 1,
         # the default since 2026-11-27 is 2)
         overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", "planner.approach_radius_m=0",
-                     *overrides)
+                     *OLD_ROBOT, *overrides)
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 
@@ -345,8 +349,8 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     # today's default exponent is a change of settings for this plan: refused, naming the key
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
         resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(
-            None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0"]), resolve=True)})
-    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 $SETTINGS" in \
+            None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0", *OLD_ROBOT]), resolve=True)})
+    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 \\\n    " + " ".join(OLD_ROBOT) + " $SETTINGS" in \
         (published / "resume.sh").read_text()
     assert "SETTINGS=${SETTINGS-planner.gain_exponent=1}" in (published / "resume.sh").read_text()
     with pytest.raises(InputError, match=r"\(conf.planner.approach_radius_m: 0.0 in the plan, 1.5 now\)"):
@@ -402,8 +406,8 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
     from frontiernet.exploration.run import load_run_config
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
-        overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", *overrides)  # published/
-        # resume.sh sets both for all
+        overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", *OLD_ROBOT,
+                     *overrides)  # published/resume.sh sets these for all
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 
@@ -496,12 +500,12 @@ def test_scene_starts_come_first_from_a_plan_folders_start_poses(tmp_path):
 
 
 def test_a_shipped_start_shut_in_by_a_narrow_door_is_left_out_and_sampled_starts_avoid_it(tmp_path, caplog):
-    """Room 2's door is 0.4 m wide, narrower than the robot's 2 x 0.3 m clearance: its shipped start
+    """Room 2's door is 0.25 m wide, narrower than the robot's 2 x 0.2 m clearance: its shipped start
     is left out (logged) and every start lies in room 1, the region the robot can travel."""
     from frontiernet.benchmark.plan import start_poses
     from frontiernet.config import load_config
 
-    spec = kth_folder(tmp_path, [[30, 75], [30, 30]], wall=60, door=(26, 34))  # a 0.4 m door
+    spec = kth_folder(tmp_path, [[30, 75], [30, 30]], wall=60, door=(28, 33))  # a 0.25 m door
     with caplog.at_level("WARNING"):
         poses = start_poses(spec, 4, 0, load_config("explore"), scene_starts=True)
     assert "shipped start 0" in caplog.text and "too narrow" in caplog.text

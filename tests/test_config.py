@@ -40,7 +40,7 @@ def test_a_user_file_with_an_unknown_key_is_refused_naming_the_file(tmp_path):
 
 
 def test_a_value_of_another_kind_than_the_default_is_refused(tmp_path):
-    with pytest.raises(InputError, match="'planner.clearance_m' takes a number \\(default 0.3\\), got 'abc'"):
+    with pytest.raises(InputError, match="'planner.clearance_m' takes a number \\(default 0.2\\), got 'abc'"):
         load_config("explore", overrides=["planner.clearance_m=abc"])
     with pytest.raises(InputError, match="'planner.unknown_is_obstacle' takes true or false"):
         load_config("explore", overrides=["planner.unknown_is_obstacle=1"])

@@ -322,7 +322,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--start", "0.6,2.5,1.2,0"], "inside an obstacle"),
+    (["--start", "0.85,2.5,1.2,0"], "inside an obstacle"),  # 0.05 m from the wall's face at x = 0.8
     (["--start", "50,50,1.2,0"], "outside the scene"),
     (["--start", "2,2.5,9,0"], "outside the scene"),  # above the walls
     (["--max-steps", "0"], "at least 1"),
@@ -332,7 +332,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["--method", "frontiernet", "--model", "{tmp}/corrupt.safetensors"], "corrupt.safetensors"),
     (["--method", "nope"], "df-uniform, discontinuity-gain, discontinuity-uniform"),
     (["planner.mode=bogus"], "planner.mode"),
-    (["planner.clearance_m=0.2"], "planner.clearance_m = 0.2 is too small for the agent radius"),
+    (["planner.clearance_m=0.15"], "planner.clearance_m = 0.15 is too small for the agent radius"),
     (["tracking.gain_reduction=sometimes"], "beyond_frame, absolute or none"),
     # the run's config holds sim.yaml and depth.yaml too: their keys are checked like the others
     (["--depth", "emulated", "depth.emulated.fill_dept=20"],

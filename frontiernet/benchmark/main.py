@@ -16,7 +16,7 @@ from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, runs_changed, with_idle_keys,
-                   with_keys_added_after)
+                   shipped_before, with_keys_added_after)
 from .budget import BudgetRule
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
@@ -132,7 +132,7 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
 
     A plan made before the run config had a section of
     :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
-    ``scenes``) used the shipped file;
+    ``scenes``) used the shipped file, as it was then (:func:`~frontiernet.benchmark.plan.shipped_before`);
     one made before a key of :data:`~frontiernet.benchmark.plan.KEYS_ADDED_AFTER_PLANS` existed
     ran as that key's listed value does; a plan made before a key of
     :data:`~frontiernet.benchmark.plan.KEYS_IDLE_WHEN` existed, whose runs that key does not change
@@ -141,7 +141,8 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
     previous = read_plan(out)
     shipped = OmegaConf.to_container(load_run_config(), resolve=True)
     for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
-        previous["settings"]["conf"].setdefault(section, shipped[section])
+        if section not in previous["settings"]["conf"]:
+            previous["settings"]["conf"][section] = shipped_before(section, shipped[section])
     with_idle_keys(previous["settings"], settings)
     with_keys_added_after(previous["settings"]["conf"])
     old, new = previous["settings"]["budget"], settings["budget"]

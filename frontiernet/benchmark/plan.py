@@ -19,6 +19,7 @@ none and their keys are those of every benchmark made before several existed.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import logging
 import re
@@ -208,6 +209,29 @@ def with_idle_keys(stored: dict, settings: dict) -> dict:
         if section is not None and key not in section and now is not None and now_key in now and idle(stored):
             section[key] = now[now_key]
     return stored
+
+
+SHIPPED_DEFAULTS_BEFORE_SECTIONS = {
+    "sim.agent.radius_m": 0.2,  # 2026-12-06: 0.1 (a robot planned through 0.6 m doors)
+    "sim.voxels.floor_clearance_m": 0.2,  # the same day: the agent's radius
+}
+"""Defaults of a run section's shipped file that changed after plans had been made without that
+section (:data:`~frontiernet.exploration.run.RUN_SECTIONS`: such a plan ran the shipped file of its
+day), with the value of before: :func:`shipped_before` puts them back."""
+
+
+def shipped_before(section: str, shipped: dict) -> dict:
+    """Today's shipped `section` (a dict, copied) with the keys of
+    :data:`SHIPPED_DEFAULTS_BEFORE_SECTIONS` of that section at their value of before: the section a
+    plan made without it ran with."""
+    section_conf = copy.deepcopy(shipped)
+    for dotted, value in SHIPPED_DEFAULTS_BEFORE_SECTIONS.items():
+        name, _, rest = dotted.partition(".")
+        if name == section:
+            parent, key = dotted_parent(section_conf, rest)
+            if parent is not None:
+                parent[key] = value
+    return section_conf
 
 
 def with_keys_added_after(conf: dict) -> dict:
@@ -433,4 +457,4 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
 
 __all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
            "with_keys_added_after", "differences", "first_difference", "blocking_difference", "runs_changed", "Readers",
-           "METHOD_SECTIONS"]
+           "METHOD_SECTIONS", "SHIPPED_DEFAULTS_BEFORE_SECTIONS", "shipped_before"]
