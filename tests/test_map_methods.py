@@ -200,6 +200,23 @@ def test_mapex_ranks_a_frontier_with_uncertain_unknown_space_in_sight_above_one_
     assert scored[1].gain_m3 / scored[0].gain_m3 == pytest.approx((values[1] + 1e-6) / 1e-6)
 
 
+def test_mapex_keeps_a_frontiers_value_until_the_prediction_changes_within_its_rays_range(monkeypatch):
+    import frontiernet.exploration.mapex as mapex
+
+    source = MapexSource(SimpleNamespace(spec=SimpleNamespace(band_m=0.3)), empty_map(), CONF)
+    mean, variance = np.full((200, 40), 0.5, np.float32), np.full((200, 40), 0.1, np.float32)
+    positions = np.array([[0.55, 0.55], [15.55, 0.55]])  # 15 m apart: each beyond the other's 3.5 m rays
+    first = source.values(positions, mean, variance)
+    rays = []
+    monkeypatch.setattr(mapex, "visible_cells", lambda *a, **k: rays.append(a[1].tolist()) or visible_cells(*a, **k))
+    assert np.array_equal(source.values(positions, mean, variance), first) and rays == []  # nothing changed
+    variance[150:160, :] = 0.3  # the members now disagree near the second frontier only
+    again = source.values(positions, mean, variance)
+    assert rays == [[155, 5]] and again[0] == first[0] and again[1] > first[1]
+    fresh = MapexSource(SimpleNamespace(spec=SimpleNamespace(band_m=0.3)), empty_map(), CONF)
+    assert np.array_equal(fresh.values(positions, mean, variance), again)
+
+
 def test_mapex_predicts_again_only_once_the_map_has_learnt_enough():
     calls = []
 

@@ -96,6 +96,8 @@ class MapexSource(FrontierSource):
         self.hit = positive_number(s.get("hit_probability"), "mapex.hit_probability")
         self.floor = positive_number(s.get("value_floor"), "mapex.value_floor")
         self.min_gain = float(conf.tracking.min_gain_m3)
+        self._values: dict[tuple[int, int], float] = {}  # frontier cell -> value, kept until the maps change near it
+        self._values_from = None  # the (mean, variance) they were computed on
         # MapEx's frontier regions: its size threshold, no cutting of long regions
         self.frontier_conf = OmegaConf.merge(conf, {"map_frontiers": {
             "min_cells": int(positive_number(s.get("min_cells"), "mapex.min_cells")),
@@ -118,13 +120,36 @@ class MapexSource(FrontierSource):
 
     def values(self, positions: np.ndarray, mean: np.ndarray, variance: np.ndarray) -> np.ndarray:
         """(F,) MapEx's frontier value before the distance: the variance summed over the unknown cells
-        visible from each of the (F, 2) world xy `positions` in the mean map."""
+        visible from each of the (F, 2) world xy `positions` in the mean map. A cell's value is kept
+        while `mean` and `variance` stay the same within the rays' range of it (:meth:`_forget_values`):
+        a frame changes them near the robot, so most frontiers cast no ray."""
         cells = np.floor((positions - np.asarray(self.map.origin[:2])) / float(self.map.voxel_size)).astype(np.int64)
+        self._forget_values(mean, variance)
         out = np.zeros(len(positions))
         for index, cell in enumerate(cells):
-            seen = visible_cells(mean, cell, self.num_rays, self.range_cells, self.hit)
-            out[index] = float(variance[seen].sum())  # the variance is 0 where the map knows the cell
+            key = (int(cell[0]), int(cell[1]))
+            if key not in self._values:
+                seen = visible_cells(mean, cell, self.num_rays, self.range_cells, self.hit)
+                self._values[key] = float(variance[seen].sum())  # the variance is 0 where the map knows the cell
+            out[index] = self._values[key]
+        self._values = {(int(i), int(j)): self._values[(int(i), int(j))] for i, j in cells}  # this frame's
         return out
+
+    def _forget_values(self, mean: np.ndarray, variance: np.ndarray) -> None:
+        """Drop the kept values of cells within the rays' range of a cell whose mean or variance differs
+        from the last call's (all of them when the map's shape changed)."""
+        last = self._values_from
+        self._values_from = (mean.copy(), variance.copy())
+        if last is None or last[0].shape != mean.shape:
+            self._values = {}
+            return
+        changed = (mean != last[0]) | (variance != last[1])
+        if not changed.any() or not self._values:
+            return
+        rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+        reach = int(np.ceil(self.range_cells)) + 1
+        self._values = {(i, j): value for (i, j), value in self._values.items()
+                        if not (rows[0] - reach <= i <= rows[-1] + reach and cols[0] - reach <= j <= cols[-1] + reach)}
 
     def scored(self, observations: list, mean: np.ndarray, variance: np.ndarray) -> list:
         """`observations` with their gain set to MapEx's value (see the module docstring)."""
