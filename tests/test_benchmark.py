@@ -315,9 +315,10 @@ def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):
     plan = json.loads((out / "plan.json").read_text())
     for section in ("sim", "depth", "scenes"):
         del plan["settings"]["conf"][section]
+    plan["settings"]["conf"]["planner"]["clearance_m"] = 0.3  # as such plans had it: the robot of then ...
     (out / "plan.json").write_text(json.dumps(plan))
     assert bench(*args)[0] == 2
-    code, stdout, stderr = bench(*args[:-3])
+    code, stdout, stderr = bench(*args[:-3], "--set", *OLD_ROBOT)  # ... whose sim section was shipped then
     assert code == 0 and "1 runs (0 failed)" in stdout, stderr
 
 

@@ -18,7 +18,7 @@ from frontiernet.simulator.camera import PinholeCamera, Renderer
 from frontiernet.simulator.voxels import voxelize_scene
 
 ROBOT = (2.0, 1.5, 1.2)
-PILLAR = ((1.55, 1.3, 0.0), (1.75, 1.6, 2.5))  # 0.25 m west of the robot, from floor to ceiling
+PILLAR = ((1.65, 1.3, 0.0), (1.85, 1.6, 2.5))  # 0.15 m west of the robot (body 0.1 m), from floor to ceiling
 SMALL = PinholeCamera(120, 120, 75.0, 75.0, 59.5, 59.5, 3.5)  # the paper's field of view, 120 px
 
 
@@ -187,7 +187,7 @@ def test_the_oracle_leaves_its_start_without_a_start_turn(tmp_path, shared_data)
 
 
 def map_free_explorer(frames: int) -> Explorer:
-    """A map-free classic explorer at ROBOT that has looked west, at the pillar 0.25 m away."""
+    """A map-free classic explorer at ROBOT that has looked west, at the pillar 0.15 m away."""
     return explorer_facing_the_pillar(mode="map_free", obstacle_memory_frames=frames)
 
 
@@ -195,7 +195,7 @@ def map_free_explorer(frames: int) -> Explorer:
 def test_map_free_moves_stop_short_of_obstacles_the_robot_has_seen_only_with_a_memory(frames):
     explorer = map_free_explorer(frames)
     x, y, z = explorer.agent.position
-    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)  # 0.14 m from its face: inside the body
+    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)  # 0.04 m from its face: inside the body
     away = pose_from_heading(x + 0.11, y, z, yaw=np.pi)
     assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == ("fail" if frames else "ok")
     assert explorer.move_check(explorer.agent.pose, away)[0] == "ok"
@@ -211,7 +211,7 @@ def test_the_map_free_memory_forgets_after_its_frames():
 
 
 def explorer_facing_the_pillar(depth: str = "ground_truth", **planner) -> Explorer:
-    """A classic explorer at ROBOT that has looked west, at the pillar 0.25 m away, with `planner` keys
+    """A classic explorer at ROBOT that has looked west, at the pillar 0.15 m away, with `planner` keys
     set and the `depth` source."""
     from omegaconf import OmegaConf
 
@@ -234,8 +234,8 @@ def test_a_move_into_a_cell_the_robot_has_passed_through_passes_whatever_the_map
     explorer = explorer_facing_the_pillar(traversed_is_free=True)
     x, y, z = explorer.agent.position
     assert explorer.traversed.contains((x, y)) and explorer.traversed.mask.sum() == 1
-    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)  # 0.14 m from its face: inside the body
-    pillar_xy = np.array([1.72, 1.5])  # in the voxel layer of its face (x = 1.75)
+    towards_pillar = pose_from_heading(x - 0.11, y, z, yaw=np.pi)  # 0.04 m from its face: inside the body
+    pillar_xy = np.array([1.82, 1.5])  # in the voxel layer of its face (x = 1.85), the target's cell
     assert explorer.move_check(explorer.agent.pose, towards_pillar)[0] == "fail"
     assert explorer.move_check.blocked(pillar_xy)
     explorer.traversed.add(pillar_xy)  # as if the robot had walked through it (the pillar a mapping error)

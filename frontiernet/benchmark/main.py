@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import copy
 import logging
 import time
 from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from ..config import load_config
+from ..config import dotted_parent, load_config
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import RUN_SECTIONS, load_run_config
@@ -16,7 +17,7 @@ from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, runs_changed, with_idle_keys,
-                   shipped_before, with_keys_added_after)
+                   with_keys_added_after)
 from .budget import BudgetRule
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
@@ -122,6 +123,29 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
 
 
+SHIPPED_DEFAULTS_BEFORE_SECTIONS = {
+    "sim.agent.radius_m": 0.2,  # 2026-12-06: 0.1 (a robot planned through 0.6 m doors)
+    "sim.voxels.floor_clearance_m": 0.2,  # the same day: the agent's radius
+}
+"""Defaults of a run section's shipped file that changed after plans had been made without that
+section (:data:`~frontiernet.exploration.run.RUN_SECTIONS`: such a plan ran the shipped file of its
+day), with the value of before: :func:`shipped_before` puts them back."""
+
+
+def shipped_before(section: str, shipped: dict) -> dict:
+    """Today's shipped `section` (a dict, copied) with the keys of
+    :data:`SHIPPED_DEFAULTS_BEFORE_SECTIONS` of that section at their value of before: the section a
+    plan made without it ran with."""
+    section_conf = copy.deepcopy(shipped)
+    for dotted, value in SHIPPED_DEFAULTS_BEFORE_SECTIONS.items():
+        name, _, rest = dotted.partition(".")
+        if name == section:
+            parent, key = dotted_parent(section_conf, rest)
+            if parent is not None:
+                parent[key] = value
+    return section_conf
+
+
 def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dict:
     """The plan stored in benchmark folder `out` (``plan.json``) when a benchmark with `settings`
     (as :func:`main` builds them) may resume it; InputError naming the first setting that differs.
@@ -132,7 +156,7 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
 
     A plan made before the run config had a section of
     :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
-    ``scenes``) used the shipped file, as it was then (:func:`~frontiernet.benchmark.plan.shipped_before`);
+    ``scenes``) used the shipped file, as it was then (:func:`shipped_before`);
     one made before a key of :data:`~frontiernet.benchmark.plan.KEYS_ADDED_AFTER_PLANS` existed
     ran as that key's listed value does; a plan made before a key of
     :data:`~frontiernet.benchmark.plan.KEYS_IDLE_WHEN` existed, whose runs that key does not change

@@ -19,7 +19,6 @@ none and their keys are those of every benchmark made before several existed.
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import logging
 import re
@@ -72,13 +71,15 @@ KEYS_ADDED_AFTER_PLANS = {
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "attempts_per_node": 1000,
-             "stall_frames": 17, "found_on": "views", "yaw_window_deg": 45.0, "sample_region": "box"},
+             "stall_frames": 17, "found_on": "views", "yaw_window_deg": 45.0, "sample_region": "box",
+             "edge_check": "body"},
     # issue 54: NBVP's gain test on the branch's views and its node yaws within the drive window; a plan
     # made with the nbvp section before them ran the discounted test and uniform yaws (one without
     # the section ran no nbvp: the section above, today's settings)
     "nbvp.found_on": "discounted",
     "nbvp.yaw_window_deg": 180.0,
     "nbvp.sample_region": "known_free",  # issue 54: the tree's goals drawn over the known-free cells, as before the key
+    "nbvp.edge_check": "cells",  # issue 54: the tree's edge points checked by their cell only, as before the key
     # issue 56: the map-predicting methods' settings (they change no run of any other method)
     "seer": {"predictor": None, "candidate_rmin_m": 0.5, "candidate_rmax_m": 1.2, "candidate_rnum": 3,
              "candidate_dphi_deg": 15.0, "yaw_offsets_deg": [-50.0, -30.0, -10.0, 10.0, 30.0, 50.0],
@@ -209,29 +210,6 @@ def with_idle_keys(stored: dict, settings: dict) -> dict:
         if section is not None and key not in section and now is not None and now_key in now and idle(stored):
             section[key] = now[now_key]
     return stored
-
-
-SHIPPED_DEFAULTS_BEFORE_SECTIONS = {
-    "sim.agent.radius_m": 0.2,  # 2026-12-06: 0.1 (a robot planned through 0.6 m doors)
-    "sim.voxels.floor_clearance_m": 0.2,  # the same day: the agent's radius
-}
-"""Defaults of a run section's shipped file that changed after plans had been made without that
-section (:data:`~frontiernet.exploration.run.RUN_SECTIONS`: such a plan ran the shipped file of its
-day), with the value of before: :func:`shipped_before` puts them back."""
-
-
-def shipped_before(section: str, shipped: dict) -> dict:
-    """Today's shipped `section` (a dict, copied) with the keys of
-    :data:`SHIPPED_DEFAULTS_BEFORE_SECTIONS` of that section at their value of before: the section a
-    plan made without it ran with."""
-    section_conf = copy.deepcopy(shipped)
-    for dotted, value in SHIPPED_DEFAULTS_BEFORE_SECTIONS.items():
-        name, _, rest = dotted.partition(".")
-        if name == section:
-            parent, key = dotted_parent(section_conf, rest)
-            if parent is not None:
-                parent[key] = value
-    return section_conf
 
 
 def with_keys_added_after(conf: dict) -> dict:
@@ -457,4 +435,4 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
 
 __all__ = ["RunSpec", "plan_runs", "depth_sources", "start_poses", "scene_key", "MIN_BUDGET", "KEYS_ADDED_AFTER_PLANS",
            "with_keys_added_after", "differences", "first_difference", "blocking_difference", "runs_changed", "Readers",
-           "METHOD_SECTIONS", "SHIPPED_DEFAULTS_BEFORE_SECTIONS", "shipped_before"]
+           "METHOD_SECTIONS"]

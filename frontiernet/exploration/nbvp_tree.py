@@ -14,10 +14,12 @@ from scipy import ndimage
 from ..errors import InputError, positive_number, whole_number
 from ..geometry import cells_inside, distance_to_false, grid_cells, poses_from_headings
 from .motion import yaw_of
+from .move_check import body_radius
 
 
 FOUND_ON = ("discounted", "views")
 SAMPLE_REGIONS = ("known_free", "box")
+EDGE_CHECKS = ("body", "cells")
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,10 @@ class NbvpSettings:
         sample_region: where the tree's goals are drawn: ``box``, uniformly over the map's XY extent
             (nbvplanner's sphere of the exploration box's diagonal around the root, clipped to the box);
             ``known_free``, uniformly over the known-free cells connected to the robot's.
+        edge_check: what each point of a new edge must clear: ``body``, its cell free and the move
+            check's body (:func:`~frontiernet.exploration.move_check.body_radius`) clear of the band's
+            occupied cells (but within ``planner.clearance_m`` of the robot, which may stand closer);
+            ``cells``, its cell free only (a point at a cell's edge may bring the body into a wall).
     """
 
     extension_m: float
@@ -56,6 +62,7 @@ class NbvpSettings:
     found_on: str = "discounted"
     yaw_window_deg: float = 180.0
     sample_region: str = "known_free"
+    edge_check: str = "cells"
 
     @classmethod
     def from_config(cls, section) -> "NbvpSettings":
@@ -75,7 +82,9 @@ class NbvpSettings:
                        count("gain_width_px"), count("yaw_samples"), number("overshoot_m", "metres", True),
                        count("attempts_per_node"), count("stall_frames"), str(get("found_on") or "discounted"),
                        180.0 if get("yaw_window_deg") is None else number("yaw_window_deg", "degrees"),
-                       str(get("sample_region") or "known_free"))
+                       str(get("sample_region") or "known_free"), str(get("edge_check") or "cells"))
+        if settings.edge_check not in EDGE_CHECKS:
+            raise InputError(f"nbvp.edge_check must be one of {', '.join(EDGE_CHECKS)}, got {settings.edge_check!r}")
         if settings.sample_region not in SAMPLE_REGIONS:
             raise InputError(f"nbvp.sample_region must be one of {', '.join(SAMPLE_REGIONS)}, "
                              f"got {settings.sample_region!r}")
@@ -101,6 +110,8 @@ class FreeSpace:
     free: np.ndarray
     origin_xy: np.ndarray
     cell_m: float
+    occupied: np.ndarray | None = None  # (X, Y) bool, the band's occupied cells (the move check's)
+    traversed: np.ndarray | None = None  # (X, Y) bool, cells the robot has passed through (the move check passes them)
 
 
 @dataclass
@@ -175,26 +186,42 @@ def stop_node(gain_m3: np.ndarray, start: int, stop: int, init_iterations: int, 
 
 
 @numba.njit(cache=True)
-def _segment_free(free, origin_x, origin_y, cell_m, x0, y0, ux, uy, reach, step):  # pragma: no cover
+def _segment_free(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, x0, y0, ux, uy, reach,
+                  step):  # pragma: no cover
     """Whether the points from (x0, y0) along the unit direction (ux, uy) every `step` metres up to
-    `reach` (the end included, the start not) all lie in `free` cells of the grid."""
+    `reach` (the end included, the start not) all lie in `free` cells of the grid and, outside the
+    `passed` cells and farther than exempt[2] from the root (:func:`grow_tree`), keep a disk of
+    radius `body` off the `occupied` cells (exact disk-square test; `body` 0: no such test)."""
     count = int(math.ceil(reach / step))
     for s in range(1, count + 1):
         t = min(s * step, reach)
-        i = int(math.floor((x0 + t * ux - origin_x) / cell_m))
-        j = int(math.floor((y0 + t * uy - origin_y) / cell_m))
+        px, py = x0 + t * ux, y0 + t * uy
+        i = int(math.floor((px - origin_x) / cell_m))
+        j = int(math.floor((py - origin_y) / cell_m))
         if i < 0 or j < 0 or i >= free.shape[0] or j >= free.shape[1] or not free[i, j]:
             return False
+        if body > 0.0 and not passed[i, j] and (px - exempt[0]) ** 2 + (py - exempt[1]) ** 2 >= exempt[2] ** 2:
+            for a in range(max(int(math.floor((px - body - origin_x) / cell_m)), 0),
+                           min(int(math.floor((px + body - origin_x) / cell_m)) + 1, occupied.shape[0])):
+                dx = max(origin_x + a * cell_m - px, 0.0, px - origin_x - (a + 1) * cell_m)
+                for b in range(max(int(math.floor((py - body - origin_y) / cell_m)), 0),
+                               min(int(math.floor((py + body - origin_y) / cell_m)) + 1, occupied.shape[1])):
+                    if occupied[a, b]:
+                        dy = max(origin_y + b * cell_m - py, 0.0, py - origin_y - (b + 1) * cell_m)
+                        if dx * dx + dy * dy < body * body:
+                            return False
     return True
 
 
 @numba.njit(cache=True)
-def grow_tree(free, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m, xy, parent,
-              length, goal_of, attempts_per_node):  # pragma: no cover
+def grow_tree(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m, xy,
+              parent, length, goal_of, attempts_per_node):  # pragma: no cover
     """The RRT's geometry: for each goal in turn, a node steered from its nearest node.
 
     Args:
-        free: (X, Y) bool traversable cells; origin_x, origin_y: world corner of cell (0, 0);
+        free: (X, Y) bool traversable cells; occupied: (X, Y) bool cells a body of radius `body`
+            (metres; 0: none) must keep off, except in the (X, Y) bool `passed` cells and within
+            exempt[2] metres of (exempt[0], exempt[1]) (the robot's spot: (3,) float64); origin_x, origin_y: world corner of cell (0, 0);
             cell_m: cell size, metres.
         goals: (G, 2) float64 world points (memory nodes first, then samples).
         extension_m: longest edge; overshoot_m: the edge is checked this far beyond its node.
@@ -220,8 +247,8 @@ def grow_tree(free, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m,
             continue
         ux, uy = (goals[g, 0] - xy[best, 0]) / distance, (goals[g, 1] - xy[best, 1]) / distance
         edge = min(distance, extension_m)
-        if not _segment_free(free, origin_x, origin_y, cell_m, xy[best, 0], xy[best, 1], ux, uy,
-                             edge + overshoot_m, step):
+        if not _segment_free(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, xy[best, 0], xy[best, 1],
+                             ux, uy, edge + overshoot_m, step):
             continue
         xy[n, 0], xy[n, 1] = xy[best, 0] + edge * ux, xy[best, 1] + edge * uy
         parent[n], length[n], goal_of[n] = best, length[best] + edge, g
@@ -249,6 +276,7 @@ class NbvpPlanner:
         self.threshold = float(conf.tracking.min_gain_m3)
         self.pitch = np.radians(float(conf.motion.pitch_deg))
         self.focal_px = float(camera.focal_px) * self.settings.gain_width_px / float(camera.width)
+        self.body_m = body_radius(conf.planner, float(occupancy.voxel_size), 0.0)  # the move check's body
 
     def free_space(self, xy: np.ndarray, z: float) -> FreeSpace:
         """Where tree nodes and edges may lie, for the robot at world `xy` (2,) with its camera at
@@ -283,7 +311,7 @@ class NbvpPlanner:
         traversed = getattr(self.context, "traversed", None)
         if traversed is not None:
             free |= traversed.mask
-        return FreeSpace(free, origin, cell)
+        return FreeSpace(free, origin, cell, occupied, None if traversed is None else traversed.mask)
 
     def samples(self, space: FreeSpace, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:attr:`draws` draws: (S, 2) float64 world positions, and (S, yaw_samples) float64 yaws in
@@ -322,8 +350,13 @@ class NbvpPlanner:
         xy, parent = np.zeros((capacity, 2)), np.full(capacity, -1, np.int64)
         length, goal_of = np.zeros(capacity), np.full(capacity, -1, np.int64)
         xy[0] = root
-        n = grow_tree(space.free, float(space.origin_xy[0]), float(space.origin_xy[1]), space.cell_m, goals,
-                      s.extension_m, s.overshoot_m, xy, parent, length, goal_of, s.attempts_per_node)
+        checks_body = s.edge_check == "body" and space.occupied is not None
+        occupied = space.occupied if checks_body else np.zeros((1, 1), bool)
+        passed = space.traversed if checks_body and space.traversed is not None else np.zeros_like(space.free)
+        exempt = np.array([root[0], root[1], float(self.conf.planner.clearance_m)])
+        n = grow_tree(space.free, occupied, passed, self.body_m if checks_body else 0.0, exempt, float(space.origin_xy[0]),
+                      float(space.origin_xy[1]), space.cell_m, goals, s.extension_m, s.overshoot_m, xy, parent, length,
+                      goal_of, s.attempts_per_node)
         tree = RrtTree(xy[:n], np.full(n, yaw_of(T_world_cam)), parent[:n], length[:n], np.zeros(n), np.zeros(n), False,
                        np.zeros(n) if s.found_on == "views" else None)
         return self._score(tree, self.node_yaws(tree, goal_yaws, goal_of[:n], len(memory)), z)
