@@ -10,14 +10,14 @@
 # FRONTIERNET: the command (default: the code this folder's runs were made with, pinned with
 # scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
 # sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
-# --redo-changed: where the pinned code changed settings that only some runs read, those runs are
-# redone, the others kept: the emulated-depth runs (8a28c0f, the monocular map's symmetric miss and
-# oblique pixels; 2d183fa, the way back kept open on monocular maps), the nbvp runs (24f8bf2, NBVP's
-# goals drawn over the whole map; 67b2bb9, its trees given up after 1000 goals a node).
+# --redo-changed: where the pinned code changes settings that only some runs read (the monocular keys:
+# the emulated-depth runs; a method's own section: its runs), those runs are redone, the others kept.
+# The folder was made anew on ddf24ef (the 0.1 m robot, sessions.md); 671581e's NBVP edges keep the
+# move check's body clear (nbvp.edge_check), so its nbvp runs are redone, the others kept.
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 67b2bb9 ../pinned_scene_budgets_67b2bb9}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 671581e ../pinned_scene_budgets_671581e}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
