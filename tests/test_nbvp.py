@@ -145,7 +145,7 @@ def test_a_tree_gives_up_after_its_attempts_per_node_as_nbvplanner_does():
     def nodes(attempts_per_node: int) -> int:
         xy, parent = np.zeros((10, 2)), np.full(10, -1, np.int64)
         xy[0] = (0.5, 0.5)
-        no_body = np.zeros((1, 1), bool), np.zeros_like(free), 0.0, np.zeros(3)  # cells only (edge_check: cells)
+        no_body = np.zeros((1, 1), bool), np.zeros_like(free), 0.0, 0.0  # cells only (edge_check: cells)
         return grow_tree(free, *no_body, 0.0, 0.0, 0.1, goals, 1.0, 0.0, xy, parent, np.zeros(10),
                          np.full(10, -1, np.int64), attempts_per_node)
 

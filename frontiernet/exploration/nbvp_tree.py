@@ -186,11 +186,11 @@ def stop_node(gain_m3: np.ndarray, start: int, stop: int, init_iterations: int, 
 
 
 @numba.njit(cache=True)
-def _segment_free(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, x0, y0, ux, uy, reach,
-                  step):  # pragma: no cover
+def _segment_free(free, occupied, passed, body, root_x, root_y, exempt_m, origin_x, origin_y, cell_m, x0, y0, ux,
+                  uy, reach, step):  # pragma: no cover
     """Whether the points from (x0, y0) along the unit direction (ux, uy) every `step` metres up to
     `reach` (the end included, the start not) all lie in `free` cells of the grid and, outside the
-    `passed` cells and farther than exempt[2] from the root (:func:`grow_tree`), keep a disk of
+    `passed` cells and farther than `exempt_m` from the root (root_x, root_y), keep a disk of
     radius `body` off the `occupied` cells (exact disk-square test; `body` 0: no such test)."""
     count = int(math.ceil(reach / step))
     for s in range(1, count + 1):
@@ -200,7 +200,7 @@ def _segment_free(free, occupied, passed, body, exempt, origin_x, origin_y, cell
         j = int(math.floor((py - origin_y) / cell_m))
         if i < 0 or j < 0 or i >= free.shape[0] or j >= free.shape[1] or not free[i, j]:
             return False
-        if body > 0.0 and not passed[i, j] and (px - exempt[0]) ** 2 + (py - exempt[1]) ** 2 >= exempt[2] ** 2:
+        if body > 0.0 and not passed[i, j] and (px - root_x) ** 2 + (py - root_y) ** 2 >= exempt_m ** 2:
             for a in range(max(int(math.floor((px - body - origin_x) / cell_m)), 0),
                            min(int(math.floor((px + body - origin_x) / cell_m)) + 1, occupied.shape[0])):
                 dx = max(origin_x + a * cell_m - px, 0.0, px - origin_x - (a + 1) * cell_m)
@@ -214,14 +214,15 @@ def _segment_free(free, occupied, passed, body, exempt, origin_x, origin_y, cell
 
 
 @numba.njit(cache=True)
-def grow_tree(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m, xy,
+def grow_tree(free, occupied, passed, body, exempt_m, origin_x, origin_y, cell_m, goals, extension_m, overshoot_m, xy,
               parent, length, goal_of, attempts_per_node):  # pragma: no cover
     """The RRT's geometry: for each goal in turn, a node steered from its nearest node.
 
     Args:
         free: (X, Y) bool traversable cells; occupied: (X, Y) bool cells a body of radius `body`
             (metres; 0: none) must keep off, except in the (X, Y) bool `passed` cells and within
-            exempt[2] metres of (exempt[0], exempt[1]) (the robot's spot: (3,) float64); origin_x, origin_y: world corner of cell (0, 0);
+            `exempt_m` metres of the root (row 0 of `xy`: the robot may stand closer); origin_x,
+            origin_y: world corner of cell (0, 0);
             cell_m: cell size, metres.
         goals: (G, 2) float64 world points (memory nodes first, then samples).
         extension_m: longest edge; overshoot_m: the edge is checked this far beyond its node.
@@ -247,8 +248,8 @@ def grow_tree(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, 
             continue
         ux, uy = (goals[g, 0] - xy[best, 0]) / distance, (goals[g, 1] - xy[best, 1]) / distance
         edge = min(distance, extension_m)
-        if not _segment_free(free, occupied, passed, body, exempt, origin_x, origin_y, cell_m, xy[best, 0], xy[best, 1],
-                             ux, uy, edge + overshoot_m, step):
+        if not _segment_free(free, occupied, passed, body, xy[0, 0], xy[0, 1], exempt_m, origin_x, origin_y, cell_m,
+                             xy[best, 0], xy[best, 1], ux, uy, edge + overshoot_m, step):
             continue
         xy[n, 0], xy[n, 1] = xy[best, 0] + edge * ux, xy[best, 1] + edge * uy
         parent[n], length[n], goal_of[n] = best, length[best] + edge, g
@@ -353,10 +354,10 @@ class NbvpPlanner:
         checks_body = s.edge_check == "body" and space.occupied is not None
         occupied = space.occupied if checks_body else np.zeros((1, 1), bool)
         passed = space.traversed if checks_body and space.traversed is not None else np.zeros_like(space.free)
-        exempt = np.array([root[0], root[1], float(self.conf.planner.clearance_m)])
-        n = grow_tree(space.free, occupied, passed, self.body_m if checks_body else 0.0, exempt, float(space.origin_xy[0]),
-                      float(space.origin_xy[1]), space.cell_m, goals, s.extension_m, s.overshoot_m, xy, parent, length,
-                      goal_of, s.attempts_per_node)
+        body, exempt_m = (self.body_m if checks_body else 0.0), float(self.conf.planner.clearance_m)
+        origin_x, origin_y = float(space.origin_xy[0]), float(space.origin_xy[1])
+        n = grow_tree(space.free, occupied, passed, body, exempt_m, origin_x, origin_y, space.cell_m, goals,
+                      s.extension_m, s.overshoot_m, xy, parent, length, goal_of, s.attempts_per_node)
         tree = RrtTree(xy[:n], np.full(n, yaw_of(T_world_cam)), parent[:n], length[:n], np.zeros(n), np.zeros(n), False,
                        np.zeros(n) if s.found_on == "views" else None)
         return self._score(tree, self.node_yaws(tree, goal_yaws, goal_of[:n], len(memory)), z)
