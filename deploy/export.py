@@ -18,6 +18,7 @@ import torch
 from frontiernet.errors import InputError, positive_number
 from frontiernet.io import atomic_path, check_output_file
 from frontiernet.model import load_model, save_model
+from frontiernet.model.files import model_base
 from frontiernet.model.network import CONFIG_KEY
 
 FORMATS = ("onnx", "torchscript", "safetensors")
@@ -54,7 +55,7 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
         conf["labels"]["frontier_threshold_px"] = positive_number(frontier_threshold_px, "--frontier-threshold",
                                                                   "pixels")
     if fmt == "safetensors":
-        return save_model(out, model, conf, info=conf.get("info"), half=half)
+        return save_model(out, model, conf, info=conf.get("info"), half=half, base=model_base(conf))
     channels = model.config.in_channels
     size = int(conf["inference"]["size"])
     example = torch.zeros(1, channels, size, size)

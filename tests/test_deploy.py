@@ -226,6 +226,7 @@ def test_export_sets_the_frontier_threshold_its_runtimes_use(model_file, tmp_pat
 def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypatch, capsys, one_line_error):
     """--image alone takes the shipped RGB-only model (the public demo's single-image inference),
     --image with --depth the RGB + depth one; a missing shipped file is one line naming it."""
+    import frontiernet.model.files as model_files
     import frontiernet.model.network as network
 
     weights = tmp_path / "weights"
@@ -234,7 +235,7 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
     small = dict(decoder_channels=(32, 16, 16, 8, 8), head_channels=8)
     save_model(weights / network.SHIPPED_MODELS["rgbd"], FrontierNet(NetworkConfig(**small)).eval(), MODEL_CONF)
 
-    files = network.resources.files
+    files = model_files.resources.files
 
     class Files:  # importlib.resources.files("frontiernet") with the weights folder in tmp_path
         def __init__(self, package):
@@ -243,13 +244,13 @@ def test_predict_picks_the_shipped_model_by_the_inputs_given(tmp_path, monkeypat
         def joinpath(self, *parts):
             return weights.joinpath(*parts[1:]) if parts[0] == "weights" else files(self.package).joinpath(*parts)
 
-    monkeypatch.setattr(network.resources, "files", Files)
+    monkeypatch.setattr(model_files.resources, "files", Files)
     rgb = tmp_path / "photo.png"
     cv2.imwrite(str(rgb), np.full((60, 80, 3), 128, np.uint8))
     depth = tmp_path / "depth.npy"
     np.save(depth, np.full((60, 80), 2.0, np.float32))
     assert main(["predict", "--image", str(rgb), "--out", str(tmp_path / "a")]) == 2
-    assert "frontiernet_rgb_mobilenet_v3_large.safetensors: no shipped model takes an RGB image alone" in one_line_error()
+    assert "frontiernet_rgb_resnet18.safetensors: no shipped model takes an RGB image alone" in one_line_error()
     assert main(["predict", "--image", str(rgb), "--depth", str(depth), "--out", str(tmp_path / "b")]) == 0
     save_model(weights / network.SHIPPED_MODELS["rgb"],
                FrontierNet(NetworkConfig(inputs="rgb", **small)).eval(), MODEL_CONF)

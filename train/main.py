@@ -33,10 +33,12 @@ from omegaconf import OmegaConf
 from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.io import input_file, write_json
-from frontiernet.model import FrontierNet, load_model, save_model
+from frontiernet.model import load_model, save_model
+from frontiernet.model.files import model_base
 
 from .config import plain
 from .data import FrontierDataModule, open_training_data
+from .finetune import freeze, initial_weights, shared_base
 from .module import FrontierNetModule, check_schedule
 
 log = logging.getLogger(__name__)
@@ -75,19 +77,6 @@ def _trainer_args(trainer_conf) -> dict:
             "precision", "gradient_clip_val", "val_check_interval", "check_val_every_n_epoch",
             "limit_val_batches", "log_every_n_steps")
     return {key: trainer_conf[key] for key in keys}
-
-
-def _initial_weights(conf) -> tuple[FrontierNet | None, dict]:
-    """The model of ``conf.init_weights`` and its file's ``labels`` ((None, {}) when unset); its
-    network config replaces ``conf.model.network`` in place, so the run trains (and records) that
-    architecture."""
-    source = conf.get("init_weights")
-    if not source:
-        return None, {}
-    model, file_conf = load_model(None if str(source) == "default" else source)
-    conf.model.network = OmegaConf.create({**file_conf["network"], "pretrained": None})
-    log.info("starting from the weights of %s (%s/%s)", source, model.config.encoder, model.config.inputs)
-    return model, dict(file_conf["labels"])
 
 
 def resolve_gain_definition(conf, dataset_definition: str, init_labels: dict) -> None:
@@ -170,14 +159,29 @@ def check_settings(conf) -> None:
     whole_number(trainer.checkpoint_every_n_epochs, "trainer.checkpoint_every_n_epochs", 1)
 
 
-def _check_checkpoint(path: str) -> None:
-    """A checkpoint to resume from must load as one (plain data only: no code runs)."""
+def _check_checkpoint(path: str) -> dict:
+    """The hyperparameters of a checkpoint to resume from, which must load as one (plain data only: no
+    code runs; memory-mapped, so a second look costs little)."""
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
     except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
         raise InputError(f"{path}: not a training checkpoint ({type(error).__name__})") from None
     if not isinstance(state, dict) or "state_dict" not in state:
         raise InputError(f"{path}: not a training checkpoint (no state_dict)")
+    return state.get("hyper_parameters") or {}
+
+
+def resumed_settings(conf, resume: str) -> None:
+    """Set in `conf` what a resumed run takes from its checkpoint `resume`, not from the config: the
+    network it trains and the fine-tuning settings (``init_weights``, ``init_inputs``, ``freeze``) that
+    made it, so that the written model file shares the same layers with the same base."""
+    hyper = _check_checkpoint(resume)
+    model, train = hyper.get("model") or {}, hyper.get("train") or {}
+    if "network" in model:
+        conf.model.network = OmegaConf.create(model["network"])
+    for key in ("init_weights", "init_inputs", "freeze"):
+        if key in train:
+            conf[key] = train[key]
 
 
 def run_dir(conf) -> Path:
@@ -214,7 +218,9 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     out = run_dir(conf)
     resume = resume_checkpoint(out, resume)
     last = out / "checkpoints" / "last.ckpt"
-    init, init_labels = _initial_weights(conf) if resume is None else (None, {})
+    if resume is not None:
+        resumed_settings(conf, resume)
+    init, init_labels = initial_weights(conf) if resume is None else (None, {})
     dataset = open_training_data(conf.data.path)
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
     datamodule = FrontierDataModule(conf, progress, dataset)
@@ -226,10 +232,14 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         torch.set_num_threads(int(conf.trainer.threads))
     train_part = {key: plain(conf[key]) for key in ("loss", "optim")}
     train_part["val_scenes"] = list(datamodule.val_scenes)  # evaluate reads them from the checkpoint
+    train_part.update(init_weights=conf.get("init_weights"), init_inputs=conf.get("init_inputs"))
+    base = shared_base(conf, init)
+    train_part["freeze"] = list(base.prefixes) if base else []
     module = FrontierNetModule(model=plain(conf.model), train=train_part)
     module.use_channels_last(channels_last_wanted(conf.trainer))
     if init is not None:
         module.net.load_state_dict(init.state_dict())
+    module.freeze(freeze(module.net, base))
     checkpoints = out / "checkpoints"
     best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
                            enable_version_counter=False)
@@ -292,10 +302,11 @@ def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapse
                "val_samples": len(datamodule.val_set),
                "epochs": round(trainer.global_step * int(conf.data.batch_size) / max(len(datamodule.train_set), 1), 3),
                "steps": trainer.global_step, "init_weights": conf.get("init_weights"),
+               "init_inputs": conf.get("init_inputs"), "freeze": list(conf.get("freeze") or []),
                "seconds_this_session": round(elapsed, 1), "resumed_from": resume,
                "hardware": hardware, "checkpoint": Path(checkpoint).name, "last_metrics": metrics,
                "encoder": conf.model.network.encoder, "inputs": conf.model.network.inputs}
     model, model_conf = load_model(checkpoint)
-    save_model(out / "model.safetensors", model, model_conf, info=summary)
+    save_model(out / "model.safetensors", model, model_conf, info=summary, base=model_base(model_conf))
     write_json(out / "summary.json", summary)
     log.info("wrote %s", json.dumps(summary)[:200])

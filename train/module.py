@@ -47,6 +47,19 @@ class FrontierNetModule(L.LightningModule):
         self.metrics = FrontierMetrics(model["labels"])
         self.validated_at_step = -1  # global step of the newest validation (not the sanity check)
         self.channels_last = False  # NHWC weights and inputs (use_channels_last), set before training
+        self.frozen: list[torch.nn.Module] = []  # modules kept at their starting values (freeze)
+
+    def freeze(self, modules: list[torch.nn.Module]) -> None:
+        """Keep `modules` (their parameters already without gradients: ``train.finetune.freeze``) in eval
+        mode whenever the network trains, so that their BatchNorm statistics do not move either."""
+        self.frozen = list(modules)
+        self.train(self.training)
+
+    def train(self, mode: bool = True):
+        super().train(mode)
+        for module in getattr(self, "frozen", ()):
+            module.eval()
+        return self
 
     def use_channels_last(self, enabled: bool) -> None:
         """Keep the network's weights, and so its activations, in NHWC order (``trainer.channels_last``):
@@ -92,7 +105,7 @@ class FrontierNetModule(L.LightningModule):
 
     def configure_optimizers(self):
         optim = self.hparams.train["optim"]
-        optimizer = torch.optim.AdamW(self.parameters(), lr=float(optim["lr"]),
+        optimizer = torch.optim.AdamW([p for p in self.parameters() if p.requires_grad], lr=float(optim["lr"]),
                                       weight_decay=float(optim["weight_decay"]))
         total = max(int(self.trainer.estimated_stepping_batches), 1)
         warmup = min(int(optim["warmup_steps"]), total // 2)
