@@ -38,7 +38,7 @@ from frontiernet.model.files import model_base
 
 from .config import plain
 from .data import FrontierDataModule, open_training_data
-from .finetune import freeze, initial_weights, shared_base
+from .finetune import freeze, init_file, initial_weights, shared_base
 from .module import FrontierNetModule, check_schedule
 
 log = logging.getLogger(__name__)
@@ -232,7 +232,9 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         torch.set_num_threads(int(conf.trainer.threads))
     train_part = {key: plain(conf[key]) for key in ("loss", "optim")}
     train_part["val_scenes"] = list(datamodule.val_scenes)  # evaluate reads them from the checkpoint
-    train_part.update(init_weights=conf.get("init_weights"), init_inputs=conf.get("init_inputs"))
+    init_path = init_file(conf)  # absolute, so that the checkpoint names its base from any folder
+    train_part.update(init_weights=None if init_path is None else "default" if conf.init_weights == "default"
+                      else str(init_path.resolve()), init_inputs=conf.get("init_inputs"))
     base = shared_base(conf, init)
     train_part["freeze"] = list(base.prefixes) if base else []
     module = FrontierNetModule(model=plain(conf.model), train=train_part)
