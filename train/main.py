@@ -20,6 +20,7 @@ import logging
 import os
 import platform
 import time
+import warnings
 from datetime import timedelta
 from pathlib import Path
 
@@ -242,6 +243,8 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     if init is not None:
         module.net.load_state_dict(init.state_dict())
     module.freeze(freeze(module.net, base))
+    if base is not None:  # the frozen layers are meant to be in eval mode (their BatchNorm statistics kept)
+        warnings.filterwarnings("ignore", message=r"Found \d+ module\(s\) in eval mode at the start of training")
     checkpoints = out / "checkpoints"
     best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
                            enable_version_counter=False)
