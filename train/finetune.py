@@ -34,6 +34,8 @@ def initial_weights(conf) -> tuple[FrontierNet | None, dict]:
     the run trains (and records) that architecture."""
     path = init_file(conf)
     if path is None:
+        if conf.get("init_inputs"):
+            raise InputError(f"init_inputs: {conf.init_inputs} starts a model from init_weights, which is not set")
         return None, {}
     model, file_conf = load_model(path)
     inputs = conf.get("init_inputs") or model.config.inputs

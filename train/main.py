@@ -222,6 +222,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     if resume is not None:
         resumed_settings(conf, resume)
     init, init_labels = initial_weights(conf) if resume is None else (None, {})
+    base = shared_base(conf, init)  # (the frozen layers' names are checked against a fresh run's network)
     dataset = open_training_data(conf.data.path)
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
     datamodule = FrontierDataModule(conf, progress, dataset)
@@ -236,7 +237,6 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     init_path = init_file(conf)  # absolute, so that the checkpoint names its base from any folder
     train_part.update(init_weights=None if init_path is None else "default" if conf.init_weights == "default"
                       else str(init_path.resolve()), init_inputs=conf.get("init_inputs"))
-    base = shared_base(conf, init)
     train_part["freeze"] = list(base.prefixes) if base else []
     module = FrontierNetModule(model=plain(conf.model), train=train_part)
     module.use_channels_last(channels_last_wanted(conf.trainer))
