@@ -119,6 +119,7 @@ def test_sigterm_to_datagen_ends_its_workers(tmp_path):
     (["--pixel-size", "-0.05"], "got -0.05"),
     (["--pixel-size", "nan"], "got nan"),
     (["--pixel-size", "0.0001"], "give a larger pixel size"),
+    (["--pixel-size", "1000"], "give a smaller pixel size"),  # a 1 px picture was an internal error (OpenCV)
     (["--cut-height", "-5"], "cut height (--cut-height) must be a positive number"),
 ])
 def test_bad_top_view_settings_are_one_line(plan_spec, tmp_path, one_line_error, option, message):
@@ -173,8 +174,17 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
      "is a folder; give the output's file name"),  # was after the labelling
     (["evaluate", "{model}", "--data", "{tmp}", "--json", "{tmp}"], "is a folder"),
     (["evaluate", "{model}", "--data", "{tmp}", "--all", "--scenes", "procedural:1"], "--all and --scenes exclude"),
-    (["bench", "render", "--scene", "procedural:0", "--repeats=-1"], "--repeats must be an integer >= 1, got -1"),
-    (["bench", "render", "--scene", "procedural:0", "--batch", "0"], "--batch must be an integer >= 1, got 0"),
+    (["bench", "render", "--scene", "procedural:0", "--repeats=-1"], "--repeats must be an integer in [1, 10000], got -1"),
+    (["bench", "render", "--scene", "procedural:0", "--batch", "0"], "--batch must be an integer in [1, 1024], got 0"),
+    # issue 55's second probe: budgets and counts without an upper bound ran until killed
+    (["explore", "--scene", "procedural:3", "--max-steps", "1000000000000", "--no-video", "--out", "{tmp}/e"],
+     "the step budget (--max-steps, run.max_steps) must be an integer in [1, 100000]"),
+    (["explore", "--scene", "procedural:3", "--no-video", "--out", "{tmp}/e", "run.max_steps=1e9"],
+     "must be an integer in [1, 100000], got 1000000000.0"),
+    (["bench", "--scenes", "procedural:3", "--max-steps", "1000000000000", "--methods", "classic", "--out", "{tmp}/b"],
+     "--max-steps must be an integer in [1, 100000]"),
+    (["bench", "render", "--scene", "procedural:0", "--repeats", "1000000000"], "--repeats must be an integer in [1, 10000]"),
+    (["bench", "explore", "--scene", "procedural:0", "--steps", "1000000000"], "--steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
     (["bench", "inference", "--encoders", "resnet18,vgg16"], "--encoders must list distinct names of resnet18"),
     (["sequence", "--input", "{tmp}", "--intrinsics", "nan,525,320,240", "--out", "{tmp}/s"], "finite pixels"),
@@ -267,6 +277,8 @@ def test_a_camera_too_large_to_render_is_refused_before_the_scene_loads(tmp_path
     (["augment.crop_size=0"], "augment.crop_size (or null) must be an integer in [8, 2048], got 0"),
     (["augment.hflip=1.5"], "augment.hflip is a probability, between 0 and 1; got 1.5"),
     (["trainer.threads=99999"], "trainer.threads (or null) must be an integer in [1, "),
+    (["seed=-1"], "seed must be an integer >= 0, got -1"),  # issue 55's second probe: an internal error
+    (["name=../../escape"], "name: the run's folder name inside out= (no / or ..), got '../../escape'"),
 ])
 def test_nonsense_training_settings_are_refused_before_anything_is_written(tmp_path, overrides, message,
                                                                              one_line_error):

@@ -114,6 +114,10 @@ def test_train_an_rgb_model_on_the_shipped_rgbd_one_with_frozen_stages(tiny_data
     assert "freeze: keeps layers at init_weights's values" in one_line_error()
     assert main(args[:-1] + ["name=c", "freeze=[layer9]"]) == 2
     assert "freeze: layer9 names no parameter" in one_line_error()
+    assert main(args[:-1] + ["name=e", "freeze=['']"]) == 2
+    assert "freeze: an empty prefix would name every parameter" in one_line_error()
+    assert main(args[:-1] + ["name=f", "model.network.inputs=depth"]) == 2  # asked for, but init_inputs says rgb
+    assert "model.network.inputs: depth, but the run starts from init_weights's rgb" in one_line_error()
     assert main(args[:-3] + ["name=d", "init_inputs=rgb"]) == 2
     assert "init_inputs: rgb starts a model from init_weights, which is not set" in one_line_error()
-    assert not any((tmp_path / name).exists() for name in "bcd")
+    assert not any((tmp_path / name).exists() for name in "bcdef")

@@ -357,6 +357,8 @@ def _bad_recording(case: str, tmp_path: Path) -> tuple[Path, list[str]]:
     frames, K = synthetic_frames(count=2)
     if case == "no image topic":
         bag = recording(frames, K, colour=None, depth=None)
+    elif case == "no depth topic":
+        bag = recording(frames, K, depth=None)
     elif case == "no CameraInfo":
         bag = recording(frames, K, info=False)
     elif case == "depth encoding":
@@ -379,6 +381,8 @@ def _bad_recording(case: str, tmp_path: Path) -> tuple[Path, list[str]]:
 BAD = {
     "no image topic": r"rec: no colour image topic \(sensor_msgs/Image or CompressedImage\); the recording has "
                       r"/camera/color/camera_info",
+    "no depth topic": r"rec: the recording has no depth image topic \(set one with --topics depth=TOPIC\): or "
+                      r"choose a depth model with --depth",
     "wrong type": r"rec: topic /camera/color/camera_info is sensor_msgs/msg/CameraInfo; rgb needs "
                   r"sensor_msgs/msg/Image or sensor_msgs/msg/CompressedImage",
     "depth encoding": r"rec: topic /camera/aligned_depth_to_color/image_raw: depth encoding '16SC1' is not read",
@@ -406,7 +410,7 @@ def test_bad_recordings_stop_with_one_line(case, tmp_path, capsys):
     import re
 
     assert re.search(BAD[case], err), err
-    assert not out.exists()  # no empty output folder left behind
+    assert not out.exists()  # no output folder left behind (nor the frames extracted to out/recording)
 
 
 def test_topics_are_for_recordings_only(tmp_path, capsys):

@@ -137,8 +137,10 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys,
     write_redwood(tmp_path / "metres", [(frame.rgb, frame.depth, T)] * 2, renderer.camera.K)
     for png in (tmp_path / "metres" / "depth").iterdir():  # depth stored in whole metres, read as millimetres
         cv2.imwrite(str(png), np.nan_to_num(np.round(frame.depth)).astype(np.uint16))
+    write_redwood(tmp_path / "zero_depth", [(frame.rgb, np.zeros_like(frame.depth), T)] * 2, renderer.camera.K)
     cases = [
         ([str(tmp_path / "empty")], "empty"),
+        ([str(tmp_path / "zero_depth")], "no depth pixel of any frame is valid"),  # was an internal error
         ([str(tmp_path / "missing")], "missing"),
         ([str(tmp_path / "no_depth")], "has no depth file"),
         ([str(tmp_path / "no_depth"), "--depth", "depth_anything_v2"], "depth_anything_v2"),
@@ -149,6 +151,7 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys,
     for (folder, *extra), expected in cases:
         assert run_sequence(folder, tmp_path / "out", "--no-video", *extra) == 2, (folder, extra)
         assert expected in one_line_error()
+        assert not (tmp_path / "out").exists()  # nor its cache of the frames perceived
 
 
 def test_livingroom1_frontiers_persist_across_frames(shared_data, tmp_path):

@@ -271,10 +271,13 @@ def test_train_tiny_config_loss_falls_then_evaluate_and_resume(tiny_dataset, tmp
     assert load_model(run / "checkpoints" / "last.ckpt")[1]["info"]["steps"] > steps
     with open(run / "metrics-part1.csv") as handle:  # the first session's rows survive the resume
         assert len([row for row in csv.DictReader(handle) if row.get("train/loss")]) == len(losses)
-    # fine-tuning: a new run starts from the model file's weights and architecture (the resnet34
-    # asked for on the command line is replaced by the file's resnet18), not from scratch
-    assert main(args[:-1] + ["name=fine", "trainer.max_epochs=1", f"init_weights={run / 'model.safetensors'}",
-                             "model.network.encoder=resnet34"]) == 0
+    # fine-tuning: a new run starts from the model file's weights and architecture, not from scratch;
+    # a network asked for on the command line that the file does not have is refused, not dropped
+    fine_args = args[:-1] + ["name=fine", "trainer.max_epochs=1", f"init_weights={run / 'model.safetensors'}"]
+    capsys.readouterr()
+    assert main(fine_args + ["model.network.encoder=resnet34"]) == 2
+    assert "model.network.encoder: resnet34, but the run starts from init_weights's resnet18" in capsys.readouterr().err
+    assert main(fine_args) == 0
     fine = train_losses(tmp_path / "fine")
     assert fine[0] < 0.8 * np.mean(losses[:3]), (fine[:3], losses[:3])
     fine_model, fine_conf = load_model(tmp_path / "fine" / "model.safetensors")

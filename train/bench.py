@@ -115,6 +115,11 @@ def bench_train(conf, workers: list[int], batches: int, steps: int, baseline: bo
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
     precision = precision or ("bf16-mixed" if device.type == "cuda" else "32-true")
     dataset = open_training_data(conf.data.path)
+    if len(dataset) < int(conf.data.batch_size):
+        from frontiernet.errors import InputError
+
+        raise InputError(f"{conf.data.path}: {len(dataset)} views, fewer than one batch (data.batch_size "
+                         f"{conf.data.batch_size}); give a smaller data.batch_size or a larger dataset")
     started = time.perf_counter()
     cache = open_training_cache(conf.data, conf.model, dataset, progress=False)
     cache_seconds = time.perf_counter() - started

@@ -41,9 +41,30 @@ def initial_weights(conf) -> tuple[FrontierNet | None, dict]:
     inputs = conf.get("init_inputs") or model.config.inputs
     if inputs != model.config.inputs:
         model = with_inputs(model, inputs)
+    _check_network_asked(conf, model)
     conf.model.network = OmegaConf.create({**model.config.to_dict(), "pretrained": None})
     log.info("starting from the weights of %s (%s/%s)", conf.init_weights, model.config.encoder, inputs)
     return model, dict(file_conf["labels"])
+
+
+def _check_network_asked(conf, model: FrontierNet) -> None:
+    """InputError naming the first ``model.network`` key the config sets away from the shipped default to a
+    value the `model` started from does not have (the started model's network replaces the config's, so
+    such a setting would be dropped without a word)."""
+    from frontiernet.config import load_config
+
+    default = OmegaConf.to_container(load_config("model").network, resolve=True)
+    asked = OmegaConf.to_container(conf.model.network, resolve=True)
+    started = model.config.to_dict()
+    for key, value in asked.items():
+        if key in started and value != default.get(key) and _plain(value) != _plain(started[key]):
+            hint = "init_inputs" if key == "inputs" else f"leave model.network.{key} out"
+            raise InputError(f"model.network.{key}: {value}, but the run starts from init_weights's "
+                             f"{_plain(started[key])} (its network replaces model.network): {hint}")
+
+
+def _plain(value):
+    return list(value) if isinstance(value, (list, tuple)) else value
 
 
 def with_inputs(model: FrontierNet, inputs: str) -> FrontierNet:
@@ -77,6 +98,8 @@ def shared_base(conf, network: FrontierNet | None = None) -> SharedBase | None:
     if path is None or path.suffix != ".safetensors":
         raise InputError(f"freeze: keeps layers at init_weights's values, which must be a model file (.safetensors; "
                          f"export a checkpoint first), got init_weights={conf.get('init_weights')}")
+    if any(not prefix.strip(".") for prefix in prefixes):
+        raise InputError(f"freeze: an empty prefix would name every parameter, got {list(prefixes)}")
     base = SharedBase(path, prefixes)
     if network is not None:
         names = [name for name, _ in network.named_parameters()]
@@ -84,6 +107,8 @@ def shared_base(conf, network: FrontierNet | None = None) -> SharedBase | None:
             if not any(SharedBase(path, (prefix,)).shares(name) for name in names):
                 raise InputError(f"freeze: {prefix} names no parameter of the {network.config.encoder} network "
                                  f"(e.g. stem, layers.0 .. layers.3, decoder)")
+        if all(base.shares(name) for name in names):
+            raise InputError(f"freeze: {', '.join(prefixes)} name every parameter of the network: nothing would train")
     return base
 
 

@@ -131,6 +131,9 @@ def check_settings(conf) -> None:
     from frontiernet.io import check_output_folder
     from frontiernet.model.predictor import input_size
 
+    if not str(conf.name) or Path(str(conf.name)).name != str(conf.name) or str(conf.name) in (".", ".."):
+        raise InputError(f"name: the run's folder name inside out= (no / or ..), got {conf.name!r}")
+    whole_number(conf.seed, "seed", 0)
     check_output_folder(run_dir(conf), force=True)  # (a run resumes in it)
     trainer, data, augment = conf.trainer, conf.data, conf.augment
     steps, epochs = trainer.max_steps, trainer.max_epochs

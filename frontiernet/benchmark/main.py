@@ -12,7 +12,7 @@ from omegaconf import OmegaConf
 from ..config import dotted_parent, load_config
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
-from ..exploration.run import RUN_SECTIONS, load_run_config
+from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
 from ..io import check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
@@ -67,7 +67,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             plan in a folder that holds another benchmark's runs.
     """
     rule = None if max_steps is not None else BudgetRule.from_conf(load_config("bench").budget)
-    budget = rule.min_steps if rule is not None else int(max_steps)
+    budget = rule.min_steps if rule is not None else whole_number(max_steps, "--max-steps", 1, MAX_STEPS)
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")

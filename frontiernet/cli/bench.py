@@ -142,12 +142,20 @@ def scene_benchmark(actions, name: str, help_text: str, func):
     return parser
 
 
+COUNT_LIMITS = {"batch": 1024, "frames": 10_000, "views": 10_000, "repeats": 10_000}
+"""The largest count each hot-path benchmark option takes (``--steps``: the run's ``MAX_STEPS``): a render
+batch of 1,024 poses is already past where batching pays, and 10,000 timed repetitions past where a median
+moves; more is a typo, which would otherwise run until killed or fail late for want of camera poses."""
+
+
 def counts(**options: int) -> None:
-    """InputError naming the first option (``--name``) of `options` that is not an integer >= 1."""
+    """InputError naming the first option (``--name``) of `options` that is not an integer in [1, its limit]
+    (:data:`COUNT_LIMITS`)."""
     from ..errors import whole_number
+    from ..exploration.run import MAX_STEPS
 
     for name, value in options.items():
-        whole_number(value, f"--{name}", 1)
+        whole_number(value, f"--{name}", 1, COUNT_LIMITS.get(name, MAX_STEPS))
 
 
 def run_render(args) -> int:

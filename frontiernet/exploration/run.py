@@ -25,6 +25,10 @@ RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": 
 ``depth.emulated.fill_depth=20``, ``ground_truth.gain.volume=occluded``: the ground truth of the
 ``oracle`` methods, datagen's labels; ``scenes.floorplan.wall_height=2.4``: the scene sources' options)."""
 
+MAX_STEPS = 100_000
+"""The largest step budget a run takes: 33x the paper's largest (3,000 steps, scene 807), about a day of
+the slowest method; more is a typo, which would otherwise run until killed."""
+
 
 def shipped_section(section: str):
     """The shipped config of run section `section` (a key of :data:`RUN_SECTIONS`); ``depth`` less
@@ -97,9 +101,8 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     from .methods import check_method
     from .move_check import body_radius
 
-    budget = int(conf.run.max_steps if max_steps is None else max_steps)
-    if budget < 1:
-        raise InputError(f"the step budget (--max-steps, run.max_steps) must be at least 1, got {budget}")
+    budget = whole_number(conf.run.max_steps if max_steps is None else max_steps,
+                          "the step budget (--max-steps, run.max_steps)", 1, MAX_STEPS)
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     depth_name = run_depth_source(depth, conf)
     check_method(method, model, conf)  # a method's own file checks (seer, mapex: the predictor)

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import shutil
 import time
 from pathlib import Path
 
@@ -158,15 +159,28 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
     The frames, the depth and `out` are checked before any work; a run refused after (an
-    :class:`InputError`) leaves no empty `out` folder behind that was not there before, and a
-    second run on `out` while this one writes there is refused (:func:`~frontiernet.io.claim_output_folder`).
+    :class:`InputError`: a recording without depth, a reconstruction that fails, ...) removes the `out`
+    folder if it made it, else the work folders it made there (``cache``, ``recording``, ``colmap``), while an
+    interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
+    (:func:`~frontiernet.io.claim_output_folder`).
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
     check_depth(depth)
-    with claim_output_folder(out, force=True) as out:  # (a re-run resumes from out/cache)
-        return _run(conf, input_path, out, format=format, depth=depth, model=model, camera=camera, video=video,
-                    progress=progress, recording=recording, mcap=mcap, rosbag2=rosbag2)
+    out = Path(out)
+    made = [path for path in (*(out / name for name in WORK_FOLDERS), out) if not path.exists()]
+    try:
+        with claim_output_folder(out, force=True) as out:  # (a re-run resumes from out/cache)
+            return _run(conf, input_path, out, format=format, depth=depth, model=model, camera=camera,
+                        video=video, progress=progress, recording=recording, mcap=mcap, rosbag2=rosbag2)
+    except InputError:
+        for path in made[-1:] if made and made[-1] == out else made:  # all of `out` when this run made it
+            shutil.rmtree(path, ignore_errors=True)
+        raise
+
+
+WORK_FOLDERS = ("cache", "recording", "colmap")
+"""What a run keeps in `out` to resume: the per-frame cache, a recording's extracted frames, pycolmap's work."""
 
 
 def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, progress, recording, mcap,
@@ -184,8 +198,10 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
         raise InputError(f"{input_path}: the frames have no poses (use --format images to reconstruct them)")
     if depth == "sensor" and not sequence.has_depth:
         missing = next(frame.name for frame in sequence if frame.depth_path is None)
-        raise InputError(f"{input_path}: frame {missing} has no depth file: choose a depth model with --depth "
-                         f"(depth_anything_v2 or metric3d_v2)")
+        what = ("the recording has no depth image topic (set one with --topics depth=TOPIC)"
+                if format == "rosbag" else f"frame {missing} has no depth file")
+        raise InputError(f"{input_path}: {what}: or choose a depth model with --depth (depth_anything_v2 or "
+                         f"metric3d_v2)")
     stream = FrontierStream(conf=conf, model=model, depth=depth)
     cache_paths = perceive_frames(sequence, stream, out / "cache", model_identity(model), progress)
     perceived = time.perf_counter()
@@ -204,6 +220,9 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
     try:
         tracked = track_frontiers(sequence, poses, cache_paths, stream, on_frame=pictures, progress=progress,
                                   stamps_ns=stream.ros_frames.stamps_ns)
+        if not len(stream.cloud.cloud.points):
+            raise InputError(f"{input_path}: no depth pixel of any frame is valid (all 0, no return, or beyond "
+                             f"{stream.cloud.max_depth_m:g} m): there is nothing to map")
     except BaseException:
         if ros is not None:
             ros.abort()

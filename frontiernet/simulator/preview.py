@@ -16,6 +16,8 @@ def material_colors(scene: Scene) -> np.ndarray:
                      for m in scene.materials], np.float32).reshape(-1, 3)
 
 
+MIN_TOPDOWN_PIXELS = 8
+"""The fewest pixels a top view has across: fewer show nothing of the scene (and its outlines need 3)."""
 MAX_TOPDOWN_PIXELS = 25_000_000
 """Largest top view drawn (5000 x 5000 px): its two casts of 24-byte rays per pixel hold 1.2 GB, more with their hits."""
 
@@ -45,7 +47,7 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
         (H, W, 3) uint8 image; row 0 is the scene's largest y (north up), column 0 its smallest x.
     Raises:
         InputError: a pixel size or cut height that is not a positive number, or an image of more
-            than :data:`MAX_TOPDOWN_PIXELS`.
+            than :data:`MAX_TOPDOWN_PIXELS` or fewer than :data:`MIN_TOPDOWN_PIXELS` across.
     """
     from ..errors import InputError
     from .raycast import INVALID_ID, cast_rays
@@ -53,6 +55,10 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
     check_view_settings(pixel_size, cut_height)
     lo, hi = scene.bounds
     width, height = (int(np.ceil((hi[axis] - lo[axis]) / pixel_size)) for axis in (0, 1))
+    if min(width, height) < MIN_TOPDOWN_PIXELS:
+        raise InputError(f"a top view of {scene.name} at {pixel_size:g} m per pixel would be {width} x {height} px, "
+                         f"fewer than {MIN_TOPDOWN_PIXELS} across; give a smaller pixel size (--pixel-size, at most "
+                         f"{min(hi[:2] - lo[:2]) / MIN_TOPDOWN_PIXELS:.3g} m here)")
     if width * height > MAX_TOPDOWN_PIXELS:
         raise InputError(f"a top view of {scene.name} at {pixel_size:g} m per pixel would be {width} x {height} px, "
                          f"more than {MAX_TOPDOWN_PIXELS:,}; give a larger pixel size (--pixel-size)")
