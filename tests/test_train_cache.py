@@ -205,3 +205,11 @@ def test_two_processes_building_one_cache_at_once_both_get_it(dataset_copy):
     for name, array in reference.arrays.items():
         assert np.array_equal(array, cache.arrays[name]), name
     assert not any(path.name.endswith(".partial") for path in (dataset_copy / "cache").iterdir())
+
+
+def test_bench_train_refuses_a_dataset_smaller_than_a_batch(dataset_copy, one_line_error):
+    # issue 55's second probe: StopIteration, an internal error, after the cache was built
+    assert main(["bench", "train", f"data.path={dataset_copy}", "data.batch_size=1000", "--workers", "0",
+                 "--batches", "1", "--steps", "1"]) == 2
+    assert "views, fewer than one batch (data.batch_size 1000)" in one_line_error()
+    assert not (dataset_copy / "cache").exists()
