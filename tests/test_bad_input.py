@@ -460,3 +460,18 @@ def test_a_datagen_run_with_one_bad_scene_writes_the_others_and_says_so_in_one_l
     assert "the other scenes' views are in" in line and "rerun with --resume" in line
     assert f"failed: {bad}" in printed.out  # in the report too
     assert len(list((out / "shards").glob("*.zip"))) == 1  # the good scene's views are kept
+
+
+@pytest.mark.parametrize("argv", [
+    ["bench", "--scenes", "procedural:3", "--max-steps", "40", "--depth", "gt,depth_anything_v2", "--methods",
+     "classic", "--out", "{tmp}/b"],
+    ["explore", "--scene", "procedural:3", "--depth", "depth_anything_v2", "--max-steps", "3", "--no-video",
+     "--out", "{tmp}/e"],
+])
+def test_missing_depth_weights_are_refused_before_the_setup(argv, tmp_path, monkeypatch, one_line_error):
+    # issue 55's second probe: bench ran every run to fail and said so with exit 0; explore refused only
+    # after 16 s of setup
+    monkeypatch.setenv("HF_HUB_CACHE", str(tmp_path / "hf"))
+    assert main([word.format(tmp=tmp_path) for word in argv]) == 2
+    assert "is not in the Hugging Face cache" in one_line_error()
+    assert sorted(path.name for path in tmp_path.iterdir()) == []

@@ -10,6 +10,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from ..config import dotted_parent, load_config
+from ..depth import check_depth_files
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
@@ -76,6 +77,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     out = check_output_folder(out, force=True)  # (a benchmark folder resumes)
     check_backend(backend, workers)  # before plan.json is written: a refused run leaves nothing behind
     depths = depth_sources(depth, conf)
+    for name in depths:  # weights missing: refused now, not as every run failing
+        check_depth_files(name, conf.get("depth"))
     scenes = expand_specs(scenes)
     valid = method_names()
     if not methods:

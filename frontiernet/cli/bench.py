@@ -8,6 +8,7 @@ there); ``bench --scenes ...`` is the exploration benchmark (:mod:`frontiernet.b
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from ..registry import Registry
@@ -129,6 +130,10 @@ def run_exploration_benchmark(args) -> int:
     print(Path(result["table"]).read_text())
     print(f"bench: {len(result['rows'])} runs ({failed} failed{copied}) in {result['wall_s']} s; "
           f"{result['results']}, {result['table']}, {len(result['plots'])} coverage plot(s) in {args.out}")
+    if failed:  # the others' results are written; exit 1 says not all ran (their errors: OUT/failed/)
+        print(f"frontiernet bench: {failed} of {len(result['rows'])} runs failed; their errors are in "
+              f"{Path(args.out) / 'failed'}/", file=sys.stderr)
+        return 1
     return 0
 
 

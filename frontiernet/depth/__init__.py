@@ -63,6 +63,16 @@ def known_source(name: str, what: str = "--depth, run.depth") -> str:
     return resolved
 
 
+def check_depth_files(name: str, conf: Mapping[str, Any] | DictConfig | None = None) -> None:
+    """Before a run's setup: InputError naming what is missing when source `name`'s files (weights,
+    code) are not where its section of the depth config `conf` says (a whole config like
+    ``configs/depth.yaml``; None or without that section: the shipped options), found without loading
+    them (:meth:`DepthSource.check_files`)."""
+    source = DEPTH_SOURCES.get(depth_source_name(name))
+    section = conf.get(source.name) if conf is not None else None
+    source.check_files(section if section is not None else source.options())
+
+
 def monocular_sources() -> list[str]:
     """The depth sources that estimate depth from the image alone (the others read the simulator's
     ground truth): what a command without a simulator (``predict``, ``sequence``) offers."""
@@ -98,6 +108,7 @@ def make_depth_source(
 
 __all__ = [
     "DEPTH_ALIASES",
+    "check_depth_files",
     "depth_source_name",
     "known_source",
     "monocular_sources",

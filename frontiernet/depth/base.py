@@ -67,6 +67,12 @@ class DepthSource(ABC):
         """
         return option_section(conf, cls.options(), f"depth.{cls.name}")
 
+    @classmethod
+    def check_files(cls, conf) -> None:
+        """Before a run's setup: InputError naming what is missing when the files the source loads (its
+        weights, its code) are not where `conf` (its section) says, found without loading them (a
+        missing file costs a second, not the minutes of a run's setup). Sources without files: nothing."""
+
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode; sources with randomness reseed from `seed`."""
 

@@ -113,6 +113,22 @@ class DepthAnythingV2(DepthSource):
         self.min_depth = number(c, "min_depth", self.name)
         self.processor, self.model = load_depth_anything(c["path"], str(c["repo_id"]), self.device)
 
+    @classmethod
+    def check_files(cls, conf) -> None:
+        """The weights folder ``path`` holds :data:`WEIGHT_FILES`, or the hub cache has a snapshot of
+        ``repo_id`` with them (what :func:`load_depth_anything` reads)."""
+        c = cls.section(conf)
+        if c["path"] is not None:
+            folder = Path(c["path"]).expanduser()
+            missing = [name for name in WEIGHT_FILES if not (folder / name).is_file()]
+            if missing:
+                raise InputError(_missing_folder_message(folder, missing, str(c["repo_id"])))
+            return
+        snapshots = _cache_entry(str(c["repo_id"])) / "snapshots"
+        if not any(all((snapshot / name).exists() for name in WEIGHT_FILES)
+                   for snapshot in (snapshots.iterdir() if snapshots.is_dir() else ())):
+            raise InputError(_missing_cache_message(str(c["repo_id"])))
+
     def estimate(self, rgb: np.ndarray, K: np.ndarray, gt_depth: np.ndarray | None = None) -> np.ndarray:
         """Predict depth; ``predicted_depth`` is resized bilinearly to the input's (H, W)."""
         import torch

@@ -124,6 +124,15 @@ class Metric3DV2(DepthSource):
         weights = find_weights(c["weights"], self.model_name)
         self.model = load_metric3d(repo_dir, self.model_name, weights, self.device, bool(c["trust_checkpoint"]))
 
+    @classmethod
+    def check_files(cls, conf) -> None:
+        """The Metric3D code folder and the model's checkpoint are where the section says."""
+        c = cls.section(conf)
+        if str(c["model"]) not in CHECKPOINTS:
+            raise InputError(f"depth.metric3d_v2.model: expected one of {sorted(CHECKPOINTS)}, got '{c['model']}'")
+        find_repo_dir(c["repo_dir"])
+        find_weights(c["weights"], str(c["model"]))
+
     def preprocess(self, rgb: np.ndarray) -> tuple[np.ndarray, float, tuple[int, int, int, int]]:
         """Resize (keep aspect) into ``input_size``, pad with ``pad_value``, normalise.
 

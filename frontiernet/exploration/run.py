@@ -96,6 +96,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     rerun-sdk, a `show_prediction` without the video or whose predictor does not load
     (:func:`~.predicted.open_predictor`). (What needs the scene, such as a start outside it, is
     checked after it loads.)"""
+    from ..depth import check_depth_files
     from ..errors import positive_number
     from ..io import input_file
     from .methods import check_method
@@ -105,6 +106,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
                           "the step budget (--max-steps, run.max_steps)", 1, MAX_STEPS)
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     depth_name = run_depth_source(depth, conf)
+    check_depth_files(depth_name, conf.get("depth"))
     check_method(method, model, conf)  # a method's own file checks (seer, mapex: the predictor)
     if model is not None:
         input_file(model, "model file")

@@ -41,15 +41,18 @@ def check_frames(stride, max_frames) -> tuple[int, int | None]:
     return stride, None if max_frames is None else whole_number(max_frames, "frames.max_frames (--max-frames)", 1)
 
 
-def check_depth(depth) -> None:
+def check_depth(depth, conf=None) -> None:
     """InputError unless `depth` is ``sensor``, the name of a depth source of
     :data:`~frontiernet.depth.SOURCES` (``emulated`` degrades the sensor's depth) or a
-    :class:`~frontiernet.depth.DepthSource`."""
-    from ..depth import SOURCES, depth_source_name
+    :class:`~frontiernet.depth.DepthSource`; InputError too when that source's weights are missing
+    (:func:`~frontiernet.depth.check_depth_files`, with `conf`'s ``depth`` section)."""
+    from ..depth import SOURCES, check_depth_files, depth_source_name
 
     if isinstance(depth, str) and depth != "sensor" and depth_source_name(depth) not in SOURCES:
         raise InputError(f"--depth {depth}: not a depth source; valid: sensor (the sequence's depth images, the "
                          f"default), gt, {', '.join(SOURCES)}")
+    if isinstance(depth, str) and depth != "sensor":
+        check_depth_files(depth, conf.get("depth") if conf is not None else None)
 
 
 def select_frames(sequence, stride: int, max_frames: int | None):
@@ -166,7 +169,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
-    check_depth(depth)
+    check_depth(depth, conf)
     out = Path(out)
     made = [path for path in (*(out / name for name in WORK_FOLDERS), out) if not path.exists()]
     try:

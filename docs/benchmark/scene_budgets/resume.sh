@@ -27,5 +27,6 @@ $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
     --methods "${METHODS:-classic,random-frontier,nbvp,omniscient,frontiernet,oracle}" \
     --starts "${STARTS:-1}" --repeats "${REPEATS:-1}" --scene-starts --model runs/shipped.onnx \
-    --depth gt,emulated --workers "${WORKERS:-2}" --redo-changed --out "$OUT_DIR"
-exec $FRONTIERNET bench --pack --out "$OUT_DIR"
+    --depth gt,emulated --workers "${WORKERS:-2}" --redo-changed --out "$OUT_DIR" || status=$?  # 1: a run failed
+$FRONTIERNET bench --pack --out "$OUT_DIR"
+exit "${status:-0}"
