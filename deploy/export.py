@@ -22,6 +22,9 @@ from frontiernet.model.files import model_base
 from frontiernet.model.network import CONFIG_KEY
 
 FORMATS = ("onnx", "torchscript", "safetensors")
+SUFFIXES = {"onnx": (".onnx",), "torchscript": (".pt", ".ts", ".torchscript"), "safetensors": (".safetensors",)}
+"""The file names of each format that ``predict``, ``explore`` and ``load_model`` read (the runtimes of
+``frontiernet.runtimes`` by suffix, torch weights as ``.safetensors``)."""
 TORCHSCRIPT_EXTRA = "frontiernet_model.json"
 OPSET = 18
 
@@ -48,6 +51,9 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
     if half and fmt != "safetensors":
         raise InputError(f"--half writes float16 safetensors only; {fmt} files keep float32 weights (leave --half out)")
     out = check_output_file(out)  # a folder in the way fails now, not after the export
+    if out.suffix.lower() not in SUFFIXES[fmt]:  # models are read by their suffix: another would not load again
+        raise InputError(f"--out {out.name}: {fmt} files are read back by their suffix; name it "
+                         f"{' or '.join('*' + suffix for suffix in SUFFIXES[fmt])}")
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: output folder does not exist")
     model, conf = load_model(model_path)

@@ -147,6 +147,11 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
         bad = [item for item in overrides if "=" not in item]
         if bad:
             raise InputError(f"override '{bad[0]}' is not of the form key=value")
+        # a key given twice: the later wins, as with a command line's repeated flags (scripts/train_on_gpu.sh
+        # sets its defaults first and passes the user's key=value after them)
+        empty = next((item for item in overrides if not item.split("=", 1)[1].strip()), None)
+        if empty is not None:
+            raise InputError(f"override '{empty}' has no value (write {empty}null for none)")
         try:
             extra = OmegaConf.from_dotlist(overrides)
         except OmegaConfBaseException as error:

@@ -47,6 +47,18 @@ def test_malformed_yaml_config_names_the_file_and_line(tmp_path, one_line_error)
     assert not (tmp_path / "e").exists()
 
 
+def test_a_range_where_one_scene_is_taken_says_so(one_line_error):
+    # issue 55's second probe: "procedural seed must be an integer" for procedural:5-2
+    assert main(["scene", "info", "procedural:5-2"]) == 2
+    assert "a range of seeds names several scenes, and this takes one (e.g. procedural:5)" in one_line_error()
+
+
+def test_a_scene_option_in_exponent_notation_is_a_number():
+    from frontiernet.scenes.spec import parse_spec
+
+    assert parse_spec("floorplan:plan.png?resolution=5e-2&up=y").options == {"resolution": 0.05, "up": "y"}
+
+
 def test_an_empty_npy_floor_plan_is_one_line(tmp_path, one_line_error):
     (tmp_path / "plan.npy").write_bytes(b"")
     assert main(["scene", "info", f"floorplan:{tmp_path / 'plan.npy'}?resolution=0.05"]) == 2
@@ -152,6 +164,9 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
 @pytest.mark.parametrize("argv, message", [
     (["export", "{model}", "--format", "onnx", "--out", "{tmp}"], "is a folder; give the output's file name"),
     (["export", "{model}", "--format", "onnx", "--half", "--out", "{tmp}/m.onnx"], "--half writes float16 safetensors"),
+    (["export", "{model}", "--format", "onnx", "--out", "{tmp}/m.txt"],  # was written, and could not be read back
+     "--out m.txt: onnx files are read back by their suffix; name it *.onnx"),
+    (["export", "{model}", "--format", "torchscript", "--out", "{tmp}/m.onnx"], "name it *.pt or *.ts or *.torchscript"),
     (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads=-2", "--out", "{tmp}/p"],
      "--threads must be an integer in [1, "),
     (["predict", "--image", "{tmp}/rgb.png", "--depth", "{tmp}/depth.npy", "--threads", "0", "--out", "{tmp}/p"],
@@ -183,6 +198,8 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
      "must be an integer in [1, 100000], got 1000000000.0"),
     (["bench", "--scenes", "procedural:3", "--max-steps", "1000000000000", "--methods", "classic", "--out", "{tmp}/b"],
      "--max-steps must be an integer in [1, 100000]"),
+    (["explore", "--scene", "procedural:3", "--no-video", "--out", "{tmp}/e", "run.max_steps="],
+     "override 'run.max_steps=' has no value (write run.max_steps=null for none)"),  # was taken as ''
     (["bench", "render", "--scene", "procedural:0", "--repeats", "1000000000"], "--repeats must be an integer in [1, 10000]"),
     (["bench", "explore", "--scene", "procedural:0", "--steps", "1000000000"], "--steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
@@ -460,6 +477,15 @@ def test_a_datagen_run_with_one_bad_scene_writes_the_others_and_says_so_in_one_l
     assert "the other scenes' views are in" in line and "rerun with --resume" in line
     assert f"failed: {bad}" in printed.out  # in the report too
     assert len(list((out / "shards").glob("*.zip"))) == 1  # the good scene's views are kept
+
+
+def test_bench_refuses_a_folder_of_other_files(tmp_path, one_line_error):
+    # issue 55's second probe: a datagen dataset given as --out got the benchmark's plan and runs in it
+    (tmp_path / "dataset.json").write_text("{}")
+    assert main(["bench", "--scenes", "procedural:3", "--max-steps", "40", "--methods", "classic",
+                 "--out", str(tmp_path)]) == 2
+    assert "holds files but no benchmark (no plan.json)" in one_line_error()
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["dataset.json"]
 
 
 @pytest.mark.parametrize("argv", [

@@ -14,7 +14,7 @@ from ..depth import check_depth_files
 from ..errors import InputError, whole_number
 from ..exploration.methods import method_names
 from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
-from ..io import check_output_folder, claim_output_folder
+from ..io import LOCK_NAME, check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, runs_changed, with_idle_keys,
@@ -75,6 +75,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     whole_number(starts, "--starts", 1, MAX_STARTS)
     whole_number(repeats, "--repeats", 1, MAX_STARTS)
     out = check_output_folder(out, force=True)  # (a benchmark folder resumes)
+    if out.is_dir() and plan_file(out) is None and any(path.name != LOCK_NAME for path in out.iterdir()):
+        raise InputError(f"{out} holds files but no benchmark (no plan.json): give an empty or new --out "
+                         "(a benchmark folder's own files are only its plan, runs and report)")
     check_backend(backend, workers)  # before plan.json is written: a refused run leaves nothing behind
     depths = depth_sources(depth, conf)
     for name in depths:  # weights missing: refused now, not as every run failing

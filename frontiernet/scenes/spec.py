@@ -110,11 +110,17 @@ def explorable_options(spec: SceneSpec) -> tuple[np.ndarray | None, np.ndarray |
 
 
 def _parse_value(text: str):
-    """``"0.05"`` -> 0.05, ``"true"`` -> True, anything else stays a string."""
+    """``"0.05"`` and ``"5e-2"`` -> 0.05, ``"true"`` -> True, anything else stays a string."""
     try:
-        return yaml.safe_load(text)
+        value = yaml.safe_load(text)
     except yaml.YAMLError:
         return text
+    if isinstance(value, str):
+        try:
+            return float(value)  # YAML 1.1 reads a number without its dot (5e-2, 1e9) as text
+        except ValueError:
+            return value
+    return value
 
 
 def _guess_source(argument: str) -> str:
@@ -237,6 +243,10 @@ def _procedural(spec, options):
     try:
         seed = int(spec.argument)
     except ValueError:
+        first, dash, last = spec.argument.partition("-")
+        if dash and first.strip().isdigit() and last.strip().isdigit():
+            raise InputError(f"scene spec '{spec.text}': a range of seeds names several scenes, and this takes one "
+                             f"(e.g. procedural:{first.strip()})") from None
         raise InputError(f"scene spec '{spec.text}': procedural seed must be an integer") from None
     if seed < 0:
         raise InputError(f"scene spec '{spec.text}': procedural seed must be >= 0")
