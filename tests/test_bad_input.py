@@ -479,6 +479,23 @@ def test_a_datagen_run_with_one_bad_scene_writes_the_others_and_says_so_in_one_l
     assert len(list((out / "shards").glob("*.zip"))) == 1  # the good scene's views are kept
 
 
+def test_a_model_file_under_another_suffix_and_files_for_folders(tmp_path, capsys, one_line_error):
+    # issue 55's second probe: a model file named .bin was "not a PyTorch zip archive"; a folder as the top
+    # view's --out was "not an image file name", a file as bench --report's --out "no benchmark here"
+    import shutil
+
+    from frontiernet.model import default_model_path
+
+    shutil.copy(default_model_path(), tmp_path / "model.bin")
+    assert main(["export", str(tmp_path / "model.bin"), "--format", "safetensors", "--half",
+                 "--out", str(tmp_path / "m.safetensors")]) == 0
+    capsys.readouterr()
+    assert main(["scene", "topdown", "procedural:3", "--out", str(tmp_path)]) == 2
+    assert "is a folder; give the output's file name" in one_line_error()
+    assert main(["bench", "--report", "--out", str(tmp_path / "model.bin")]) == 2
+    assert "model.bin: is a file; a benchmark is a folder" in one_line_error()
+
+
 def test_bench_refuses_a_folder_of_other_files(tmp_path, one_line_error):
     # issue 55's second probe: a datagen dataset given as --out got the benchmark's plan and runs in it
     (tmp_path / "dataset.json").write_text("{}")

@@ -110,6 +110,8 @@ def read_plan(out: str | Path) -> dict:
         InputError: `out` holds no benchmark, or its plan is not JSON (or not gzip).
     """
     path = plan_file(out)
+    if path is None and Path(out).exists() and not Path(out).is_dir():
+        raise InputError(f"{out}: is a file; a benchmark is a folder (--out DIR)")
     if path is None:
         raise InputError(f"{out}: no benchmark here (no plan.json); run frontiernet bench --scenes ... --out {out}")
     try:

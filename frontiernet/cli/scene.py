@@ -89,8 +89,8 @@ def run_topdown(args) -> int:
     from ..simulator.preview import check_view_settings, topdown_image
     from ..simulator.world import build_world, load_world_config
 
-    check_image_name(args.out)  # before the work: a bad --out or setting fails at once, and makes no folder
-    check_output_file(args.out, args.force)
+    check_output_file(args.out, args.force)  # before the work: a bad --out or setting fails at once, no folder
+    check_image_name(args.out)
     check_output_folder(Path(args.out).parent, force=True)
     check_view_settings(args.pixel_size, args.cut_height)
     sim = load_world_config(args.config)

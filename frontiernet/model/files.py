@@ -88,7 +88,7 @@ def read_model_file(path: Path) -> tuple[dict, dict]:
     ``inference`` and ``info``) of a model file (``.safetensors``, its base's shared tensors filled in)
     or a training checkpoint (``.ckpt``). InputError naming the file when it cannot be read as one."""
     path = Path(path)
-    if path.suffix != ".safetensors":
+    if path.suffix != ".safetensors" and not _looks_like_safetensors(path):  # (a model file renamed .bin reads)
         return _read_checkpoint(path)
     state, metadata = _read_safetensors(path)
     if CONFIG_KEY not in metadata:
@@ -112,6 +112,16 @@ def model_base(conf: dict) -> SharedBase | None:
     Whatever writes such a model again (``export``, ``train``) passes it to :func:`save_model`."""
     record = conf.get("base")
     return SharedBase(Path(record["path"]), tuple(record["prefixes"])) if record else None
+
+
+def _looks_like_safetensors(path: Path) -> bool:
+    """Whether `path` starts as a safetensors file does: an 8-byte little-endian header length, then '{'."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(9)
+    except OSError:
+        return False
+    return len(head) == 9 and 0 < int.from_bytes(head[:8], "little") < 100_000_000 and head[8:9] == b"{"
 
 
 def shipped_weights_folder() -> Path:
