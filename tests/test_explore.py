@@ -325,7 +325,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["--start", "0.85,2.5,1.2,0"], "inside an obstacle"),  # 0.05 m from the wall's face at x = 0.8
     (["--start", "50,50,1.2,0"], "outside the scene"),
     (["--start", "2,2.5,9,0"], "outside the scene"),  # above the walls
-    (["--max-steps", "0"], "at least 1"),
+    (["--max-steps", "0"], "must be an integer in [1, 100000], got 0"),
     (["--start", "2,2.5,1.2"], "x,y,z,yaw"),
     (["--start", "2,2.5,abc,0"], "--start '2,2.5,abc,0': 'abc' is not a number"),
     (["--method", "frontiernet", "--model", "{tmp}/missing.safetensors"], "not found"),

@@ -232,7 +232,7 @@ def test_sequence_command_poses_an_image_folder_in_metres(rendered, reconstructe
     monkeypatch.setattr(frontiernet.depth, "make_depth_source", lambda name, conf=None: RenderedDepth(folder, depths))
     import frontiernet.sequences.main
 
-    monkeypatch.setattr(frontiernet.sequences.main, "check_depth", lambda depth: None)  # a stand-in, not registered
+    monkeypatch.setattr(frontiernet.sequences.main, "check_depth", lambda depth, conf=None: None)  # a stand-in
     assert main(["sequence", "--input", str(folder), "--format", "images", "--depth", "rendered", "--out", str(out),
                  "--no-video"]) == 0
     summary = json.loads((out / "summary.json").read_text())
