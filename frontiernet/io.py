@@ -89,6 +89,20 @@ FORCE = "--force"
 """The option of every command that replaces earlier outputs (export, render, explore, scene topdown)."""
 
 
+def check_writable_folder(folder: str | Path, what: str) -> Path:
+    """Before the work: InputError naming `what` unless a file can be made in `folder` (it is tried,
+    and removed: permissions alone do not tell, e.g. for root or a read-only file system)."""
+    import tempfile
+
+    folder = Path(folder)
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as error:
+        raise InputError(f"{what}: cannot write in {folder} ({error.strerror or type(error).__name__})") from None
+    return folder
+
+
 def check_output_file(path: str | Path, force: bool = True) -> Path:
     """Before the work: InputError when output file `path` is a folder, or exists and `force`
     is off (nothing written before is replaced unless asked: :data:`FORCE`)."""

@@ -518,3 +518,14 @@ def test_missing_depth_weights_are_refused_before_the_setup(argv, tmp_path, monk
     assert main([word.format(tmp=tmp_path) for word in argv]) == 2
     assert "is not in the Hugging Face cache" in one_line_error()
     assert sorted(path.name for path in tmp_path.iterdir()) == []
+
+
+def test_evaluate_checks_its_json_folder_before_the_evaluation(tmp_path, one_line_error):
+    # issue 55's second probe: an unwritable --json was refused only after the whole evaluation
+    from frontiernet.model import default_model_path
+
+    (tmp_path / "afile").write_text("")
+    assert main(["evaluate", str(default_model_path()), "--data", str(tmp_path), "--all",
+                 "--json", str(tmp_path / "afile" / "x.json")]) == 2
+    message = one_line_error()
+    assert "--json" in message and "cannot write in" in message

@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import json
 
 from frontiernet.cli import options
@@ -68,7 +70,7 @@ def run_train(args) -> int:
 
 def run_evaluate(args) -> int:
     from frontiernet.errors import InputError, cpu_count_option, whole_number
-    from frontiernet.io import check_output_file, write_json
+    from frontiernet.io import check_output_file, check_writable_folder, write_json
     from frontiernet.model.files import torch_model_file
     from frontiernet.model.predictor import input_size
 
@@ -81,6 +83,7 @@ def run_evaluate(args) -> int:
         raise InputError("--all and --scenes exclude each other: give one")
     if args.json:
         check_output_file(args.json)  # a folder given as --json fails now, not after the evaluation
+        check_writable_folder(Path(args.json).resolve().parent, f"--json {args.json}")
     torch_model_file(args.model)  # before the data load
     from rich.progress import Progress
 

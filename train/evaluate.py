@@ -42,8 +42,8 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         dict of metrics (``df_error_px``, ``gain_dice``, ``frontier_precision`` ...), the
         baselines under ``baselines`` and what was evaluated under ``evaluated``.
     """
+    dataset = open_training_data(data)  # first: a bad dataset is refused before the model loads
     model, conf = load_model(model_path)
-    dataset = open_training_data(data)
     trained_on = labels_gain_definition(conf["labels"])
     if trained_on != dataset.gain_definition:
         raise InputError(f"{data}: holds gain labels of definition {dataset.gain_definition}, but the model "
