@@ -153,6 +153,14 @@ def parse_intrinsics_text(text: str) -> tuple[float, float, float, float]:
     return values
 
 
+def check_principal_point(cx: float, cy: float, width: int, height: int, what: str = "--intrinsics") -> None:
+    """InputError naming `what` when the principal point (`cx`, `cy`) pixels lies outside a `width` x `height`
+    image (the intrinsics of another image size, or typed wrong), as given, before any scaling."""
+    if not (-0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5):
+        raise InputError(f"{what}: the principal point ({cx:g}, {cy:g}) lies outside the {width} x {height} image "
+                         f"(intrinsics of another image size?)")
+
+
 def back_projected_points(depth: np.ndarray, rgb: np.ndarray | None, K: np.ndarray, T_world_cam: np.ndarray,
                           max_depth_m: float, stride: int) -> tuple[np.ndarray, np.ndarray | None]:
     """(N, 3) float64 world points and (N, 3) uint8 colours (None without `rgb`) of every

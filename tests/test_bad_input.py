@@ -529,3 +529,16 @@ def test_evaluate_checks_its_json_folder_before_the_evaluation(tmp_path, one_lin
                  "--json", str(tmp_path / "afile" / "x.json")]) == 2
     message = one_line_error()
     assert "--json" in message and "cannot write in" in message
+
+
+def test_intrinsics_of_another_image_size_are_named_as_given(tmp_path, one_line_error):
+    # issue 55's second probe: the principal point was reported scaled to the network's size, after the
+    # prediction had written its pictures
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.full((48, 64, 3), 128, np.uint8))
+    np.save(tmp_path / "depth.npy", np.full((48, 64), 2.0, np.float32))
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.npy"),
+                 "--intrinsics", "30,30,5000,5000", "--out", str(tmp_path / "p")]) == 2
+    assert "--intrinsics: the principal point (5000, 5000) lies outside the 64 x 48 image" in one_line_error()
+    assert not (tmp_path / "p").exists()

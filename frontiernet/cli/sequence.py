@@ -13,7 +13,7 @@ in ``cache/`` (a re-run resumes from them).
 from __future__ import annotations
 
 from ..errors import InputError
-from ..geometry import parse_intrinsics_text
+from ..geometry import check_principal_point, parse_intrinsics_text
 from . import options
 
 
@@ -60,7 +60,9 @@ def camera_from_intrinsics(text: str, input_path):
                     and "depth" not in path.parts)
     if not images:
         raise InputError(f"{input_path}: no images found to size the camera of --intrinsics")
-    return Camera.pinhole(fx, fy, cx, cy, *image_size(images[0]))
+    width, height = image_size(images[0])
+    check_principal_point(cx, cy, width, height)
+    return Camera.pinhole(fx, fy, cx, cy, width, height)
 
 
 def recording_options(args) -> tuple[object, dict | None]:
