@@ -542,3 +542,15 @@ def test_intrinsics_of_another_image_size_are_named_as_given(tmp_path, one_line_
                  "--intrinsics", "30,30,5000,5000", "--out", str(tmp_path / "p")]) == 2
     assert "--intrinsics: the principal point (5000, 5000) lies outside the 64 x 48 image" in one_line_error()
     assert not (tmp_path / "p").exists()
+
+
+def test_a_boolean_array_is_no_depth_map(tmp_path, one_line_error):
+    # issue 55's second probe: a bool .npy was read as metres (0 and 1 m)
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.full((48, 64, 3), 128, np.uint8))
+    np.save(tmp_path / "mask.npy", np.ones((48, 64), bool))
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "mask.npy"),
+                 "--out", str(tmp_path / "p")]) == 2
+    assert "mask.npy: holds bool values, not depth (integer units or float metres)" in one_line_error()
+    assert not (tmp_path / "p").exists()

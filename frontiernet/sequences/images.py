@@ -93,6 +93,8 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
         depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
         if depth is None:
             raise InputError(f"{path}: not a readable depth image")
+    if not (np.issubdtype(depth.dtype, np.integer) or np.issubdtype(depth.dtype, np.floating)):
+        raise InputError(f"{path}: holds {depth.dtype} values, not depth (integer units or float metres)")
     if encoding == "sun":
         if depth.dtype != np.uint16:
             raise InputError(f"{path}: SUN depth must be a 16-bit image, got {depth.dtype}")
