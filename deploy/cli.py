@@ -3,7 +3,7 @@
 ``frontiernet.bench``).
 
   frontiernet export MODEL --format onnx|torchscript|safetensors --out FILE [--half] [--frontier-threshold PX]
-  frontiernet predict --image RGB [--depth D|depth_anything_v2|metric3d_v2] [--model M] --out DIR [--size PX]
+  frontiernet predict --image RGB [--depth D|depth_anything_v2|metric3d_v2] [--model M] --out DIR [--force] [--size PX]
                      [--depth-scale S] [--depth-encoding scale|sun|nyu] [--intrinsics FX,FY,CX,CY]
                      [--config FILE] [KEY=VALUE ...]
 """
@@ -40,7 +40,7 @@ def add_parser(subparsers) -> None:
     predict.add_argument("--model", metavar="M", help="model file, checkpoint, .onnx or TorchScript .pt "
                                                       "(default: the shipped model for the inputs given: RGB + depth, or RGB "
                                                       "only for --image alone)")
-    options.output_folder(predict)
+    options.output_folder(predict, force=True)
     predict.add_argument("--size", type=int, metavar="PX", help="network input size: the short side is resized "
                                                                 "to PX and centre-cropped (default: the model's, "
                                                                 "320; 0 keeps the image as is)")
@@ -89,7 +89,7 @@ def run_predict(args) -> int:
         positive_number(args.depth_scale, "--depth-scale")
     if args.threads is not None:
         cpu_count_option(args.threads, "--threads")
-    check_output_folder(args.out, force=True)  # predict writes over its own outputs
+    check_output_folder(args.out, args.force)  # earlier outputs are replaced only with --force
     for path, what in ((args.image, "image"), (args.model, "model file"),
                        (None if depth_model_name(args.depth) else args.depth, "depth file")):
         if path is not None:  # before the model loads
@@ -100,7 +100,7 @@ def run_predict(args) -> int:
         from frontiernet.geometry import parse_intrinsics_text
 
         intrinsics = parse_intrinsics_text(args.intrinsics)
-    with claim_output_folder(args.out, force=True):
+    with claim_output_folder(args.out, args.force):
         result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
                                depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,
                                depth_encoding=args.depth_encoding, fill_invalid=args.fill_invalid_depth, conf=conf)

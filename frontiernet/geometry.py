@@ -83,8 +83,8 @@ def parse_pose_text(text: str, option: str = "--pose", pitch: bool = True) -> tu
     angles in radians (pitch 0 when not given), or (x, y, z, yaw) when `pitch` is False.
 
     Positions are metres in the world frame (Z up). Angles are degrees (``90``, ``90deg``) or
-    radians with a ``rad`` suffix (``1.5708rad``); yaw 0 looks along +x, pitch > 0 looks up and
-    must lie strictly between -90 and 90 degrees. Raises :class:`InputError` naming `option`
+    radians with a ``rad`` suffix (``1.5708rad``); yaw 0 looks along +x and lies within -360 and
+    360 degrees, pitch > 0 looks up and must lie strictly between -90 and 90 degrees. Raises :class:`InputError` naming `option`
     and the bad part.
     """
     form = "x,y,z,yaw[,pitch]" if pitch else "x,y,z,yaw"
@@ -101,6 +101,8 @@ def parse_pose_text(text: str, option: str = "--pose", pitch: bool = True) -> tu
         if not np.isfinite(value):
             raise InputError(f"{option} '{text}': '{part}' is not finite")
         values.append(value if index < 3 or unit == "rad" else float(np.radians(value)))
+    if abs(values[3]) > 2 * np.pi + 1e-9:  # (1e30 degrees is a number, but no heading: cos loses every digit)
+        raise InputError(f"{option} '{text}': yaw must lie between -360 and 360 degrees")
     if pitch and len(values) == 4:
         values.append(0.0)
     if pitch and abs(values[4]) >= np.pi / 2:

@@ -133,6 +133,7 @@ def test_sigterm_to_datagen_ends_its_workers(tmp_path):
     (["--pixel-size", "0.0001"], "give a larger pixel size"),
     (["--pixel-size", "1000"], "give a smaller pixel size"),  # a 1 px picture was an internal error (OpenCV)
     (["--cut-height", "-5"], "cut height (--cut-height) must be a positive number"),
+    (["--cut-height", "1000"], "the cut height (--cut-height) 1000 m lies above"),  # drew the roof (second probe)
 ])
 def test_bad_top_view_settings_are_one_line(plan_spec, tmp_path, one_line_error, option, message):
     assert main(["scene", "topdown", plan_spec, "--out", str(tmp_path / "new" / "top.png"), *option]) == 2
@@ -149,6 +150,9 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (view / "mine.txt").write_text("a file of the user's")
     for argv, name in ((render, "view"), (topdown, "top.png"),
                        (["explore", "--scene", plan_spec, "--out", str(view)], "view"),
+                       # issue 55's second probe: predict wrote over earlier outputs without a word
+                       (["predict", "--image", str(view / "rgb.png"), "--depth", str(view / "depth.npy"),
+                         "--out", str(view)], "view"),
                        (["export", "model.safetensors", "--format", "onnx", "--out", str(top)], "top.png")):
         capsys.readouterr()
         assert main(argv) == 2, argv
@@ -205,6 +209,10 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
     (["bench", "inference", "--encoders", "resnet18,vgg16"], "--encoders must list distinct names of resnet18"),
     (["sequence", "--input", "{tmp}", "--intrinsics", "nan,525,320,240", "--out", "{tmp}/s"], "finite pixels"),
+    # issue 55's second probe: a yaw of 1e30 degrees rendered some heading
+    (["render", "procedural:3", "--pose", "3,3,1.2,1e30", "--out", "{tmp}/r"], "yaw must lie between -360 and 360"),
+    (["bench", "--scenes", "procedural:3", "--methods", "classic,nbvp", "--max-steps", "60", "--out", "{tmp}/b",
+      "--set", "planner.mode=map_free"], "method classic takes its frontiers from the robot's map"),
 ])
 def test_bad_options_are_one_line_before_any_work(argv, message, tmp_path, one_line_error):
     from frontiernet.model import default_model_path
@@ -434,6 +442,9 @@ def test_a_refused_exploration_leaves_no_out_folder(plan_spec, tmp_path, argv, m
     (["--rerun"], "--rerun needs the rerun-sdk package"),  # was after 11 s of setup
     (["planner.clearance_m=-1"], "planner.clearance_m = -1 is too small for the agent radius"),
     (["--model", "m.safetensors"], "m.safetensors: model file not found"),
+    # issue 55's second probe: map-free mode with a map method ran as if in map mode
+    (["--method", "nbvp", "--map-free"], "--map-free (planner.mode=map_free): method nbvp grows its tree"),
+    (["--method", "vacuum", "--map-free"], "method vacuum plans no route"),
 ])
 def test_explore_refuses_bad_settings_before_its_setup(plan_spec, tmp_path, no_setup, argv, message,
                                                        one_line_error, monkeypatch):
@@ -554,3 +565,12 @@ def test_a_boolean_array_is_no_depth_map(tmp_path, one_line_error):
                  "--out", str(tmp_path / "p")]) == 2
     assert "mask.npy: holds bool values, not depth (integer units or float metres)" in one_line_error()
     assert not (tmp_path / "p").exists()
+
+
+def test_scene_starts_where_no_scene_ships_any_are_refused(tmp_path, one_line_error):
+    # issue 55's second probe: --scene-starts on procedural scenes ran every run from drawn starts
+    out = tmp_path / "b"
+    assert main(["bench", "--scenes", "procedural:3", "--methods", "classic", "--starts", "1", "--repeats", "1",
+                 "--max-steps", "60", "--scene-starts", "--out", str(out)]) == 2
+    assert "--scene-starts: none of the scenes ships start poses" in one_line_error()
+    assert not out.exists()

@@ -198,11 +198,14 @@ def test_camera_must_fit_the_images_and_options_are_checked(tmp_path):
         sfm_config({key: value for key, value in SFM.items() if key != "seed"})
 
 
-def test_featureless_images_cannot_be_reconstructed(tmp_path):
+@pytest.mark.parametrize("progress", [False, True])
+def test_featureless_images_cannot_be_reconstructed(tmp_path, capfd, progress):
     for i in range(3):
         Image.new("RGB", (64, 48), (90, 90, 90)).save(tmp_path / f"{i}.png")
     with pytest.raises(InputError, match="could not reconstruct.*0 of 3.*overlap"):
-        read_image_folder(tmp_path, work_dir=tmp_path / "colmap", conf=SFM, progress=False)
+        read_image_folder(tmp_path, work_dir=tmp_path / "colmap", conf=SFM, progress=progress)
+    if progress:  # issue 55's second probe: COLMAP's "Failed to create any sparse model" came before our line
+        assert "sfm.cc" not in capfd.readouterr().err
 
 
 class RenderedDepth:

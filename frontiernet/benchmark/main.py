@@ -12,7 +12,7 @@ from omegaconf import OmegaConf
 from ..config import dotted_parent, load_config
 from ..depth import check_depth_files
 from ..errors import InputError, whole_number
-from ..exploration.methods import method_names
+from ..exploration.methods import check_method, method_names
 from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
 from ..io import LOCK_NAME, check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
@@ -65,7 +65,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     Raises:
         InputError: an unknown method or scene, a budget too small for Vox@25, a model file
             that does not load, a depth list with an unknown, repeated or empty item, a changed
-            plan in a folder that holds another benchmark's runs.
+            plan in a folder that holds another benchmark's runs, a method the settings do not fit
+            (:func:`~frontiernet.exploration.methods.check_method`), `scene_starts` where no scene
+            ships start poses.
     """
     rule = None if max_steps is not None else BudgetRule.from_conf(load_config("bench").budget)
     budget = rule.min_steps if rule is not None else whole_number(max_steps, "--max-steps", 1, MAX_STEPS)
@@ -91,6 +93,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
             raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
         if method in methods[:index]:
             raise InputError(f"--methods names {method} twice; each method runs once per scene, start and repeat")
+        check_method(method, conf=conf)  # its own checks (seer, mapex: the predictor), --set planner.mode=map_free
     if model is not None:  # a file that does not load is one error now, not a failed run per run
         from ..exploration.methods import runs_frontiernet_model
         from ..model import open_runtime

@@ -393,7 +393,8 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
             one fixed budget.
     Raises:
         InputError: no scenes or methods, an unknown method (the valid ones listed), starts or
-            repeats below 1, or a scene that does not load.
+            repeats below 1, a scene that does not load, `scene_starts` where no scene sampled here
+            ships start poses.
     """
     from ..exploration.methods import method_names, repeats_identically
 
@@ -410,14 +411,16 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
     from ..exploration.run import planning_world
     from .budget import scene_budget
 
+    given = set(poses or {})  # scenes whose poses a resumed plan holds
     poses, budgets = dict(poses or {}), None if rule is None else dict(budgets or {})
-    runs = []
+    runs, shipping = [], []  # shipping: the scenes sampled here that ship start poses
     for scene in scenes:
         need_poses = scene not in poses or len(poses[scene]) < int(starts)
         need_budget = budgets is not None and scene not in budgets
         world = planning_world(scene, conf) if need_poses or need_budget else None
         if need_poses:
             poses[scene] = start_poses(scene, int(starts), seed, conf, scene_starts, world)
+            shipping += [scene] if world.scene.metadata.extra.get("start_xy") else []
         if need_budget:
             budgets[scene] = scene_budget(scene, conf, rule, world)[0]
         for start in range(int(starts)):
@@ -430,6 +433,9 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
                         copy_of = first.key if repeat > 0 and repeats_identically(method, depth) else None
                         runs.append(RunSpec(scene, method, start, repeat, first.start_pose, int(seed) + repeat,
                                             copy_of, regime, budget))
+    if scene_starts and not shipping and not given:  # (a resumed plan's poses were checked when it was made)
+        raise InputError(f"--scene-starts: none of the scenes ships start poses (a KTH plan folder's "
+                         "start_poses.json does), so every start would be drawn as without it; leave it out")
     return runs, {scene: [list(pose) for pose in poses[scene][:int(starts)]] for scene in scenes}, budgets
 
 

@@ -173,5 +173,6 @@ make_mapex.uses_model = True  # --model names its predictor file (methods.uses_m
 make_mapex.model_kind = "mapex predictor"  # not a FrontierNet model: bench --model is not for it
 make_mapex.topdown_prediction = True  # its source's `topdown`, which explore --show-prediction alone draws
 make_mapex.check = check_predictor("mapex")  # before the scene loads (methods.check_method)
+make_mapex.needs_map = "scores the map's frontiers by predicted maps"  # no --map-free (methods.check_method)
 
 __all__ = ["MapexSource", "make_mapex", "visible_cells"]

@@ -191,6 +191,7 @@ def _frontiernet_mapex(context: MethodContext) -> Method:
 _frontiernet_mapex.uses_model = True  # --model names its FrontierNet model (the predictor: mapex.predictor)
 _frontiernet_mapex.check = check_predictor("mapex", model_is_predictor=False)  # before the scene loads (check_method)
 _frontiernet_mapex.topdown_prediction = True  # its source's `topdown`, which explore --show-prediction alone draws
+_frontiernet_mapex.needs_map = "counts the predicted space behind a frontier from the robot's map"
 
 
 def _discontinuity_uniform(context: MethodContext) -> Method:
@@ -201,11 +202,19 @@ def _discontinuity_uniform(context: MethodContext) -> Method:
 def _map_method(name: str):
     """The factory of map method `name` (:data:`MAP_METHODS`)."""
     gain, goal = MAP_METHODS[name]
-    return lambda context: Method(name, MapSource(gain, context.map, context.conf), goal, fresh_frontiers=True)
+
+    def make(context: MethodContext) -> Method:
+        return Method(name, MapSource(gain, context.map, context.conf), goal, fresh_frontiers=True)
+
+    make.needs_map = "takes its frontiers from the robot's map"
+    return make
 
 
 def _vacuum(context: MethodContext) -> Method:
     return Method("vacuum", None, "vacuum", moves=VacuumMoves(context.rng))
+
+
+_vacuum.needs_map = "plans no route (it drives until it bumps, then turns)"
 
 
 METHODS = Registry("exploration method", "frontiernet.methods", {
@@ -264,7 +273,13 @@ def check_method(name: str, model=None, conf=None) -> None:
     """Before a run's setup: InputError for an unknown method `name` (the valid ones listed), or a
     `model` (``--model``) given to a method that runs none (:func:`uses_model`); with the run config
     `conf`, the factory's own ``check(conf, model)`` where it has one (``seer``, ``mapex``: their
-    predictor file loads and fits the run's map)."""
+    predictor file loads and fits the run's map), and map-free mode (``planner.mode: map_free``,
+    ``--map-free``) for a method that plans in the robot's map (its factory's ``needs_map``: why)."""
+    needs_map = getattr(METHODS.get(name), "needs_map", None)
+    if conf is not None and needs_map and str(conf.planner.mode) == "map_free":
+        free = [other for other in METHODS.names() if not getattr(METHODS.get(other), "needs_map", None)]
+        raise InputError(f"--map-free (planner.mode=map_free): method {name} {needs_map}, so map-free mode does "
+                         f"not apply to it; leave it out (the methods that run map-free: {', '.join(sorted(free))})")
     if not uses_model(name) and model is not None:
         users = [other for other in METHODS.names() if uses_model(other)]
         raise InputError(f"--model {model}: method {name} runs no model, so --model would be ignored; leave it "

@@ -188,4 +188,7 @@ def make_nbvp(context) -> Method:
     return Method("nbvp", source, "utility", fresh_frontiers=True)
 
 
+make_nbvp.needs_map = "grows its tree in the robot's map"  # no --map-free (methods.check_method)
+
+
 __all__ = ["NbvpSource", "ViewTarget", "visited", "make_nbvp"]

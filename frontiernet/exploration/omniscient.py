@@ -243,4 +243,7 @@ def make_omniscient(context):
     return Method("omniscient", source, "rate", fresh_frontiers=True)
 
 
+make_omniscient.needs_map = "plans its views in the robot's map"  # no --map-free (methods.check_method)
+
+
 __all__ = ["OmniscientSource", "ViewCandidates", "lattice_cells", "near_unseen", "make_omniscient"]

@@ -338,5 +338,6 @@ def make_seer(context) -> Method:
 make_seer.uses_model = True  # --model names its predictor file (methods.uses_model)
 make_seer.model_kind = "seer predictor"  # not a FrontierNet model: bench --model is not for it
 make_seer.check = check_predictor("seer")  # before the scene loads (methods.check_method)
+make_seer.needs_map = "predicts the map around the map's frontier clusters"  # no --map-free (check_method)
 
 __all__ = ["Crop", "SeerSource", "make_seer"]

@@ -201,10 +201,11 @@ def _existing_model(work_dir: Path, names: list[str]) -> pycolmap.Reconstruction
 
 @contextmanager
 def _quiet_colmap(quiet: bool):
-    """COLMAP's info and warning log lines off while `quiet` (the progress line tells the stage)."""
+    """COLMAP's log lines off while `quiet`: the progress line tells the stage, and a failure is our
+    one line (:func:`reconstruct`'s InputError), not COLMAP's error line before it."""
     level = pycolmap.logging.minloglevel
     if quiet:
-        pycolmap.logging.minloglevel = int(pycolmap.logging.ERROR)
+        pycolmap.logging.minloglevel = int(pycolmap.logging.FATAL)
     try:
         yield
     finally:
@@ -234,7 +235,7 @@ def read_image_folder(root, camera: Camera | None = None, work_dir=None, *, conf
             instead of reconstructing (`camera` and `conf` then have no effect). None: a
             temporary folder, deleted afterwards.
         conf: the ``sfm`` section of ``configs/sequence.yaml`` (:func:`sfm_config`).
-        progress: show a rich progress line (and keep COLMAP's log to errors); Ctrl-C cancels.
+        progress: show a rich progress line (and COLMAP's log off: a failure is one InputError); Ctrl-C cancels.
     Returns:
         One frame per registered image, sorted by name, with ``T_world_cam`` (4, 4) float64 in
         COLMAP's world frame and units (``metric=False``), the registration rate in ``notes``, and

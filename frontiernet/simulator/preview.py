@@ -46,7 +46,8 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
     Returns:
         (H, W, 3) uint8 image; row 0 is the scene's largest y (north up), column 0 its smallest x.
     Raises:
-        InputError: a pixel size or cut height that is not a positive number, or an image of more
+        InputError: a pixel size or cut height that is not a positive number, a cut height at or
+            above the scene's top, or an image of more
             than :data:`MAX_TOPDOWN_PIXELS` or fewer than :data:`MIN_TOPDOWN_PIXELS` across.
     """
     from ..errors import InputError
@@ -62,6 +63,9 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
     if width * height > MAX_TOPDOWN_PIXELS:
         raise InputError(f"a top view of {scene.name} at {pixel_size:g} m per pixel would be {width} x {height} px, "
                          f"more than {MAX_TOPDOWN_PIXELS:,}; give a larger pixel size (--pixel-size)")
+    if cut_height >= hi[2] - lo[2]:  # the plane above everything: a view of the roof, nothing cut
+        raise InputError(f"the cut height (--cut-height) {cut_height:g} m lies above {scene.name}, which is "
+                         f"{hi[2] - lo[2]:.2f} m high; give a height inside it (1.8 m cuts a storey's walls)")
     cut = lo[2] + cut_height
     xs = np.arange(lo[0] + pixel_size / 2, hi[0], pixel_size)
     ys = np.arange(hi[1] - pixel_size / 2, lo[1], -pixel_size)
