@@ -11,8 +11,8 @@ import torch
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
-from frontiernet.model import FrontierNet, NetworkConfig, default_model_path, load_model
-from frontiernet.model.files import SharedBase
+from frontiernet.model import FrontierNet, NetworkConfig, load_model
+from frontiernet.model.files import SharedBase, init_weights_file
 
 log = logging.getLogger(__name__)
 
@@ -25,7 +25,7 @@ def init_file(conf) -> Path | None:
     source = conf.get("init_weights")
     if not source:
         return None
-    return default_model_path() if str(source) == "default" else Path(str(source))
+    return init_weights_file(source)
 
 
 def initial_weights(conf) -> tuple[FrontierNet | None, dict]:

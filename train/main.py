@@ -175,11 +175,11 @@ def _check_checkpoint(path: str) -> dict:
     return state.get("hyper_parameters") or {}
 
 
-def resumed_settings(conf, resume: str) -> None:
-    """Set in `conf` what a resumed run takes from its checkpoint `resume`, not from the config: the
-    network it trains and the fine-tuning settings (``init_weights``, ``init_inputs``, ``freeze``) that
-    made it, so that the written model file shares the same layers with the same base."""
-    hyper = _check_checkpoint(resume)
+def resumed_settings(conf, hyper: dict) -> None:
+    """Set in `conf` what a resumed run takes from its checkpoint (`hyper`: its hyperparameters,
+    :func:`resume_checkpoint`), not from the config: the network it trains and the fine-tuning settings
+    (``init_weights``, ``init_inputs``, ``freeze``) that made it, so that the written model file shares
+    the same layers with the same base."""
     model, train = hyper.get("model") or {}, hyper.get("train") or {}
     if "network" in model:
         conf.model.network = OmegaConf.create(model["network"])
@@ -192,11 +192,11 @@ def run_dir(conf) -> Path:
     return Path(conf.out) / str(conf.name)
 
 
-
-def resume_checkpoint(out: Path, resume: str | None) -> str | None:
-    """The checkpoint a run in folder `out` resumes from: `resume` as given (``"last"``: the run's
-    last checkpoint), checked to be a training checkpoint; None for a fresh run. InputError: nothing
-    to resume, a missing or foreign checkpoint, or a fresh run into a folder holding one already."""
+def resume_checkpoint(out: Path, resume: str | None) -> tuple[str | None, dict]:
+    """(the checkpoint a run in folder `out` resumes from, its hyperparameters): `resume` as given
+    (``"last"``: the run's last checkpoint), checked to be a training checkpoint; (None, {}) for a fresh
+    run. InputError: nothing to resume, a missing or foreign checkpoint, or a fresh run into a folder
+    holding one already."""
     last = out / "checkpoints" / "last.ckpt"
     if resume == "last":
         if not last.is_file():
@@ -206,9 +206,7 @@ def resume_checkpoint(out: Path, resume: str | None) -> str | None:
         input_file(resume, "checkpoint to resume from")
     elif last.exists():
         raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
-    if resume is not None:
-        _check_checkpoint(resume)
-    return resume
+    return resume, (_check_checkpoint(resume) if resume is not None else {})
 
 def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     """Train with the resolved config `conf` (``train.config.load_train_config``).
@@ -220,10 +218,10 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     """
     check_settings(conf)
     out = run_dir(conf)
-    resume = resume_checkpoint(out, resume)
+    resume, hyper = resume_checkpoint(out, resume)
     last = out / "checkpoints" / "last.ckpt"
     if resume is not None:
-        resumed_settings(conf, resume)
+        resumed_settings(conf, hyper)
     init, init_labels = initial_weights(conf) if resume is None else (None, {})
     base = shared_base(conf, init)  # (the frozen layers' names are checked against a fresh run's network)
     dataset = open_training_data(conf.data.path)

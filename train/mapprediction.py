@@ -193,7 +193,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     from .mapdata import make_samples
 
     out = run_dir(conf)
-    resume = resume_checkpoint(out, resume)
+    resume = resume_checkpoint(out, resume)[0]
     last = out / "checkpoints" / "last.ckpt"
     dataset, spec, train, val, train_scenes, val_scenes = open_map_training_data(conf)
     batch = int(conf.data.batch_size)

@@ -129,6 +129,16 @@ def shipped_weights_folder() -> Path:
     return Path(str(resources.files("frontiernet").joinpath("weights")))
 
 
+def default_model_path() -> Path:
+    """The default shipped model file, RGB + depth (``frontiernet/weights/``, see its model card)."""
+    return shipped_weights_folder() / DEFAULT_MODEL
+
+
+def init_weights_file(init) -> Path:
+    """The file training's ``init_weights`` value `init` names: ``default`` is :func:`default_model_path`."""
+    return default_model_path() if str(init) == "default" else Path(str(init))
+
+
 def _base_tensors(path: Path, base: dict) -> tuple[dict, Path]:
     """(the shared tensors of model file `path`, the base file they were read from): the base (metadata
     `base`, :data:`BASE_KEY`) is looked for beside `path` and then among the shipped weights; InputError
@@ -191,8 +201,7 @@ def _read_checkpoint(path: Path) -> tuple[dict, dict]:
     conf["info"] = {"checkpoint": path.name, "epoch": checkpoint.get("epoch"),
                     "steps": checkpoint.get("global_step"), "val_scenes": train_conf.get("val_scenes", [])}
     if train_conf.get("freeze") and train_conf.get("init_weights"):  # trained with frozen layers: they stay shared
-        init = str(train_conf["init_weights"])
-        base = shipped_weights_folder() / DEFAULT_MODEL if init == "default" else Path(init)
+        base = init_weights_file(train_conf["init_weights"])
         conf["base"] = {"file": base.name, "prefixes": list(train_conf["freeze"]), "path": str(base)}
     return state, conf
 
@@ -240,4 +249,5 @@ def save_model(path: str | Path, model, model_conf: dict, info: dict | None = No
 
 
 __all__ = ["BASE_KEY", "CONFIG_KEY", "DEFAULT_MODEL", "INFO_KEY", "RUNTIME_GROUP", "SharedBase", "is_export",
+           "default_model_path", "init_weights_file",
            "model_base", "read_model_file", "save_model", "shipped_weights_folder", "tensors_digest", "torch_model_file"]

@@ -39,8 +39,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..errors import InputError
-from .files import (CONFIG_KEY, DEFAULT_MODEL, INFO_KEY, read_model_file, save_model,  # noqa: F401 (re-exported)
-                    shipped_weights_folder, torch_model_file)
+from .files import (CONFIG_KEY, DEFAULT_MODEL, INFO_KEY, default_model_path,  # noqa: F401 (re-exported)
+                    read_model_file, save_model, shipped_weights_folder, torch_model_file)
 
 RESNET_ENCODERS = ("resnet18", "resnet34", "resnet50")
 FEATURE_ENCODERS = {
@@ -309,11 +309,6 @@ def shipped_model_path(inputs: str = "rgbd") -> Path:
                          f"a monocular model that estimates it from the image: depth_anything_v2, metric3d_v2), "
                          f"or --model FILE")
     return path
-
-
-def default_model_path() -> Path:
-    """The default shipped model file, RGB + depth (``frontiernet/weights/``, see its model card)."""
-    return shipped_weights_folder() / DEFAULT_MODEL
 
 
 def load_model(path: str | Path | None = None) -> tuple[FrontierNet, dict]:
