@@ -400,21 +400,31 @@ def test_a_change_record_holds_every_voxel_the_updates_changed(renderer):
     the box taken changed since the last take, and nothing is reported before an update."""
     poses = surround_poses()
     occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf())
-    record = occupancy.changes()
-    assert record.take() is None
-    for step, pose in enumerate(poses):
-        before = occupancy.observed.copy(), occupancy.log_odds.copy()
+    record, states = occupancy.changes(), occupancy.changes(status_only=True)
+    assert record.take() is None and states.take() is None
+    smaller = 0
+    for step, pose in enumerate([*poses, *poses]):  # the second round sees again what the map knows
+        before = occupancy.observed.copy(), occupancy.log_odds.copy(), occupancy.occupied_mask()
         if step % 3 == 2:
             occupancy.clear_sphere(pose[:3, 3], 0.3)
         else:
             frame = renderer.render(pose)
             occupancy.integrate(frame.depth, frame.K, pose)
-        box = record.take()
+        box, state_box = record.take(), states.take()
         changed = (occupancy.observed != before[0]) | (occupancy.log_odds != before[1])
+        flipped = (occupancy.observed != before[0]) | (occupancy.occupied_mask() != before[2])
         assert box is not None  # (a footprint already free changes nothing inside it)
         changed[box] = False
         assert not changed.any()
-        assert record.take() is None
+        assert (state_box is None) == (not flipped.any())  # status only: the voxels whose state flipped
+        if state_box is not None:
+            assert flipped[state_box].any(axis=(1, 2))[[0, -1]].all()  # a tight box: flips on its faces
+            flipped[state_box] = False
+        smaller += state_box is None or np.prod([s.stop - s.start for s in state_box]) < np.prod(
+            [s.stop - s.start for s in box])
+        assert not flipped.any()
+        assert record.take() is None and states.take() is None
+    assert smaller >= len(poses) + len(poses) // 2  # as a rule far smaller than the box the frame touched
 
 
 def test_state_at_off_the_grid_and_save_load(renderer, tmp_path):

@@ -137,10 +137,11 @@ class SeerSource(FrontierSource):
         self.min_gain = float(conf.tracking.min_gain_m3)
         self.crops: list[Crop] = []
         self.predictions = 0  # crops predicted so far
-        # a view's gain changes only when a voxel within its rays' reach changes: the gains of each
-        # cluster's ring of views are kept (per cluster cells and crop) until the map changes near it
+        # a view's gain changes only when a voxel within its rays' reach changes state (unknown, free,
+        # occupied): the gains of each cluster's ring of views are kept (per cluster cells and crop)
+        # until a voxel near it does (a frame that sees again what the map knows flips little)
         self.reach = self.max_depth / np.cos(np.arctan(np.sqrt(2.0) * (self.width / 2.0) / self.focal))
-        self._changes = occupancy.changes()
+        self._changes = occupancy.changes(status_only=True)  # the gains read observed and occupied alone
         self._view_gains: dict[bytes, ViewGains] = {}
         self._used: set[bytes] = set()  # the keys of this frame's clusters
         # within this of the robot the grid's unknown band under the camera is open (omniscient.py's ring)
@@ -292,7 +293,7 @@ class SeerSource(FrontierSource):
         return kept
 
     def _forget_changed(self) -> None:
-        """Drop the kept gains of clusters whose box the map's updates since the last frame touched."""
+        """Drop the kept gains of clusters whose box holds a voxel whose state flipped since the last frame."""
         changed = self._changes.take()
         if changed is None:
             return

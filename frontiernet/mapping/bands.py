@@ -60,9 +60,13 @@ class BandViews:
 class ChangedBox:
     """The index box (X, Y, Z) that a map's updates have touched since it was last taken: a consumer
     that keeps something derived from the map patches that box only (:meth:`OccupancyMap.changes
-    <frontiernet.mapping.OccupancyMap.changes>`)."""
+    <frontiernet.mapping.OccupancyMap.changes>`). With `status_only`, the box of the voxels whose
+    state (:func:`voxel_states`: unknown, free, occupied) an update flipped: what a consumer that
+    reads the states alone, not the log-odds, needs (a frame that sees again what the map knows
+    flips little of the box it touches)."""
 
-    def __init__(self) -> None:
+    def __init__(self, status_only: bool = False) -> None:
+        self.status_only = bool(status_only)
         self._box: tuple[np.ndarray, np.ndarray] | None = None
 
     def add(self, lo: np.ndarray, hi: np.ndarray) -> None:
@@ -74,6 +78,58 @@ class ChangedBox:
         """The box as three slices, or None when nothing changed; the record starts again empty."""
         box, self._box = self._box, None
         return None if box is None else tuple(slice(int(a), int(b)) for a, b in zip(*box))
+
+
+def voxel_states(observed: np.ndarray, log_odds: np.ndarray, occupied_threshold: float, box: tuple) -> np.ndarray:
+    """(bx, by, bz) int8 states of the voxels of a map's `observed` and `log_odds` arrays in `box`
+    (three slices): 0 unknown, 1 free (observed, log-odds at or below `occupied_threshold`), 2 occupied."""
+    seen = observed[box]
+    return seen.astype(np.int8) + (seen & (log_odds[box] > occupied_threshold))
+
+
+def flipped_box(before: np.ndarray, after: np.ndarray, lo: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The index box [lo', hi') of the voxels whose :func:`voxel_states` differ between `before` and
+    `after` (the same box, whose first voxel is at index `lo` (3,)), or None when none does."""
+    flipped = before != after
+    spans = [np.flatnonzero(np.any(flipped, axis=tuple(other for other in range(3) if other != axis)))
+             for axis in range(3)]
+    if not len(spans[0]):
+        return None
+    lo = np.asarray(lo, np.int64)
+    return lo + [span[0] for span in spans], lo + [span[-1] + 1 for span in spans]
+
+
+class MapUpdates:
+    """Who a map tells of its in-place updates: its :class:`BandViews` `bands` and the
+    :class:`ChangedBox` records it handed out (:meth:`record`). An update of the index box [lo, hi)
+    of `observed` and `log_odds` calls :meth:`before`, updates, then :meth:`after`."""
+
+    def __init__(self, observed: np.ndarray, log_odds: np.ndarray, occupied_threshold: float, bands) -> None:
+        self._observed, self._log_odds, self._threshold = observed, log_odds, float(occupied_threshold)
+        self._bands, self._records = bands, []
+
+    def record(self, status_only: bool = False) -> ChangedBox:
+        """A new :class:`ChangedBox`, told of every update from now on."""
+        self._records.append(ChangedBox(status_only))
+        return self._records[-1]
+
+    def _states(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        box = tuple(slice(int(a), int(b)) for a, b in zip(lo, hi))
+        return voxel_states(self._observed, self._log_odds, self._threshold, box)
+
+    def before(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
+        """The voxel states of the box about to be updated, when a status-only record needs them (else None)."""
+        return self._states(lo, hi) if any(record.status_only for record in self._records) else None
+
+    def after(self, lo: np.ndarray, hi: np.ndarray, before: np.ndarray | None) -> None:
+        """The box [lo, hi) ((3,) int) was updated; its states were `before` (:meth:`before`)."""
+        self._bands.changed(lo, hi)
+        flipped = None if before is None else flipped_box(before, self._states(lo, hi), lo)
+        for record in self._records:
+            if not record.status_only or before is None:
+                record.add(lo, hi)
+            elif flipped is not None:
+                record.add(*flipped)
 
 
 def read_only(array: np.ndarray) -> np.ndarray:

@@ -29,7 +29,7 @@ from ..errors import InputError, positive_number
 from ..io import atomic_path
 from ..simulator.voxels import VoxelGrid
 from ..geometry import disks_touch_cells, image_corner_rays, pinhole_intrinsics, rigid_pose, squared_distance_to_cells
-from .bands import BandViews, ChangedBox, band_layers, read_only
+from .bands import BandViews, ChangedBox, MapUpdates, band_layers, read_only
 from .checks import MapSettings, depth_edges, depth_image, grazing_pixels, finite_number, scalar
 from .traversal import apply_marks, frustum_volume, mark_depth_rays
 
@@ -77,7 +77,7 @@ class OccupancyMap:
         self._latest_frame: tuple[np.ndarray, np.ndarray] | None = None  # (box lo, voxels seen)
         # slice_2d's views, patched where the map changes (the arrays are only ever updated in place)
         self._bands = BandViews(self._observed, self._log_odds, self.settings.occupied_threshold)
-        self._change_records: list[ChangedBox] = []  # handed out by changes()
+        self._updates = MapUpdates(self._observed, self._log_odds, self.settings.occupied_threshold, self._bands)
         self._view_directions: dict[tuple[int, float], np.ndarray] = {}
 
     @classmethod
@@ -252,33 +252,31 @@ class OccupancyMap:
                         self.origin + lo * self.voxel_size, self.voxel_size, passed, hit, skip, rays.hit_range_m,
                         rays.free_fraction, far)
         self._latest_frame = (lo, passed | hit | far if weak else passed | hit)
-        self._changed(lo, hi)
+        before = self._updates.before(lo, hi)
         self._known_voxels += apply_marks(self._log_odds, self._observed, lo, passed, hit,
                                           np.float32(s.log_odds_hit), np.float32(rays.log_odds_miss),
                                           np.float32(s.log_odds_min), np.float32(s.log_odds_max), far,
                                           np.float32(rays.far_hit_max if weak else s.log_odds_max))
+        self._updates.after(lo, hi, before)
 
-    def changes(self) -> ChangedBox:
+    def changes(self, status_only: bool = False) -> ChangedBox:
         """A record of the index box that this map's updates (:meth:`integrate`, :meth:`clear_sphere`)
-        touch from now on; take it with :meth:`ChangedBox.take`. Outside that box no voxel changed."""
-        record = ChangedBox()
-        self._change_records.append(record)
-        return record
-
-    def _changed(self, lo: np.ndarray, hi: np.ndarray) -> None:
-        self._bands.changed(lo, hi)
-        for record in self._change_records:
-            record.add(lo, hi)
+        touch from now on; take it with :meth:`ChangedBox.take`. Outside that box no voxel changed.
+        `status_only`: the box of the voxels whose state (unknown, free, occupied) flipped, for a
+        consumer that reads :attr:`observed` and :attr:`occupied` alone."""
+        return self._updates.record(status_only)
 
     def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
         """Mark the voxels whose centres lie within `radius_m` of `centre` ((3,) world metres)
         as free (observed, log-odds at most ``log_odds_miss``): where the robot stands is free."""
         box, inside = self._sphere(centre, radius_m, "clear_sphere")
-        self._changed(np.array([b.start for b in box]), np.array([b.stop for b in box]))
+        lo, hi = np.array([b.start for b in box]), np.array([b.stop for b in box])
+        before = self._updates.before(lo, hi)
         self._known_voxels += int(np.count_nonzero(inside & ~self._observed[box]))
         self._observed[box] |= inside
         miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
         self._log_odds[box] = np.where(inside, np.minimum(self._log_odds[box], miss), self._log_odds[box])
+        self._updates.after(lo, hi, before)
 
     # -- queries ---------------------------------------------------------------------------------
 
