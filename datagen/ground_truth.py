@@ -145,7 +145,7 @@ class GroundTruthGenerator:
     def __init__(self, scene, voxels: VoxelGrid, conf, renderer: Renderer | None = None) -> None:
         self.scene, self.voxels = scene, voxels
         self.camera = renderer.camera if renderer is not None else PinholeCamera.from_config(conf.camera)
-        self.renderer = renderer or Renderer(scene, self.camera, background=tuple(conf.camera.background))
+        self.renderer = renderer or Renderer(scene, self.camera, background=conf.camera.background)
         gt = conf.ground_truth
         self.conf = gt
         self.stride = int(gt.observe_stride_px)

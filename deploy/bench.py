@@ -188,11 +188,12 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from frontiernet.errors import InputError, whole_number
+    from frontiernet.cli.bench import counts
+    from frontiernet.errors import InputError
     from frontiernet.model.files import is_export
     from frontiernet.model.predictor import input_size
 
-    whole_number(args.repeats, "--repeats", 1)
+    counts(repeats=args.repeats)  # (a typo such as 100001 ran until killed)
     for size in args.sizes:
         input_size(size, "--sizes")
 

@@ -207,6 +207,7 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["bench", "render", "--scene", "procedural:0", "--repeats", "1000000000"], "--repeats must be an integer in [1, 10000]"),
     (["bench", "explore", "--scene", "procedural:0", "--steps", "1000000000"], "--steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
+    (["bench", "inference", "--repeats", "100001"], "--repeats must be an integer in [1, 10000]"),  # ran until killed
     (["bench", "inference", "--encoders", "resnet18,vgg16"], "--encoders must list distinct names of resnet18"),
     (["sequence", "--input", "{tmp}", "--intrinsics", "nan,525,320,240", "--out", "{tmp}/s"], "finite pixels"),
     # issue 55's second probe: a yaw of 1e30 degrees rendered some heading
@@ -574,3 +575,22 @@ def test_scene_starts_where_no_scene_ships_any_are_refused(tmp_path, one_line_er
                  "--max-steps", "60", "--scene-starts", "--out", str(out)]) == 2
     assert "--scene-starts: none of the scenes ships start poses" in one_line_error()
     assert not out.exists()
+
+
+@pytest.mark.parametrize("background", ["[300, 0, 0]", "[1, 2]", "[-1, 0, 0.5]"])  # ("red": the key takes a list)
+def test_a_background_that_is_no_colour_is_one_line_before_the_scene_loads(tmp_path, background, one_line_error):
+    # issue 55's third probe: [300, 0, 0] was an internal error (OverflowError) after the scene loaded
+    (tmp_path / "c.yaml").write_text(f"camera:\n  background: {background}\n")
+    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(tmp_path / "o"),
+                 "--config", str(tmp_path / "c.yaml")]) == 2
+    assert "camera.background must be an RGB colour of three integers 0-255" in one_line_error()
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_scene_scaled_past_the_voxel_limit_is_one_line(tmp_path, one_line_error):
+    # issue 55's third probe: a box scaled 1e5 (600 km) overflowed the voxel count, an internal error
+    import trimesh
+
+    trimesh.creation.box(extents=(6.0, 4.0, 3.0)).export(tmp_path / "box.glb")
+    assert main(["scene", "info", f"mesh:{tmp_path / 'box.glb'}?scale=1e5"]) == 2
+    assert "check its scale (metres)" in one_line_error()

@@ -111,7 +111,11 @@ def test_redwood_errors(tmp_path):
     lines = (malformed / "trajectory.log").read_text().splitlines()
     lines[2] = "0 1 x 0"
     (malformed / "trajectory.log").write_text("\n".join(lines))
-    with pytest.raises(InputError, match=r"trajectory.log:3: expected numbers"):
+    with pytest.raises(InputError, match=r"trajectory.log:3: expected finite numbers"):
+        read_redwood(malformed)
+    lines[2] = "0 1 nan 0"  # issue 55's third probe: a NaN pose reached the map ("map bounds must be finite")
+    (malformed / "trajectory.log").write_text("\n".join(lines))
+    with pytest.raises(InputError, match=r"trajectory.log:3: expected finite numbers, got '0 1 nan 0'"):
         read_redwood(malformed)
 
 

@@ -109,10 +109,14 @@ def _number_rows(path: Path, columns: int) -> list[tuple[int, list[str]]]:
 
 
 def _floats(path: Path, number: int, fields: list[str]) -> list[float]:
+    """The numbers of line `number` of `path`; InputError naming the line for text, NaN or infinity."""
     try:
-        return [float(field) for field in fields]
+        values = [float(field) for field in fields]
     except ValueError:
-        raise InputError(f"{path}:{number}: expected numbers, got '{' '.join(fields)}'") from None
+        values = [np.nan]
+    if not np.all(np.isfinite(values)):
+        raise InputError(f"{path}:{number}: expected finite numbers, got '{' '.join(fields)}'")
+    return values
 
 
 # ----------------------------------------------------------------------------- TUM RGB-D

@@ -28,6 +28,18 @@ MAX_CAMERA_PX = 4096
 larger one only runs out of memory (its rays are 24 bytes a pixel)."""
 
 
+def background_color(value) -> np.ndarray:
+    """(3,) uint8 RGB of ``camera.background``, where a ray hits nothing: three integers 0-255;
+    InputError naming the key for anything else."""
+    try:
+        rgb = np.array([float(channel) for channel in value], np.float64)
+    except (TypeError, ValueError):
+        rgb = np.zeros(0)
+    if rgb.shape != (3,) or not np.all((rgb >= 0) & (rgb <= 255) & (rgb == np.round(rgb))):
+        raise InputError(f"camera.background must be an RGB colour of three integers 0-255, got {value!r}")
+    return rgb.astype(np.uint8)
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """Pinhole intrinsics (pixels) and the depth sensor's range (metres)."""
@@ -52,9 +64,11 @@ class PinholeCamera:
     def from_config(cls, conf) -> "PinholeCamera":
         """From the ``camera`` section of ``configs/sim.yaml`` (centred principal point); InputError
         naming the key for a size outside [1, :data:`MAX_CAMERA_PX`] pixels, a focal length or a
-        range that is not a positive number."""
+        range that is not a positive number, a ``background`` that is no colour (:func:`background_color`)."""
         width, height = (whole_number(conf[key], f"camera.{key}", 1, MAX_CAMERA_PX) for key in ("width", "height"))
         focal = positive_number(conf.focal_px, "camera.focal_px", "pixels")
+        if "background" in conf:
+            background_color(conf.background)
         return cls(width, height, focal, focal, (width - 1) / 2.0, (height - 1) / 2.0,
                    positive_number(conf.max_depth, "camera.max_depth", "metres"))
 
@@ -216,7 +230,7 @@ class Renderer:
     def __init__(self, scene: Scene, camera: PinholeCamera, background) -> None:
         self.scene = scene
         self.camera = camera
-        self.background = np.asarray(background, np.uint8).reshape(3)
+        self.background = background_color(background)
         self._directions = self.camera.ray_directions()  # (H, W, 3) camera frame
         self._shader = _Shader(scene)
 

@@ -33,6 +33,7 @@ above the scene's top.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -189,10 +190,12 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
     origin = bounds[0] - np.array([margin, margin, 0.0])
     extent = bounds[1] + np.array([margin, margin, 0.0]) - origin
     shape = np.floor(extent / size).astype(np.int64) + 1  # closed upper bound: a top face gets a layer
-    if int(np.prod(shape)) > int(conf.max_voxels):
+    count = math.prod(int(n) for n in shape)  # (Python's integers: NumPy's product wraps past 2**63)
+    if count > int(conf.max_voxels):
         raise InputError(f"{scene.metadata.spec}: voxel_size {size} m gives a {tuple(shape.tolist())} grid "
-                         f"({int(np.prod(shape)):,} voxels > voxels.max_voxels {int(conf.max_voxels):,}); "
-                         "use a larger voxel size")
+                         f"({count:,} voxels > voxels.max_voxels {int(conf.max_voxels):,}) for a scene of "
+                         f"{' x '.join(f'{v:.4g}' for v in bounds[1] - bounds[0])} m; check its scale (metres), "
+                         "or use a larger voxel size")
     rule = conf.explorable
     if rule not in EXPLORABLE_RULES:
         raise InputError(f"voxels.explorable must be one of {', '.join(EXPLORABLE_RULES)}, got {rule!r}")

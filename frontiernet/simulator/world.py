@@ -89,5 +89,5 @@ def build_world(scene: str | Scene, sim_conf, scenes_conf=None, *, voxels: bool 
     rendering = None
     if renderer:
         with stopwatch("renderer"):
-            rendering = Renderer(scene, camera, tuple(sim_conf.camera.background))
+            rendering = Renderer(scene, camera, sim_conf.camera.background)
     return World(scene, grid, rendering, backend, stopwatch.seconds)
