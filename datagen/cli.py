@@ -121,8 +121,11 @@ def run_preview(args) -> int:
 
 
 def run_bench(args) -> int:
+    from frontiernet.cli.bench import counts
+
     from .bench import bench_ground_truth
 
+    counts(views=args.views)  # (100000 ran for hours)
     result = bench_ground_truth(args.scene, args.views, args.raycast)
     if args.json:
         print(json.dumps(result))

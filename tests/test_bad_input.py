@@ -208,6 +208,10 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["bench", "explore", "--scene", "procedural:0", "--steps", "1000000000"], "--steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
     (["bench", "inference", "--repeats", "100001"], "--repeats must be an integer in [1, 10000]"),  # ran until killed
+    (["datagen", "bench", "--scene", "procedural:3", "--views", "100000"], "--views must be an integer in [1, 10000]"),
+    (["bench", "train", "--steps", "100000000", "data.path={tmp}"], "--steps must be an integer in [1, 10000]"),
+    (["mapgen", "--scenes", "procedural:3", "--out", "{tmp}/m", "--set", "mapgen.max_steps=100001"],
+     "mapgen.max_steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--encoders", "resnet18,vgg16"], "--encoders must list distinct names of resnet18"),
     (["sequence", "--input", "{tmp}", "--intrinsics", "nan,525,320,240", "--out", "{tmp}/s"], "finite pixels"),
     # issue 55's second probe: a yaw of 1e30 degrees rendered some heading

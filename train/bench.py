@@ -196,6 +196,7 @@ def add_parser(subparsers) -> None:
 def run(args) -> int:
     import os
 
+    from frontiernet.cli.bench import COUNT_LIMITS
     from frontiernet.errors import InputError, cpu_count_option, whole_number
 
     from .config import load_train_config
@@ -204,8 +205,8 @@ def run(args) -> int:
     workers = args.workers or sorted({0, 1, min(os.cpu_count() or 1, 16)})
     for count in workers:
         cpu_count_option(count, "--workers", 0)
-    whole_number(args.batches, "--batches", 1)
-    whole_number(args.steps, "--steps", 1)
+    whole_number(args.batches, "--batches", 1, COUNT_LIMITS["repeats"])  # timed repetitions (1e8 ran until killed)
+    whole_number(args.steps, "--steps", 1, COUNT_LIMITS["repeats"])
     if args.precision not in (None, "32-true", "bf16-mixed", "16-mixed"):
         raise InputError(f"--precision: expected 32-true, bf16-mixed or 16-mixed, got {args.precision!r}")
     result = bench_train(conf, workers, args.batches, args.steps, not args.no_baseline, args.precision)
