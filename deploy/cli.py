@@ -100,6 +100,9 @@ def run_predict(args) -> int:
         from frontiernet.geometry import parse_intrinsics_text
 
         intrinsics = parse_intrinsics_text(args.intrinsics)
+        from frontiernet.frontiers.settings import AnchoringSettings
+
+        AnchoringSettings.from_config(conf)  # the anchoring keys, before any picture is written
     with claim_output_folder(args.out, args.force):
         result = predict_files(args.image, args.depth, args.model, args.out, size=args.size,
                                depth_scale=args.depth_scale, threads=args.threads, intrinsics=intrinsics,

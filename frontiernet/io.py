@@ -103,10 +103,19 @@ def check_writable_folder(folder: str | Path, what: str) -> Path:
     return folder
 
 
+def _check_name_lengths(path: Path) -> None:
+    """InputError when a name in output `path` is longer than the file system takes (255 bytes)."""
+    for name in path.parts:
+        if len(os.fsencode(name)) > 255:
+            raise InputError(f"{str(path)[:48]}...: a name of {len(os.fsencode(name))} bytes in the output path; "
+                             "file systems take at most 255")
+
+
 def check_output_file(path: str | Path, force: bool = True) -> Path:
     """Before the work: InputError when output file `path` is a folder, or exists and `force`
-    is off (nothing written before is replaced unless asked: :data:`FORCE`)."""
+    is off (nothing written before is replaced unless asked: :data:`FORCE`), or has a name too long."""
     path = Path(path)
+    _check_name_lengths(path)
     if path.is_dir():
         raise InputError(f"{path}: is a folder; give the output's file name")
     if path.exists() and not force:
@@ -117,8 +126,9 @@ def check_output_file(path: str | Path, force: bool = True) -> Path:
 def check_output_folder(path: str | Path, force: bool = False) -> Path:
     """Before the work: InputError when output folder `path` is a file or lies under one, or
     already holds files and `force` is off (a command's earlier outputs are not replaced unless
-    asked: :data:`FORCE`; the lock of :func:`claim_output_folder` is no output)."""
+    asked: :data:`FORCE`; the lock of :func:`claim_output_folder` is no output), or has a name too long."""
     path = Path(path)
+    _check_name_lengths(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: output path exists and is not a folder")
     blocking = next((parent for parent in path.parents if parent.exists() and not parent.is_dir()), None)

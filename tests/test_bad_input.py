@@ -410,6 +410,11 @@ def files(tmp_path):
      "--depth sonar: not a depth source; valid: sensor (the sequence's depth images, the default), gt, "),
     (["sequence", "--input", "{d}/adir", "--stride", "0", "--out", "{d}/o"],
      "frames.stride (--stride) must be an integer >= 1, got 0"),
+    # issue 55's third probe: refused after the pictures were written, which stayed in o/
+    (["predict", "--image", "{d}/rgb.png", "--depth", "{d}/depth.npy", "--intrinsics", "30,30,32,24", "--out", "{d}/o",
+      "anchoring.hdbscan.min_cluster_size=0"], "anchoring.hdbscan.min_cluster_size must be an integer >= 2, got 0"),
+    (["export", "MODEL", "--format", "onnx", "--out", "{d}/" + "x" * 300 + ".onnx"],  # was OSError, exit 1
+     "a name of 305 bytes in the output path; file systems take at most 255"),
 ])
 def test_wrong_kinds_of_file_are_named_for_what_they_are(files, argv, message, one_line_error):
     from frontiernet.model import default_model_path
