@@ -111,13 +111,22 @@ def _check_name_lengths(path: Path) -> None:
                              "file systems take at most 255")
 
 
+def _check_regular(path: Path) -> None:
+    """InputError when something other than a regular file is at output `path` (a device, a pipe, a
+    socket): outputs are written beside and renamed into place, which would replace it."""
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise InputError(f"{path}: not a regular file (a device or a pipe?); outputs are files: choose another path")
+
+
 def check_output_file(path: str | Path, force: bool = True) -> Path:
-    """Before the work: InputError when output file `path` is a folder, or exists and `force`
-    is off (nothing written before is replaced unless asked: :data:`FORCE`), or has a name too long."""
+    """Before the work: InputError when output file `path` is a folder or not a regular file, or
+    exists and `force` is off (nothing written before is replaced unless asked: :data:`FORCE`), or
+    has a name too long."""
     path = Path(path)
     _check_name_lengths(path)
     if path.is_dir():
         raise InputError(f"{path}: is a folder; give the output's file name")
+    _check_regular(path)
     if path.exists() and not force:
         raise InputError(f"{path}: exists; pass {FORCE} to replace it, or choose another output")
     return path
@@ -209,11 +218,14 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     writer that needs a file name; :func:`write_bytes` and :func:`write_text` write data.
 
     Raises:
-        InputError: a folder in the way, or a folder that cannot be written (missing, no permission).
+        InputError: a folder in the way, something other than a file there (a device such as
+            /dev/full, a pipe: the rename would replace it), or a folder that cannot be written
+            (missing, no permission).
     """
     path = Path(path)
     if path.is_dir():  # os.replace would fail after the work, with a traceback
         raise InputError(f"{path}: cannot write, a folder is in the way")
+    _check_regular(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
     except OSError as error:  # a missing folder, a file where the folder should be, no permission

@@ -208,6 +208,12 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["bench", "explore", "--scene", "procedural:0", "--steps", "1000000000"], "--steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
     (["bench", "inference", "--repeats", "100001"], "--repeats must be an integer in [1, 10000]"),  # ran until killed
+    # issue 55's third probe: options a command would have ignored
+    (["bench", "--report", "--out", "{tmp}/b", "--methods", "oracle"],
+     "--report reads the benchmark folder (--out) alone, so --methods would be ignored"),
+    (["bench", "--pack", "--out", "{tmp}/b", "--scenes", "procedural:9"], "--pack reads the benchmark folder"),
+    (["bench", "--scenes", "procedural:3", "--methods", "classic", "--out", "{tmp}/b", "--set", "run.max_steps=3"],
+     "run.max_steps=3: the benchmark gives each scene its budget"),
     (["datagen", "bench", "--scene", "procedural:3", "--views", "100000"], "--views must be an integer in [1, 10000]"),
     (["bench", "train", "--steps", "100000000", "data.path={tmp}"], "--steps must be an integer in [1, 10000]"),
     (["mapgen", "--scenes", "procedural:3", "--out", "{tmp}/m", "--set", "mapgen.max_steps=100001"],
@@ -603,3 +609,38 @@ def test_a_scene_scaled_past_the_voxel_limit_is_one_line(tmp_path, one_line_erro
     trimesh.creation.box(extents=(6.0, 4.0, 3.0)).export(tmp_path / "box.glb")
     assert main(["scene", "info", f"mesh:{tmp_path / 'box.glb'}?scale=1e5"]) == 2
     assert "check its scale (metres)" in one_line_error()
+
+
+def test_outputs_that_are_not_regular_files_are_refused_and_kept(plan_spec, tmp_path, one_line_error):
+    # issue 55's third probe: `--json /dev/full` was renamed over: the device became a JSON file
+    import os
+    import stat
+
+    from frontiernet.errors import InputError
+    from frontiernet.io import write_json
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    assert main(["scene", "topdown", plan_spec, "--out", str(fifo), "--force"]) == 2
+    assert "pipe: not a regular file" in one_line_error()
+    with pytest.raises(InputError, match="not a regular file"):
+        write_json(fifo, {"a": 1})
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+
+
+@pytest.mark.parametrize("options, message", [
+    ("&occupied_below=300", "occupied_below (300) must be at most free_above (250)"),  # walls and free at once
+    ("&free_above=10", "occupied_below (50) must be at most free_above (10)"),
+])
+def test_floor_plan_thresholds_that_contradict_are_refused(plan_spec, options, message, one_line_error):
+    assert main(["scene", "info", plan_spec + options]) == 2
+    assert message in one_line_error()
+
+
+def test_a_focal_length_past_a_pinhole_field_of_view_is_refused(tmp_path, one_line_error):
+    # issue 55's third probe: focal_px 1e-9 rendered "valid depth 100%, range 0.00-0.00 m"
+    (tmp_path / "c.yaml").write_text("camera:\n  focal_px: 1.0e-9\n")
+    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(tmp_path / "o"),
+                 "--config", str(tmp_path / "c.yaml")]) == 2
+    assert "camera.focal_px 1e-09 gives a" in one_line_error()
+    assert not (tmp_path / "o").exists()

@@ -87,6 +87,19 @@ def _exploration_options(parser) -> None:
                                        "starts and seeds, with the monocular penalty in table.md")
     options.config_file(group, options.EXPLORE_CONFIG)
     options.config_overrides(group, "planner.clearance_m=0.3 depth.emulated.scale_per_frame=false", option=True)
+    # what --pack and --report, which read the folder alone, refuse (they would ignore it)
+    parser.set_defaults(run_option_defaults={action.dest: action.default for action in group._group_actions
+                                             if action.dest not in ("out", "pack", "report")})
+
+
+def _refuse_run_options(args, what: str) -> None:
+    """InputError naming the first option of a benchmark run given to `what` (``--pack``, ``--report``)."""
+    from ..errors import InputError
+
+    given = [dest for dest, default in args.run_option_defaults.items() if getattr(args, dest, default) != default]
+    if given:
+        raise InputError(f"{what} reads the benchmark folder (--out) alone, so --{given[0].replace('_', '-')} would "
+                         "be ignored; leave it out (the folder's plan.json holds the run's settings)")
 
 
 def run_exploration_benchmark(args) -> int:
@@ -95,6 +108,8 @@ def run_exploration_benchmark(args) -> int:
     from ..errors import InputError
     from ..exploration.run import load_run_config
 
+    if args.pack or args.report:
+        _refuse_run_options(args, "--pack" if args.pack else "--report")
     if args.pack:
         if not args.out:
             raise InputError("--pack needs --out DIR, the benchmark folder")
@@ -119,6 +134,9 @@ def run_exploration_benchmark(args) -> int:
     if not args.out:
         raise InputError("the exploration benchmark needs --out DIR")
     conf = load_run_config(args.config, args.set)
+    if conf.run.max_steps != load_run_config().run.max_steps:  # (set by --config or --set: read by no run here)
+        raise InputError(f"run.max_steps={conf.run.max_steps}: the benchmark gives each scene its budget "
+                         "(configs/bench.yaml budget), or one fixed budget with --max-steps N; use that instead")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,

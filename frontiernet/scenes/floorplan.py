@@ -79,6 +79,9 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
     valid = None
     if resolution is not None:
         positive_number(resolution, f"{spec_text}: resolution", "metres/pixel")
+    if not occupied_below <= free_above:  # a pixel value between them would be occupied and free at once
+        raise InputError(f"{spec_text}: occupied_below ({occupied_below}) must be at most free_above ({free_above}): "
+                         "pixels below the first are walls, above the second free space")
     if path.is_dir():
         if not (path / "occ_map.npy").is_file():
             raise InputError(f"{path}: floor-plan folder has no occ_map.npy")

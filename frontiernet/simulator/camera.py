@@ -28,6 +28,11 @@ MAX_CAMERA_PX = 4096
 larger one only runs out of memory (its rays are 24 bytes a pixel)."""
 
 
+MAX_FOV_DEG = 170.0
+"""The widest field of view (degrees, across the larger image side) of a simulated pinhole camera: at 180
+its focal length is 0 and every ray lies in the image plane (the renderer's z-depth is then 0 everywhere)."""
+
+
 def background_color(value) -> np.ndarray:
     """(3,) uint8 RGB of ``camera.background``, where a ray hits nothing: three integers 0-255;
     InputError naming the key for anything else."""
@@ -64,9 +69,14 @@ class PinholeCamera:
     def from_config(cls, conf) -> "PinholeCamera":
         """From the ``camera`` section of ``configs/sim.yaml`` (centred principal point); InputError
         naming the key for a size outside [1, :data:`MAX_CAMERA_PX`] pixels, a focal length or a
-        range that is not a positive number, a ``background`` that is no colour (:func:`background_color`)."""
+        range that is not a positive number, a field of view past :data:`MAX_FOV_DEG`, a
+        ``background`` that is no colour (:func:`background_color`)."""
         width, height = (whole_number(conf[key], f"camera.{key}", 1, MAX_CAMERA_PX) for key in ("width", "height"))
         focal = positive_number(conf.focal_px, "camera.focal_px", "pixels")
+        widest = max(width, height) / 2.0 / np.tan(np.radians(MAX_FOV_DEG / 2.0))  # the shortest focal length
+        if focal < widest:
+            raise InputError(f"camera.focal_px {focal:g} gives a {width} x {height} camera a field of view past "
+                             f"{MAX_FOV_DEG:g} degrees; a pinhole camera of that size needs at least {widest:.1f} px")
         if "background" in conf:
             background_color(conf.background)
         return cls(width, height, focal, focal, (width - 1) / 2.0, (height - 1) / 2.0,
