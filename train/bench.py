@@ -183,7 +183,7 @@ def add_parser(subparsers) -> None:
     options.config_file(parser, "configs/train.yaml (as `frontiernet train`)")
     options.config_overrides(parser, "data.path=DIR data.batch_size=64 (data.path is required)")
     parser.add_argument("--workers", type=int, nargs="+", metavar="W",
-                        help="loader worker counts to time (default: 0, 1 and the machine's cores)")
+                        help="distinct loader worker counts to time (default: 0, 1 and the machine's cores)")
     parser.add_argument("--batches", type=int, default=20, help="batches timed per loader (default 20)")
     parser.add_argument("--steps", type=int, default=5, help="model training steps timed (median; default 5)")
     parser.add_argument("--precision", help="model precision: 32-true, bf16-mixed or 16-mixed "
@@ -205,6 +205,8 @@ def run(args) -> int:
     workers = args.workers or sorted({0, 1, min(os.cpu_count() or 1, 16)})
     for count in workers:
         cpu_count_option(count, "--workers", 0)
+    if len(set(workers)) != len(workers):  # (the same loader timed twice)
+        raise InputError(f"--workers must list distinct worker counts, got {' '.join(map(str, workers))}")
     whole_number(args.batches, "--batches", 1, COUNT_LIMITS["repeats"])  # timed repetitions (1e8 ran until killed)
     whole_number(args.steps, "--steps", 1, COUNT_LIMITS["repeats"])
     if args.precision not in (None, "32-true", "bf16-mixed", "16-mixed"):

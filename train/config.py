@@ -6,21 +6,40 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Iterable
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from frontiernet.config import load_config, merge_user
 from frontiernet.errors import InputError
 
 
+LOSS_WEIGHTS = ("distance_weight", "ce_weight", "dice_weight")
+"""The ``loss`` keys that weigh its terms: at least one must be > 0, or the loss is 0 and nothing trains."""
+
+
 def load_train_config(user_file: str | Path | None = None, overrides: Iterable[str] = ()) -> DictConfig:
-    """The resolved training config (see ``configs/train.yaml``)."""
+    """The resolved training config (see ``configs/train.yaml``). InputError naming the key: no
+    ``data.path``; a bad loss option, or every loss weight 0 (:data:`LOSS_WEIGHTS`); a
+    ``data.val_scenes`` that is not a list (or null)."""
     conf = merge_user(OmegaConf.merge({"model": load_config("model")}, load_config("train")), user_file, overrides)
     if not conf.data.path:
         raise InputError("data.path is not set: give the dataset folder (data.path=DIR)")
     from .losses import loss_settings
 
-    loss_settings(conf.loss)  # a bad loss option fails here, before any data is read
+    loss = loss_settings(conf.loss)  # a bad loss option fails here, before any data is read
+    if not any(loss[key] > 0 for key in LOSS_WEIGHTS):
+        raise InputError(f"{', '.join('loss.' + key for key in LOSS_WEIGHTS)}: all 0, so the loss is 0 and nothing "
+                         f"trains; give at least one a weight > 0")
+    check_scene_list(conf.data.val_scenes, "data.val_scenes")
     return conf
+
+
+def check_scene_list(value, key: str) -> None:
+    """Refuse a `key` (e.g. ``data.val_scenes``) that is neither null nor a list of scene specs: a single
+    spec given as text would be read as a list of its characters (as a list key whose default is a list,
+    e.g. ``freeze``, refuses text)."""
+    if value is not None and not isinstance(value, (ListConfig, list, tuple)):
+        raise InputError(f"{key}: takes a list of scene specs (or null), got {value!r}; write one scene as a "
+                         f"one-element list, e.g. '{key}=[{value}]'")
 
 
 def plain(conf) -> dict:

@@ -38,7 +38,7 @@ from frontiernet.model import load_model, save_model
 from frontiernet.model.files import model_base
 
 from .config import plain
-from .data import FrontierDataModule, open_training_data
+from .data import FrontierDataModule, open_training_data, view_size
 from .finetune import freeze, init_file, initial_weights, shared_base
 from .module import FrontierNetModule, check_schedule
 
@@ -126,7 +126,9 @@ def check_settings(conf) -> None:
     a setting that needs no data to be judged wrong: the run folder (``out``/``name``) a file or
     under one; an epoch or step budget with no end (Lightning's -1 needs the other set); a crop or
     image size outside [8, 2048] px; an augmentation probability outside [0, 1] or an amplitude
-    outside [0, 1); threads outside 1 to 4 per core; a checkpoint period that is not positive."""
+    outside [0, 1); a crop larger than ``data.image_size`` (:func:`check_crop`); an
+    ``optim.final_lr_fraction`` outside [0, 1]; threads outside 1 to 4 per core; a checkpoint period
+    that is not positive."""
     from frontiernet.errors import cpu_count_option, positive_number, whole_number
     from frontiernet.io import check_output_folder
     from frontiernet.model.predictor import input_size
@@ -145,6 +147,8 @@ def check_settings(conf) -> None:
     for key, value in (("data.image_size", data.image_size), ("augment.crop_size", augment.crop_size)):
         if value is not None:
             input_size(value, f"{key} (or null)")
+    if data.image_size is not None:
+        check_crop(augment.crop_size, int(data.image_size), "data.image_size")
     for key in ("hflip", "no_depth_fraction", "emulated_depth_fraction"):
         if not 0.0 <= positive_number(augment[key], f"augment.{key}", allow_zero=True) <= 1.0:
             raise InputError(f"augment.{key} is a probability, between 0 and 1; got {augment[key]}")
@@ -157,21 +161,45 @@ def check_settings(conf) -> None:
     for key in ("max_train_samples", "max_val_samples"):
         if data[key] is not None:
             whole_number(data[key], f"data.{key} (or null)", 1)
+    fraction = conf.optim.final_lr_fraction
+    if isinstance(fraction, bool) or not isinstance(fraction, (int, float)) or not 0.0 <= fraction <= 1.0:
+        raise InputError(f"optim.final_lr_fraction: the cosine ends at lr times this fraction, which must be "
+                         f"between 0 and 1; got {fraction!r}")
     if trainer.threads is not None:
         cpu_count_option(trainer.threads, "trainer.threads (or null)")
     positive_number(trainer.checkpoint_every_minutes, "trainer.checkpoint_every_minutes", "minutes")
     whole_number(trainer.checkpoint_every_n_epochs, "trainer.checkpoint_every_n_epochs", 1)
 
 
+def check_crop(crop, size: int, size_key: str) -> None:
+    """Refuse an ``augment.crop_size`` larger than the `size` px views it crops (`size_key`: the setting
+    that makes them that size): such a crop is skipped in silence, the whole view trained on."""
+    if crop is not None and int(crop) > size:
+        raise InputError(f"augment.crop_size: {crop} px is larger than the {size} px views it crops ({size_key}); "
+                         f"give at most {size}, or null for no crop")
+
+
+RESUME_KEYS = ("pytorch-lightning_version", "state_dict", "optimizer_states", "lr_schedulers", "loops",
+               "hyper_parameters")
+"""What Lightning reads from a checkpoint to resume a run (``frontiernet train`` writes them all; a
+weights-only save lacks the optimiser's and the loops' state)."""
+
+
 def _check_checkpoint(path: str) -> dict:
     """The hyperparameters of a checkpoint to resume from, which must load as one (plain data only: no
-    code runs; memory-mapped, so a second look costs little)."""
+    code runs; memory-mapped, so a second look costs little). Refused, naming the file: a file that is no
+    torch checkpoint, one without the state Lightning resumes from (:data:`RESUME_KEYS`), or weights
+    that do not fit the network it declares or are not all finite (:func:`load_model`)."""
     try:
         state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
     except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
         raise InputError(f"{path}: not a training checkpoint ({type(error).__name__})") from None
     if not isinstance(state, dict) or "state_dict" not in state:
         raise InputError(f"{path}: not a training checkpoint (no state_dict)")
+    missing = [key for key in RESUME_KEYS if key not in state]
+    if missing:
+        raise InputError(f"{path}: not a training checkpoint (no {', '.join(missing)}: nothing to resume from)")
+    load_model(path)  # its weights fit its network and are finite
     return state.get("hyper_parameters") or {}
 
 
@@ -225,6 +253,8 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     init, init_labels = initial_weights(conf) if resume is None else (None, {})
     base = shared_base(conf, init)  # (the frozen layers' names are checked against a fresh run's network)
     dataset = open_training_data(conf.data.path)
+    if conf.data.image_size is None and conf.augment.crop_size is not None:
+        check_crop(conf.augment.crop_size, view_size(dataset), "data.image_size: null keeps the dataset's size")
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
     datamodule = FrontierDataModule(conf, progress, dataset)
     datamodule.setup()
@@ -266,7 +296,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
         part = 1 + len(list(out.glob("metrics-part*.csv")))
         (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
-    created = not out.exists()
+    made = next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
     out.mkdir(parents=True, exist_ok=True)
     (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
     started = time.time()
@@ -277,10 +307,10 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
             raise KeyboardInterrupt from None
         raise
     except BaseException:
-        if created and trainer.global_step == 0:  # a run that never stepped leaves no folder behind
-            import shutil
+        if made is not None and trainer.global_step == 0:  # a run that never stepped leaves no folder
+            import shutil  # behind, nor the folders above it that it made (out=runs/a/b)
 
-            shutil.rmtree(out, ignore_errors=True)
+            shutil.rmtree(made, ignore_errors=True)
         raise
     if trainer.interrupted:
         raise KeyboardInterrupt

@@ -156,6 +156,7 @@ def open_map_training_data(conf):
     file or config key for a dataset of another resolution, a refused scene or too little data."""
     from datagen.mapshards import check_voxel_size, open_map_dataset, read_map_dataset_info
 
+    from .config import check_scene_list
     from .data import _limit, split_scenes
 
     spec = predictor_spec(conf)
@@ -167,6 +168,7 @@ def open_map_training_data(conf):
     if refused:
         raise InputError(f"{conf.data.path}: holds {refused[0]}, a scene data.refuse_scenes keeps out of training "
                          f"(a benchmark test or development scene); make the training data without it")
+    check_scene_list(conf.data.val_scenes, "data.val_scenes")
     val_scenes = list(conf.data.val_scenes) if conf.data.val_scenes else None
     train_scenes, val_scenes = split_scenes(dataset.scenes, val_scenes, float(conf.data.val_fraction), int(conf.seed))
     by_scene: dict[str, list[int]] = {}

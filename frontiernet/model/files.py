@@ -86,10 +86,13 @@ def torch_model_file(path: str | Path) -> Path:
 def read_model_file(path: Path) -> tuple[dict, dict]:
     """(tensors as stored, name -> tensor; the config dict with ``network``, ``input``, ``labels``,
     ``inference`` and ``info``) of a model file (``.safetensors``, its base's shared tensors filled in)
-    or a training checkpoint (``.ckpt``). InputError naming the file when it cannot be read as one."""
+    or a training checkpoint (``.ckpt``). InputError naming the file when it cannot be read as one, or
+    when a weight is not finite (:func:`check_finite`)."""
     path = Path(path)
     if path.suffix != ".safetensors" and not _looks_like_safetensors(path):  # (a model file renamed .bin reads)
-        return _read_checkpoint(path)
+        state, conf = _read_checkpoint(path)
+        check_finite(state, path)
+        return state, conf
     state, metadata = _read_safetensors(path)
     if CONFIG_KEY not in metadata:
         raise InputError(f"{path}: safetensors file without a FrontierNet config (not a frontiernet model)")
@@ -103,7 +106,18 @@ def read_model_file(path: Path) -> tuple[dict, dict]:
         shared, found = _base_tensors(path, base)
         state.update(shared)
         conf["base"] = {"file": found.name, "prefixes": list(base["prefixes"]), "path": str(found)}
+    check_finite(state, path)
     return state, conf
+
+
+def check_finite(tensors: dict, path: Path) -> None:
+    """Refuse, naming model file `path` and the first such tensor, weights (name -> tensor) that hold a NaN
+    or an infinity (a run that diverged, a damaged file): the network would predict NaN, which reads as
+    no frontier anywhere."""
+    for name, value in tensors.items():
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            raise InputError(f"{path}: weights are not all finite ({name} holds NaN or infinity); the model "
+                             f"file is damaged or its training diverged")
 
 
 def model_base(conf: dict) -> SharedBase | None:
@@ -248,6 +262,6 @@ def save_model(path: str | Path, model, model_conf: dict, info: dict | None = No
     return write_bytes(path, payload)
 
 
-__all__ = ["BASE_KEY", "CONFIG_KEY", "DEFAULT_MODEL", "INFO_KEY", "RUNTIME_GROUP", "SharedBase", "is_export",
-           "default_model_path", "init_weights_file",
+__all__ = ["BASE_KEY", "CONFIG_KEY", "DEFAULT_MODEL", "INFO_KEY", "RUNTIME_GROUP", "SharedBase", "check_finite",
+           "is_export", "default_model_path", "init_weights_file",
            "model_base", "read_model_file", "save_model", "shipped_weights_folder", "tensors_digest", "torch_model_file"]

@@ -318,8 +318,8 @@ def load_model(path: str | Path | None = None) -> tuple[FrontierNet, dict]:
         (model in eval mode on the CPU, float32; its config dict with ``network``, ``input``,
         ``labels``, ``inference`` and ``info``).
     Raises:
-        InputError naming the file: missing, corrupt, not a FrontierNet file, or weights that
-        do not fit the architecture the file declares.
+        InputError naming the file: missing, corrupt, not a FrontierNet file, weights that
+        do not fit the architecture the file declares, or weights that are not all finite.
     """
     path = torch_model_file(default_model_path() if path is None else path)
     state, conf = read_model_file(path)

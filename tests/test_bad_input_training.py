@@ -1,0 +1,165 @@
+"""Bad input to training and to model files (the third probe of docs/bad_input.md): one line naming the
+file, key or value and what is wrong, exit code 2, no traceback, and nothing written (no run folder,
+no training cache, no export)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from frontiernet.cli.main import main
+from frontiernet.errors import InputError
+
+TINY = ["trainer.max_steps=1", "data.image_size=64", "data.batch_size=2", "augment.crop_size=null",
+        "data.num_workers=0", "data.cache=false", "data.max_val_samples=2", "trainer.accelerator=cpu",
+        "trainer.threads=1"]
+
+
+FIRST = "stem.0.weight"
+"""The weight of the shipped model that :func:`model_with` changes."""
+
+
+@pytest.fixture(scope="module")
+def two_scenes(tmp_path_factory) -> Path:
+    """A tiny datagen dataset: 2 procedural scenes x 2 views of 64 x 64 px."""
+    from datagen.config import load_datagen_config
+    from datagen.generate import generate
+
+    out = tmp_path_factory.mktemp("data") / "two"
+    conf = load_datagen_config(overrides=["camera.width=64", "camera.height=64", "camera.focal_px=40",
+                                          "writer.shard_size=2"])
+    generate(["procedural:3", "procedural:4"], 2, out, conf, seed=0, workers=1, progress=False)
+    return out
+
+
+def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Path:
+    """The shipped model with one weight set to `value`, as a model file or (suffix .ckpt) a checkpoint
+    as ``frontiernet train`` writes one (Lightning's keys included)."""
+    from frontiernet.model import load_model, save_model
+
+    model, conf = load_model()
+    with torch.no_grad():
+        dict(model.named_parameters())[FIRST].view(-1)[3] = value
+    path = tmp_path / f"model{suffix}"
+    if suffix == ".safetensors":
+        return save_model(path, model, conf)
+    model_conf = {key: conf[key] for key in ("network", "input", "labels", "inference")}
+    torch.save({"pytorch-lightning_version": "2.4.0", "epoch": 0, "global_step": 1, "loops": {},
+                "optimizer_states": [], "lr_schedulers": [],
+                "state_dict": {f"net.{name}": tensor for name, tensor in model.state_dict().items()},
+                "hyper_parameters": {"model": model_conf, "train": {}}}, path)
+    return path
+
+
+@pytest.mark.parametrize("overrides, message", [
+    # augment.crop_size larger than the views trained in silence, uncropped
+    (["data.image_size=64", "augment.crop_size=128"],
+     "augment.crop_size: 128 px is larger than the 64 px views it crops (data.image_size); give at most 64, "
+     "or null for no crop"),
+    # no loss term weighed: trained on a loss of 0
+    (["loss.distance_weight=0", "loss.ce_weight=0", "loss.dice_weight=0"],
+     "loss.distance_weight, loss.ce_weight, loss.dice_weight: all 0, so the loss is 0 and nothing trains"),
+    (["loss.ce_weight=-1"], "loss.ce_weight must be a number in [0, inf], got -1"),
+    # a learning-rate fraction of 2 ended the cosine at twice the rate
+    (["optim.final_lr_fraction=2"], "optim.final_lr_fraction: the cosine ends at lr times this fraction, which "
+                                    "must be between 0 and 1; got 2"),
+    (["optim.final_lr_fraction=-0.1"], "must be between 0 and 1; got -0.1"),
+    # one scene as text was read as its characters: "'3' is not a scene of the dataset"
+    (["data.val_scenes=procedural:3"], "data.val_scenes: takes a list of scene specs (or null), got "
+                                       "'procedural:3'; write one scene as a one-element list, e.g. "
+                                       "'data.val_scenes=[procedural:3]'"),
+])
+def test_training_settings_judged_without_data_are_refused_before_anything(tmp_path, overrides, message,
+                                                                            one_line_error):
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", f"data.path={tmp_path / 'no_data'}", f"out={runs}", "name=tiny", *TINY,
+                 *overrides]) == 2
+    assert message in one_line_error()
+    assert not runs.exists()
+
+
+def test_a_list_of_validation_scenes_is_still_taken():
+    from train.config import load_train_config
+
+    conf = load_train_config(overrides=["data.path=d", "data.val_scenes=[procedural:3]", "loss.ce_weight=0",
+                                        "loss.dice_weight=0"])  # one loss term is enough
+    assert list(conf.data.val_scenes) == ["procedural:3"]
+
+
+def test_a_crop_larger_than_the_datasets_own_views_is_refused_before_the_cache(two_scenes, tmp_path,
+                                                                              one_line_error):
+    # data.image_size: null keeps the dataset's 64 px views: a crop of 128 is judged once the dataset is open,
+    # before its training cache is built
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", f"data.path={two_scenes}", f"out={runs}", *TINY, "data.image_size=null",
+                 "data.cache=auto", "augment.crop_size=128"]) == 2
+    assert ("augment.crop_size: 128 px is larger than the 64 px views it crops (data.image_size: null keeps the "
+            "dataset's size)") in one_line_error()
+    assert not runs.exists() and not (two_scenes / "cache").exists()
+
+
+def test_resuming_from_a_checkpoint_that_cannot_resume_is_refused_before_anything(two_scenes, tmp_path,
+                                                                                 one_line_error):
+    # {"state_dict": {}} passed the check, then Lightning failed (KeyError 'pytorch-lightning_version', an
+    # internal error, exit 1) and left an empty runs/ folder behind
+    empty = tmp_path / "emptystate.ckpt"
+    torch.save({"state_dict": {}}, empty)
+    runs = tmp_path / "runs"
+    args = ["train", "--no-progress", f"data.path={two_scenes}", f"out={runs}", *TINY, "--resume"]
+    assert main(args + [str(empty)]) == 2
+    assert (f"{empty}: not a training checkpoint (no pytorch-lightning_version, optimizer_states, lr_schedulers, "
+            "loops, hyper_parameters: nothing to resume from)") in one_line_error()
+    # all of Lightning's keys, but weights of no network, or not finite ones
+    no_weights = tmp_path / "noweights.ckpt"
+    state = torch.load(model_with(tmp_path, float("nan"), ".ckpt"), weights_only=True)
+    torch.save({**state, "state_dict": {}}, no_weights)
+    assert main(args + [str(no_weights)]) == 2
+    assert f"{no_weights}: weights do not fit a resnet18/rgbd FrontierNet" in one_line_error()
+    assert main(args + [str(tmp_path / "model.ckpt")]) == 2
+    assert f"{tmp_path / 'model.ckpt'}: weights are not all finite" in one_line_error()
+    assert not runs.exists()
+
+
+def test_a_run_that_fails_before_its_first_step_leaves_no_folder_it_made(two_scenes, tmp_path, monkeypatch):
+    # the run folder was removed, but not the folders above it that the run made (out=runs/deep)
+    import lightning as L
+
+    from train.config import load_train_config
+    from train.main import main as train
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(L.Trainer, "fit", fail)
+    (tmp_path / "kept").mkdir()
+    for out in (tmp_path / "runs" / "deep", tmp_path / "kept"):
+        conf = load_train_config(overrides=[f"data.path={two_scenes}", f"out={out}", *TINY])
+        with pytest.raises(RuntimeError, match="boom"):
+            train(conf, progress=False)
+    assert not (tmp_path / "runs").exists()
+    assert list((tmp_path / "kept").iterdir()) == []  # a folder that was there stays
+
+
+def test_bench_train_refuses_a_worker_count_given_twice(tmp_path, one_line_error):
+    # --workers 0 0 timed the same loader twice (--encoders of bench inference refuses a repeated name)
+    assert main(["bench", "train", f"data.path={tmp_path / 'no_data'}", "--workers", "0", "0", "--batches", "1",
+                 "--steps", "1", "--no-baseline"]) == 2
+    assert "--workers must list distinct worker counts, got 0 0" in one_line_error()
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf")])
+def test_a_model_file_with_weights_that_are_not_finite_is_refused_when_read(tmp_path, value, one_line_error):
+    # a model of NaN weights exported, and predicted 0 frontier pixels with a numpy RuntimeWarning
+    path = model_with(tmp_path, value)
+    out = tmp_path / "m.onnx"
+    assert main(["export", str(path), "--format", "onnx", "--out", str(out)]) == 2
+    message = one_line_error()
+    assert message == (f"frontiernet export: error: {path}: weights are not all finite ({FIRST} holds NaN or "
+                       "infinity); the model file is damaged or its training diverged")
+    assert not out.exists()
+    from frontiernet.model import load_model
+
+    with pytest.raises(InputError, match="weights are not all finite"):  # a checkpoint alike
+        load_model(model_with(tmp_path, value, ".ckpt"))
