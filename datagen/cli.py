@@ -13,6 +13,7 @@ point (``frontiernet`` itself never imports ``datagen``).
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -35,7 +36,10 @@ def add_parser(subparsers) -> None:
     options.config_overrides(parser, "writer.shard_size=16", option=True)
     options.no_progress(parser)
     parser.set_defaults(func=run_generate)
-    actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser))
+    # what the actions refuse when given before them (they would drop it: _Actions)
+    parser.set_defaults(own_option_defaults={action.dest: action.default for action in parser._actions
+                                             if action.option_strings and action.dest != "help"})
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser), action=_Actions)
     preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
     preview.add_argument("dataset", metavar="DIR", help="dataset folder (or one shard .zip)")
     preview.add_argument("--n", type=int, default=16, help="number of samples (spread over the dataset)")
@@ -63,6 +67,34 @@ def add_parser(subparsers) -> None:
     from .mapgen_cli import add_parser as add_mapgen_parser
 
     add_mapgen_parser(subparsers)  # frontiernet mapgen: the map predictors' data (docs/mapprediction.md)
+
+
+class _Actions(argparse._SubParsersAction):
+    """datagen's actions (preview, bench, consistency), noting in ``args.options_before_action`` the options of
+    ``frontiernet datagen`` itself given before one (and which of them the action takes too): the action drops
+    them (its own option of the same name replaces the value), so :func:`_refuse_options_before` refuses them."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        defaults = getattr(namespace, "own_option_defaults", {})
+        given = [dest for dest, default in defaults.items() if getattr(namespace, dest, default) != default]
+        taken = {action.dest for action in self._name_parser_map[values[0]]._actions} if values[0] in \
+            self._name_parser_map else set()
+        super().__call__(parser, namespace, values, option_string)
+        namespace.options_before_action = [(dest, dest in taken) for dest in given]
+
+
+def _refuse_options_before(args) -> None:
+    """InputError naming the options of ``frontiernet datagen`` given before the action `args.action`
+    (``datagen --scenes S preview DIR``: dropped without a word before)."""
+    from frontiernet.errors import InputError
+
+    given = getattr(args, "options_before_action", [])
+    if given:
+        option = {dest: f"--{dest.replace('_', '-')}" for dest, _ in given}
+        also = [option[dest] for dest, taken in given if taken]  # the action's own: given after its name
+        raise InputError(f"{'/'.join(option.values())} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet "
+                         f"datagen` itself, not to `datagen {args.action}`"
+                         + (f" (give {'/'.join(also)} after `{args.action}`)" if also else ""))
 
 
 def run_generate(args) -> int:
@@ -107,6 +139,7 @@ def run_preview(args) -> int:
     from .dataset import open_dataset
     from .preview import write_previews
 
+    _refuse_options_before(args)
     if args.n < 1:
         raise InputError(f"--n must be a positive integer, got {args.n}")
     dataset = open_dataset(args.dataset)
@@ -122,10 +155,16 @@ def run_preview(args) -> int:
 
 def run_bench(args) -> int:
     from frontiernet.cli.bench import counts
+    from frontiernet.errors import InputError
 
     from .bench import bench_ground_truth
 
+    _refuse_options_before(args)
     counts(views=args.views)  # (100000 ran for hours)
+    twice = [name for index, name in enumerate(args.raycast or []) if name in args.raycast[:index]]
+    if twice:
+        raise InputError(f"--raycast names {twice[0]} twice: each engine is timed once (the first against the "
+                         "others), give each at most once")
     result = bench_ground_truth(args.scene, args.views, args.raycast)
     if args.json:
         print(json.dumps(result))
@@ -163,6 +202,7 @@ def run_consistency(args) -> int:
 
     from .consistency import format_consistency, label_consistency, load_consistency_config
 
+    _refuse_options_before(args)
     if args.json:
         check_output_file(args.json)  # a folder given as --json fails now, not after the labelling
     conf = load_consistency_config(args.config, args.set)

@@ -77,15 +77,19 @@ def _read_info_rehashed(out: Path) -> dict:
 
 
 def check_runs(conf) -> list[dict]:
-    """The checked ``mapgen`` settings' runs as [{method, depth}]; InputError naming the first bad key."""
+    """The checked ``mapgen`` settings' runs as [{method, depth}]; InputError naming the first bad key (a
+    ``first_snapshot_step`` at or past ``max_steps`` too: no run would take a snapshot)."""
     from frontiernet.depth import DEPTH_SOURCES, depth_source_name
     from frontiernet.exploration.methods import METHODS
     from frontiernet.exploration.run import MAX_STEPS
 
     section = conf.mapgen
-    whole_number(section.max_steps, "mapgen.max_steps", 1, MAX_STEPS)  # an exploration run's budget
+    max_steps = whole_number(section.max_steps, "mapgen.max_steps", 1, MAX_STEPS)  # an exploration run's budget
     whole_number(section.snapshot_every_steps, "mapgen.snapshot_every_steps", 1, MAX_STEPS)
-    whole_number(section.first_snapshot_step, "mapgen.first_snapshot_step", 0, MAX_STEPS)
+    first = whole_number(section.first_snapshot_step, "mapgen.first_snapshot_step", 0, MAX_STEPS)
+    if first >= max_steps:  # a dataset of no snapshot
+        raise InputError(f"mapgen.first_snapshot_step {first} must be below mapgen.max_steps {max_steps} (each run's "
+                         "step budget): the runs would end before (or at) their first snapshot")
     runs = OmegaConf.to_container(section.runs, resolve=True) if section.runs is not None else []
     if not isinstance(runs, list) or not runs:
         raise InputError("mapgen.runs must list at least one run ({method: NAME, depth: SOURCE})")

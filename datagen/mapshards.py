@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError
-from frontiernet.io import ensure_dir, write_json
+from frontiernet.io import ensure_dir, input_folder, write_json
 
 from .shards import INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, read_info_file, write_zip
 
@@ -52,8 +52,10 @@ def write_map_dataset_info(root: str | Path, info: dict) -> Path:
 
 
 def read_map_dataset_info(root: str | Path) -> dict:
-    """The dict of ``root/dataset.json``; InputError naming the file when it is missing, unreadable or
-    not a map dataset's (a FrontierNet dataset of ``frontiernet datagen`` says so)."""
+    """The dict of ``root/dataset.json``; InputError naming `root` when it is a file or missing
+    (:func:`~frontiernet.io.input_folder`), or the file when it is missing, unreadable or not a map
+    dataset's (a FrontierNet dataset of ``frontiernet datagen`` says so)."""
+    input_folder(root, "map dataset")
     path, info = read_info_file(root, "not a map dataset folder; make one with frontiernet mapgen")
     found = info.get("format") if isinstance(info, dict) else type(info).__name__
     if found != MAP_DATASET_FORMAT:

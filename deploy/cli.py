@@ -77,7 +77,9 @@ def run_export(args) -> int:
 
 
 def run_predict(args) -> int:
-    from frontiernet.errors import cpu_count_option, positive_number
+    """``frontiernet predict``; refuses, before anything is written, a ``--depth-scale`` the depth is not
+    read with (another ``--depth-encoding``, a depth model, no ``--depth``) and an encoding of no depth file."""
+    from frontiernet.errors import InputError, cpu_count_option, positive_number
     from frontiernet.io import check_output_folder, claim_output_folder, input_file
     from frontiernet.model.predictor import input_size
 
@@ -87,11 +89,20 @@ def run_predict(args) -> int:
         input_size(args.size, "--size (or 0: the image's own size)")
     if args.depth_scale is not None:
         positive_number(args.depth_scale, "--depth-scale")
+    depth_model = depth_model_name(args.depth)
+    if (args.depth is None or depth_model) and (args.depth_scale is not None or args.depth_encoding != "scale"):
+        given = "--depth-scale" if args.depth_scale is not None else f"--depth-encoding {args.depth_encoding}"
+        reading = "no --depth is given" if args.depth is None else \
+            f"--depth {depth_model} estimates the depth from the image"
+        raise InputError(f"{given} decodes a depth file, and {reading}: leave it out")
+    if args.depth_scale is not None and args.depth_encoding != "scale":
+        raise InputError(f"--depth-scale ({args.depth_scale:g}) applies to --depth-encoding scale only; the "
+                         f"{args.depth_encoding} encoding sets its own unit: leave --depth-scale out")
     if args.threads is not None:
         cpu_count_option(args.threads, "--threads")
     check_output_folder(args.out, args.force)  # earlier outputs are replaced only with --force
     for path, what in ((args.image, "image"), (args.model, "model file"),
-                       (None if depth_model_name(args.depth) else args.depth, "depth file")):
+                       (None if depth_model else args.depth, "depth file")):
         if path is not None:  # before the model loads
             input_file(path, what)
     conf = load_predict_config(args.config, args.overrides)

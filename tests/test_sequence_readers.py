@@ -147,7 +147,9 @@ def write_tum(root: Path) -> None:
 def test_tum(tmp_path):
     write_tum(tmp_path)
     assert detect_format(tmp_path) == "tum"
-    sequence = open_sequence(tmp_path)
+    with pytest.raises(InputError, match="TUM's default intrinsics are for 640 x 480 frames, these are 64 x 48"):
+        open_sequence(tmp_path)  # (issue 55's third probe: the 640 x 480 K was used for any frame size)
+    sequence = open_sequence(tmp_path, camera=Camera.pinhole(52.5, 52.5, 31.95, 23.95, 64, 48))
     assert sequence.format == "tum" and len(sequence) == 4
     assert [frame.timestamp for frame in sequence] == [1.000, 1.033, 1.066, 1.100]
     assert any("0 frame(s) without a depth" in note and "1 without a ground-truth pose" in note
@@ -158,8 +160,8 @@ def test_tum(tmp_path):
     np.testing.assert_allclose(sequence.frames[0].depth(), 1.0)
     camera = sequence.frames[0].camera
     assert (camera.width, camera.height) == (64, 48)
-    np.testing.assert_array_equal(camera.K, [[525, 0, 319.5], [0, 525, 239.5], [0, 0, 1]])
-    strict = read_tum(tmp_path, max_time_difference_s=0.0045)  # 1.000 has no depth, 1.100 and 2.000 no pose
+    np.testing.assert_array_equal(camera.K, [[52.5, 0, 31.95], [0, 52.5, 23.95], [0, 0, 1]])
+    strict = read_tum(tmp_path, camera, max_time_difference_s=0.0045)  # 1.000 has no depth, 1.100 and 2.000 no pose
     assert [frame.timestamp for frame in strict] == [1.033, 1.066]
     assert "skipped 1 frame(s) without a depth frame and 2 without a ground-truth pose" in strict.notes[0]
 

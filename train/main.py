@@ -35,7 +35,7 @@ from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.io import input_file, write_json
 from frontiernet.model import load_model, save_model
-from frontiernet.model.files import model_base
+from frontiernet.model.files import check_finite, model_base
 
 from .config import plain
 from .data import FrontierDataModule, open_training_data, view_size
@@ -189,7 +189,7 @@ def _check_checkpoint(path: str) -> dict:
     """The hyperparameters of a checkpoint to resume from, which must load as one (plain data only: no
     code runs; memory-mapped, so a second look costs little). Refused, naming the file: a file that is no
     torch checkpoint, one without the state Lightning resumes from (:data:`RESUME_KEYS`), or weights
-    that do not fit the network it declares or are not all finite (:func:`load_model`)."""
+    that do not fit the FrontierNet it declares (:func:`load_model`) or are not all finite."""
     try:
         state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
     except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
@@ -199,8 +199,12 @@ def _check_checkpoint(path: str) -> dict:
     missing = [key for key in RESUME_KEYS if key not in state]
     if missing:
         raise InputError(f"{path}: not a training checkpoint (no {', '.join(missing)}: nothing to resume from)")
-    load_model(path)  # its weights fit its network and are finite
-    return state.get("hyper_parameters") or {}
+    hyper = state.get("hyper_parameters") or {}
+    if isinstance(hyper.get("model"), dict) and "network" in hyper["model"]:
+        load_model(path)  # a FrontierNet's: its weights fit the network it declares and are finite
+    else:
+        check_finite(state["state_dict"], path)  # a map predictor's (train/mapprediction.py)
+    return hyper
 
 
 def resumed_settings(conf, hyper: dict) -> None:

@@ -35,13 +35,15 @@ def scene_source(spec: str) -> str:
     return parsed.source
 
 
-def evaluate_maps(predictor_path, data, *, max_snapshots: int | None = None, crops_per_snapshot: int = 4,
+def evaluate_maps(predictor_path, data, *, max_snapshots: int | None = None, crops_per_snapshot: int | None = None,
                   radius_m: float = 3.0, progress=None) -> dict:
-    """Scores per source and prediction (module docstring); a JSON-able dict.
+    """Scores per source and prediction (module docstring); a JSON-able dict. `crops_per_snapshot`: a seer
+    predictor's (None: 4).
 
     Raises:
-        InputError: a predictor file that does not load, a dataset of another map resolution (its
-            ``voxel_size``), no held-out snapshot.
+        InputError: a predictor file that does not load, `crops_per_snapshot` given for a mapex predictor
+            (which scores the whole top-down map), a dataset of another map resolution (its ``voxel_size``),
+            no held-out snapshot.
     """
     from datagen.mapshards import check_voxel_size, open_map_dataset, read_map_dataset_info
     from frontiernet.errors import InputError
@@ -52,6 +54,10 @@ def evaluate_maps(predictor_path, data, *, max_snapshots: int | None = None, cro
     from frontiernet.mapprediction.encodings import IGNORE
 
     predictor = load_predictor(predictor_path)
+    if crops_per_snapshot is not None and predictor.kind != "seer":
+        raise InputError(f"--crops-per-snapshot applies to seer predictors, and {predictor_path} is a "
+                         f"{predictor.kind} predictor (scored over the whole top-down map): leave it out")
+    crops_per_snapshot = 4 if crops_per_snapshot is None else crops_per_snapshot
     check_voxel_size(read_map_dataset_info(data), data, predictor.spec.voxel_size,
                      f"the predictor's voxel_size ({predictor_path})")
     dataset = open_map_dataset(data)
@@ -155,7 +161,7 @@ def add_parser(subparsers) -> None:
                         help="predictor file (predictor.safetensors) or checkpoint (.ckpt)")
     parser.add_argument("--data", required=True, metavar="DIR", help="a frontiernet mapgen dataset")
     parser.add_argument("--max-snapshots", type=int, metavar="N", help="at most N snapshots (evenly spread)")
-    parser.add_argument("--crops-per-snapshot", type=int, default=4, metavar="N",
+    parser.add_argument("--crops-per-snapshot", type=int, metavar="N",
                         help="seer: crops around the N largest frontier pieces of a snapshot (default 4)")
     parser.add_argument("--radius-m", type=float, default=3.0, help="scored: unknown cells this near a frontier (default 3)")
     parser.add_argument("--threads", type=int, metavar="T", help="torch threads (default: torch's)")
@@ -173,7 +179,8 @@ def run_mapeval(args) -> int:
                               (args.threads, "--threads", 4 * (os.cpu_count() or 1))):
         if value is not None:
             whole_number(value, name, 1, most)
-    whole_number(args.crops_per_snapshot, "--crops-per-snapshot", 1, 1000)
+    if args.crops_per_snapshot is not None:
+        whole_number(args.crops_per_snapshot, "--crops-per-snapshot", 1, 1000)
     if positive_number(args.radius_m, "--radius-m", "metres") > 100:
         raise InputError(f"--radius-m must be at most 100 metres, got {args.radius_m}")
     if args.json:

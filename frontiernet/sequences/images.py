@@ -95,13 +95,14 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
             raise InputError(f"{path}: not a readable depth image")
     if not (np.issubdtype(depth.dtype, np.integer) or np.issubdtype(depth.dtype, np.floating)):
         raise InputError(f"{path}: holds {depth.dtype} values, not depth (integer units or float metres)")
+    floating = encoding == "scale" and np.issubdtype(depth.dtype, np.floating)  # metres, no scale
     if encoding == "sun":
         if depth.dtype != np.uint16:
             raise InputError(f"{path}: SUN depth must be a 16-bit image, got {depth.dtype}")
         depth = ((depth >> 3) | (depth << 13)).astype(np.float32) / 1000.0
     elif np.issubdtype(depth.dtype, np.integer):
         depth = depth.astype(np.float32) / float(depth_scale)
-    elif scale_given:
+    elif floating and scale_given:
         raise InputError(f"{path}: holds {depth.dtype} depth, read as metres; the depth scale "
                          f"({depth_scale:g}, --depth-scale) applies to integer depth only: leave it out")
     if depth.ndim != 2:
@@ -111,19 +112,26 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
         raise InputError(f"{path}: depth has {int(np.isinf(depth).sum())} infinite pixels; mark invalid pixels "
                          "with 0 or NaN")
     depth[~(depth > 0)] = 0.0  # NaN too
-    check_depth_unit(depth, path, f"depth scale {depth_scale:g} units per metre" if encoding == "scale" else
-                     f"the {encoding} encoding")
+    if floating:
+        check_depth_unit(depth, path, "float depth is read as metres", "convert it to metres (divide by 1000 for "
+                         "millimetres) or save it as integer millimetres (uint16)")
+    else:
+        check_depth_unit(depth, path, f"read with depth scale {depth_scale:g} units per metre" if encoding == "scale"
+                         else f"read with the {encoding} encoding")
     return depth
 
 
-def check_depth_unit(depth: np.ndarray, path, decoding: str) -> None:
+def check_depth_unit(depth: np.ndarray, path, decoding: str, advice: str | None = None) -> None:
     """InputError when the median valid depth (metres) is outside :data:`PLAUSIBLE_DEPTH_M`: a
-    depth map read in the wrong unit (millimetres as metres, metres as millimetres)."""
+    depth map read in the wrong unit (millimetres as metres, metres as millimetres). `decoding` says how
+    it was read (``read with depth scale 1000 units per metre``), `advice` what to do (default: check the
+    depth scale; float depth, which takes none, says its own)."""
     valid = depth[depth > 0]
     if not len(valid):
         return
     median = float(np.median(valid))
     low, high = PLAUSIBLE_DEPTH_M
     if not low <= median <= high:
-        raise InputError(f"{path}: median depth {median:.4g} m is implausible (read with {decoding}); the depth "
-                         f"is in another unit: check the depth scale (1000 for millimetres, 5000 for TUM, 1 for metres)")
+        advice = advice or "check the depth scale (1000 for millimetres, 5000 for TUM, 1 for metres)"
+        raise InputError(f"{path}: median depth {median:.4g} m is implausible ({decoding}); the depth "
+                         f"is in another unit: {advice}")

@@ -41,6 +41,15 @@ def check_frames(stride, max_frames) -> tuple[int, int | None]:
     return stride, None if max_frames is None else whole_number(max_frames, "frames.max_frames (--max-frames)", 1)
 
 
+def check_network(network) -> None:
+    """InputError naming ``network.size`` unless it is null (the model's) or a network input size in
+    pixels (:func:`~frontiernet.model.predictor.input_size`: an integer in [8, 2048])."""
+    from ..model.predictor import input_size
+
+    if network.size is not None:
+        input_size(network.size, "network.size")
+
+
 def check_depth(depth, conf=None) -> None:
     """InputError unless `depth` is ``sensor``, the name of a depth source of
     :data:`~frontiernet.depth.SOURCES` (``emulated`` degrades the sensor's depth) or a
@@ -161,7 +170,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
-    The frames, the depth and `out` are checked before any work; a run refused after (an
+    The frames, ``network.size``, the depth and `out` are checked before any work; a run refused after (an
     :class:`InputError`: a recording without depth, a reconstruction that fails, ...) removes the `out`
     folder if it made it, else the work folders it made there (``cache``, ``recording``, ``colmap``), while an
     interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
@@ -169,6 +178,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
+    check_network(conf.network)
     check_depth(depth, conf)
     out = Path(out)
     made = [path for path in (*(out / name for name in WORK_FOLDERS), out) if not path.exists()]

@@ -28,8 +28,9 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pg
 REDWOOD_COLOUR_FOLDERS = ("color", "image", "rgb")
 REDWOOD_INTRINSIC_FILES = ("camera_intrinsic.json", "intrinsic.json")
 # TUM's recommended intrinsics for its registered images (ROS default), which are also Open3D's
-# PrimeSenseDefault: fx, fy, cx, cy in pixels.
+# PrimeSenseDefault: fx, fy, cx, cy in pixels, of 640 x 480 frames.
 DEFAULT_INTRINSICS = (525.0, 525.0, 319.5, 239.5)
+DEFAULT_INTRINSICS_SIZE = (640, 480)
 TUM_DEPTH_SCALE = 5000.0  # TUM RGB-D depth PNGs: 5000 units per metre
 REDWOOD_DEPTH_SCALE = 1000.0  # Redwood depth PNGs: millimetres
 
@@ -197,7 +198,8 @@ def read_tum(root: str | Path, camera: Camera | None = None, max_time_difference
     timestamp (linear in translation, slerp in rotation) when the nearest depth frame and the
     nearest ground-truth sample are within `max_time_difference_s` seconds; other frames are
     skipped (counted in the notes). Depth: 5000 units per metre. `camera` defaults to TUM's
-    recommended fx = fy = 525, cx = 319.5, cy = 239.5 at the images' size.
+    recommended fx = fy = 525, cx = 319.5, cy = 239.5, which are a 640 x 480 frame's: frames of
+    another size without `camera` are refused.
     """
     root = require_folder(root, "TUM sequence")
     rgb_times, rgb_files = _read_tum_list(root / "rgb.txt")
@@ -214,6 +216,10 @@ def read_tum(root: str | Path, camera: Camera | None = None, max_time_difference
     size = common_image_size(colour)
     if depth[0] is not None:
         common_image_size([depth[i] for i in kept], size, "depth")
+    if camera is None and size != DEFAULT_INTRINSICS_SIZE:
+        raise InputError(f"{root}: TUM's default intrinsics are for {DEFAULT_INTRINSICS_SIZE[0]} x "
+                         f"{DEFAULT_INTRINSICS_SIZE[1]} frames, these are {size[0]} x {size[1]}: give --intrinsics "
+                         "FX,FY,CX,CY")
     if camera is None:
         notes.append("camera: TUM's recommended default intrinsics fx = fy = 525, cx = 319.5, cy = 239.5")
     camera = check_camera_size(camera, size, colour[0]) if camera is not None else default_camera(size)
@@ -308,9 +314,13 @@ def read_redwood(root: str | Path, camera: Camera | None = None) -> Sequence:
     the only one), matched by sorted file order.
 
     Intrinsics: `camera` when given, else ``camera_intrinsic.json`` / ``intrinsic.json`` (Open3D
-    format), else the PrimeSense default fx = fy = 525, cx = 319.5, cy = 239.5.
+    format), else the PrimeSense default fx = fy = 525, cx = 319.5, cy = 239.5. A folder without a
+    ``.log`` trajectory that holds ``rgb.txt`` (a TUM sequence) is refused, naming ``--format tum``.
     """
     root = require_folder(root, "Redwood sequence")
+    if (root / "rgb.txt").is_file() and _redwood_trajectory(root) is None:
+        raise InputError(f"{root}: not a Redwood folder (no color/ and .log trajectory); it looks like a TUM "
+                         "sequence: --format tum")
     colour_folder = next((root / name for name in REDWOOD_COLOUR_FOLDERS if (root / name).is_dir()), None)
     if colour_folder is None:
         raise InputError(f"{root}: no colour folder (looked for {', '.join(REDWOOD_COLOUR_FOLDERS)})")
