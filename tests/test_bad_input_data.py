@@ -181,3 +181,10 @@ def test_implausible_float_depth_says_it_is_read_as_metres(rgb_and_depth, tmp_pa
     with pytest.raises(InputError, match=r"is implausible \(read with depth scale 1 units per metre\)"):
         read_depth(depth, 1.0)  # integer depth keeps its advice: check the depth scale
     assert np.allclose(read_depth(depth), 2.0)
+
+
+def test_a_file_given_to_map_training_as_its_dataset_says_it_is_a_file(tmp_path, one_line_error):
+    (tmp_path / "maps.zip").write_bytes(b"not a folder")
+    config = Path(__file__).resolve().parents[1] / "configs" / "train_seer.yaml"
+    assert main(["train", "--config", str(config), f"data.path={tmp_path / 'maps.zip'}"]) == 2
+    assert "maps.zip: is a file, expected a folder (map dataset)" in one_line_error()
