@@ -253,6 +253,11 @@ class FrontierTracker:
         view sees from the frontier at the best of those headings around its direction (as
         datagen's label takes the best heading): mapped surroundings end a frontier whatever
         its direction.
+
+        First, a frontier in a voxel `occupancy` marks occupied moves out of it (``relocate_m``, as
+        :meth:`prune` would): anchored on a wall's edge, its gain view would start inside the wall,
+        see nothing, and the cap would drop it as low gain at birth (KTH plans: the frontiers at a
+        corridor's open end, so the robot never went on).
         """
         mode = str(self.conf["gain_reduction"])
         if mode not in ("beyond_frame", "absolute", "none"):
@@ -260,6 +265,8 @@ class FrontierTracker:
         if not self.frontiers:
             return
         frontiers = list(self.frontiers.values())
+        for frontier in frontiers:  # viewed from inside a wall's voxel a frontier sees nothing: out first
+            self._out_of_walls(frontier, occupancy)
         view = self.conf["gain_view"]
         settings = (int(view["width_px"]), float(view["focal_px"]), float(view["max_depth_m"]))
         positions = np.stack([f.position for f in frontiers])
