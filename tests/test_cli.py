@@ -71,6 +71,24 @@ def test_bad_input_is_one_line_and_exit_code_2(plan_spec, tmp_path, capsys, args
     assert not (tmp_path / "out" / "rgb.png").exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["explore", "--scen", "x", "--out", "o"], "unrecognized option --scen (did you mean --scene?)"),
+    (["datagen", "--scenes", "procedural:0", "--views", "3", "--out", "o"],
+     "unrecognized option --views (did you mean --views-per-scene?)"),  # no abbreviation is read
+    (["bench", "--scenes", "procedural:0", "--method=classic", "--out", "o"],
+     "unrecognized option --method (did you mean --methods?)"),
+    (["bench", "explore", "--scene", "procedural:0", "--nonsense", "1"], "unrecognized option --nonsense"),
+])
+def test_a_misspelt_or_abbreviated_option_is_named_with_what_was_meant(args, message, tmp_path, capsys,
+                                                                       monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_info:
+        main(args)
+    err = capsys.readouterr().err.strip()
+    assert exit_info.value.code == 2 and message in err and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
 def test_the_installed_command_exits_2_without_traceback(tmp_path):
     result = subprocess.run([sys.executable, "-m", "frontiernet.cli.main", "render", str(tmp_path / "none.obj"),
                              "--pose", "0,0,1,0", "--out", str(tmp_path / "o")], capture_output=True, text=True)

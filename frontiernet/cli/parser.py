@@ -14,11 +14,37 @@ class Parser(argparse.ArgumentParser):
     argument that starts with '-' and a digit is a value, never an option: ``--pose -4.5,-0.5,1.2,0``,
     ``--start -1,2,1.2,-90``, ``--seed -1`` read as written. Older argparse (3.11's) takes only a
     lone ``-4.5`` for a number and ``-4.5,...`` for an unknown option; the rule here is the one of
-    CPython's current argparse: ``-``, an optional ``.``, a digit. No option here is named ``-<digit>``."""
+    CPython's current argparse: ``-``, an optional ``.``, a digit. No option here is named ``-<digit>``.
+    Options are taken only as spelt (no abbreviations): ``datagen --views 3`` is refused, not read as
+    ``--views-per-scene``, and a later option cannot change what an old command line means."""
 
     def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str):  # noqa: D401
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        """argparse's, after refusing an option (``--name`` or ``--name=value``) this parser does not
+        have, given before its subcommand (if any; the subcommand's parser checks the rest), with
+        the closest one it may have meant: otherwise argparse reports its value as a misplaced
+        argument (``datagen --views 3``: "invalid choice '3'") or a required option as missing
+        (``explore --scen x``)."""
+        import difflib
+        import sys
+
+        tokens = list(sys.argv[1:] if args is None else args)
+        known = set(self._option_string_actions)
+        commands = {name for action in self._actions if isinstance(action, argparse._SubParsersAction)
+                    for name in action.choices}
+        for token in tokens:
+            name = token.split("=", 1)[0]
+            if token == "--" or token in commands:
+                break
+            if name.startswith("--") and len(name) > 2 and name not in known:
+                close = [option for option in sorted(known) if option.startswith(name)][:1] \
+                    or difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
+                self.error(f"unrecognized option {name}" + (f" (did you mean {close[0]}?)" if close else ""))
+        return super().parse_known_args(tokens, namespace)
