@@ -61,8 +61,14 @@ def test_livingroom1(livingroom, reader):
     assert frame.rgb().shape == (480, 640, 3)
 
 
-def write_redwood(root: Path, count: int = 3, poses: int | None = None, size=(32, 24)) -> Path:
-    """A Redwood folder of `count` frames (colour, depth at 1.5 m) and a trajectory of `poses` entries."""
+def write_redwood(root: Path, count: int = 3, poses: int | None = None, size=(32, 24), intrinsics: bool = True) -> Path:
+    """A Redwood folder of `count` frames (colour, depth at 1.5 m) and a trajectory of `poses` entries,
+    with an Open3D ``camera_intrinsic.json`` for its frame `size` unless `intrinsics` is False."""
+    if intrinsics:
+        root.mkdir(parents=True, exist_ok=True)
+        (root / "camera_intrinsic.json").write_text(json.dumps(
+            {"width": size[0], "height": size[1], "intrinsic_matrix": [size[0], 0, 0, 0, size[0], 0,
+                                                                       (size[0] - 1) / 2, (size[1] - 1) / 2, 1]}))
     for i in range(count):
         write_image(root / "color" / f"{i:05d}.jpg", *size)
         write_depth(root / "depth" / f"{i:05d}.png", *size, 1500)
@@ -84,6 +90,16 @@ def test_redwood_written(tmp_path):
     assert any("5 poses for 3 frames" in note for note in sequence.notes)
     given = read_redwood(root, Camera.pinhole(20, 20, 16, 12, 32, 24))
     assert given.frames[0].camera.K[0, 0] == 20 and any("ignored" in note for note in given.notes)
+
+
+def test_redwood_without_intrinsics_takes_primesenses_for_640_x_480_frames_only(tmp_path):
+    full = read_redwood(write_redwood(tmp_path / "full", count=1, size=(640, 480), intrinsics=False))
+    np.testing.assert_array_equal(full.frames[0].camera.K, [[525, 0, 319.5], [0, 525, 239.5], [0, 0, 1]])
+    assert any("PrimeSense" in note for note in full.notes)
+    small = write_redwood(tmp_path / "small", count=1, intrinsics=False)  # issue 55: used at any size
+    with pytest.raises(InputError, match=r"small: Redwood's \(PrimeSense\) default intrinsics are for 640 x 480 "
+                                         r"frames, these are 32 x 24: give --intrinsics FX,FY,CX,CY"):
+        read_redwood(small)
 
 
 def test_redwood_errors(tmp_path):

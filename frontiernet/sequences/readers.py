@@ -216,13 +216,8 @@ def read_tum(root: str | Path, camera: Camera | None = None, max_time_difference
     size = common_image_size(colour)
     if depth[0] is not None:
         common_image_size([depth[i] for i in kept], size, "depth")
-    if camera is None and size != DEFAULT_INTRINSICS_SIZE:
-        raise InputError(f"{root}: TUM's default intrinsics are for {DEFAULT_INTRINSICS_SIZE[0]} x "
-                         f"{DEFAULT_INTRINSICS_SIZE[1]} frames, these are {size[0]} x {size[1]}: give --intrinsics "
-                         "FX,FY,CX,CY")
-    if camera is None:
-        notes.append("camera: TUM's recommended default intrinsics fx = fy = 525, cx = 319.5, cy = 239.5")
-    camera = check_camera_size(camera, size, colour[0]) if camera is not None else default_camera(size)
+    camera = check_camera_size(camera, size, colour[0]) if camera is not None else \
+        default_intrinsics(root, size, "TUM's", notes)
     frames = [SequenceFrame(index=k, name=colour[k].name, rgb_path=colour[k], camera=camera, T_world_cam=poses[i],
                             depth_path=depth[i], depth_scale=TUM_DEPTH_SCALE, timestamp=float(rgb_times[i]))
               for k, i in enumerate(kept)]
@@ -289,7 +284,18 @@ def _redwood_camera(root: Path, camera: Camera | None, size: tuple[int, int], no
         return check_camera_size(camera, size, root)
     if json_path is not None:
         return check_camera_size(read_open3d_intrinsic(json_path), size, json_path)
-    notes.append("camera: PrimeSense default intrinsics fx = fy = 525, cx = 319.5, cy = 239.5")
+    return default_intrinsics(root, size, "Redwood's (PrimeSense)", notes)
+
+
+def default_intrinsics(root: Path, size: tuple[int, int], whose: str, notes: list) -> Camera:
+    """The :data:`DEFAULT_INTRINSICS` camera for the frames of `root` ((width, height) `size`), with a
+    note naming them (`whose`: "TUM's", "Redwood's (PrimeSense)"); InputError when the frames are not
+    the 640 x 480 those numbers are for (a principal point at 319.5, 239.5 would be off their centre)."""
+    if tuple(size) != DEFAULT_INTRINSICS_SIZE:
+        raise InputError(f"{root}: {whose} default intrinsics are for {DEFAULT_INTRINSICS_SIZE[0]} x "
+                         f"{DEFAULT_INTRINSICS_SIZE[1]} frames, these are {size[0]} x {size[1]}: give --intrinsics "
+                         "FX,FY,CX,CY")
+    notes.append(f"camera: {whose} default intrinsics fx = fy = 525, cx = 319.5, cy = 239.5")
     return default_camera(size)
 
 
