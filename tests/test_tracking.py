@@ -383,8 +383,8 @@ def test_a_frontier_on_a_walls_edge_keeps_its_gain_viewed_from_outside_the_wall(
     tracker.add([observation((4.0, 1.5, 1.2), 90.0, gain=30.0)], 0, 0)
     tracker.update_gains(mapped_room)
     frontier = tracker.get(0)
-    assert mapped_room.state_at(frontier.position[None])[0] != OCCUPIED
-    assert frontier.gain_m3 > min_gain()  # the unknown corners of the room beside it
+    assert mapped_room.state_at(frontier.position[None])[0] == FREE  # on the seen side, not behind the wall
+    assert frontier.position[0] < 4.0 and frontier.gain_m3 > min_gain()  # the unknown corners of the room beside it
     assert tracker.prune(np.zeros((0, 4, 4)), mapped_room) == []
     # where it cannot move out, the wall blinds it: dropped
     buried = FrontierTracker(tracking_conf(gain_reduction="none", relocate_m=0.0), view_z=CAMERA_Z)

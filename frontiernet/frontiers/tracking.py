@@ -343,8 +343,11 @@ class FrontierTracker:
 
     def _out_of_walls(self, frontier: Frontier, occupancy) -> bool:
         """Whether `frontier` lies in space the map does not mark occupied (at `view_z`), after
-        moving it to the nearest such voxel centre within ``relocate_m`` if it did not."""
-        from ..mapping import OCCUPIED
+        moving it to the nearest such voxel centre within ``relocate_m`` if it did not: the nearest
+        known-free one, else the nearest unknown one. Free first: a frontier on a wall's edge
+        belongs on the side the camera saw, where the robot can go, not in the unknown behind the
+        wall (from where its gain view would count the room beyond as the frontier's)."""
+        from ..mapping import FREE, OCCUPIED
 
         at = frontier.position.copy()
         if self.view_z is not None:
@@ -362,7 +365,10 @@ class FrontierTracker:
         distance = np.linalg.norm(candidates[:, :2] - at[:2], axis=1)
         order = np.argsort(distance[distance <= radius], kind="stable")
         candidates = candidates[distance <= radius][order]
-        free = np.flatnonzero(occupancy.state_at(candidates) != OCCUPIED)
+        states = occupancy.state_at(candidates)
+        free = np.flatnonzero(states == FREE)
+        if not len(free):
+            free = np.flatnonzero(states != OCCUPIED)
         if not len(free):
             return False
         frontier.position[:2] = candidates[free[0], :2]
