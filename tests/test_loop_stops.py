@@ -1,7 +1,6 @@
 """Premature stops of the shared loop (issue 54's step account): goals given up on get another
-chance before a 'no frontiers left' stop, an image method's empty tracker takes the map's frontiers
-before it, and a route that cannot start from the robot's spot blames its goal once per step, not
-three times in one."""
+chance before a 'no frontiers left' stop, and a route that cannot start from the robot's spot
+blames its goal once per step, not three times in one."""
 
 from __future__ import annotations
 
@@ -21,12 +20,12 @@ from frontiernet.simulator.voxels import voxelize_scene
 from test_move_check import ROBOT, SMALL, room_scene
 
 
-def explorer_in_a_room(method: str = "classic", **planner) -> Explorer:
+def explorer_in_a_room(**planner) -> Explorer:
     scene = room_scene(pillar=True)
     conf = OmegaConf.merge(load_config("explore"), {"planner": planner})
     sim = load_config("sim")
     context = MethodContext(conf, sim, scene=scene, voxels=voxelize_scene(scene, sim.voxels))
-    return Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method(method, context),
+    return Explorer(context, Renderer(scene, SMALL, (0, 0, 0)), make_method("classic", context),
                     make_depth_source("ground_truth", load_config("depth")), pose_from_heading(*ROBOT, yaw=np.pi / 2))
 
 
@@ -51,29 +50,6 @@ def test_goals_given_up_on_get_another_chance_once_per_g_min_the_map_has_learnt(
     off = explorer_in_a_room(forgive_before_stop=False)
     give_up_on(off, 7)
     assert not off._forgive() and off.planner.blacklist == {7}  # as before the option
-
-
-def test_an_image_methods_empty_tracker_takes_the_maps_frontiers_once_per_g_min_the_map_has_learnt():
-    """KTH 50010535_PLAN1 (issue 54): frontiernet's tracker emptied at a corridor's end while the map
-    still held its open boundary, and the run stopped at 5.5 % coverage with 2,000 steps unused."""
-    explorer = explorer_in_a_room("discontinuity-uniform")  # an image method that loads no model
-    explorer.sense()
-    for frontier in list(explorer.tracker):
-        explorer.tracker.remove(frontier.id, "low_gain")
-    assert explorer._map_fallback() and len(explorer.tracker) and explorer.result.map_fallbacks == 1
-    assert all(frontier.gain_m3 >= float(explorer.conf.tracking.min_gain_m3) for frontier in explorer.tracker)
-    for frontier in list(explorer.tracker):
-        explorer.tracker.remove(frontier.id, "low_gain")
-    assert not explorer._map_fallback()  # the same map: the same frontiers, so the run may stop
-    for yaw in (-np.pi / 2, np.pi):  # the camera learns more of the room
-        explorer.agent.move_to(pose_from_heading(*ROBOT, yaw=yaw))
-        explorer.sense()
-    for frontier in list(explorer.tracker):
-        explorer.tracker.remove(frontier.id, "low_gain")
-    assert explorer._map_fallback() and explorer.result.map_fallbacks == 2
-    classic = explorer_in_a_room()  # its frontiers are the map's already
-    classic.sense()
-    assert not classic._map_fallback() and classic.result.map_fallbacks == 0
 
 
 @pytest.mark.slow

@@ -374,25 +374,6 @@ def test_frontier_just_inside_a_wall_moves_out_to_the_nearest_unoccupied_voxel(m
     assert buried.prune(np.zeros((0, 4, 4)), mapped_room) == [0]
 
 
-def test_a_frontier_on_a_walls_edge_keeps_its_gain_viewed_from_outside_the_wall(mapped_room):
-    """A frontier anchored in a mapped wall voxel (a corridor's open end on a thin-walled plan) is
-    moved out before its gain view is cast: viewed from inside the wall it would see no unknown
-    volume, and the cap would drop it as low gain at birth."""
-    conf = tracking_conf(gain_reduction="none")  # the cap alone
-    tracker = FrontierTracker(conf, view_z=CAMERA_Z)
-    tracker.add([observation((4.0, 1.5, 1.2), 90.0, gain=30.0)], 0, 0)
-    tracker.update_gains(mapped_room)
-    frontier = tracker.get(0)
-    assert mapped_room.state_at(frontier.position[None])[0] == FREE  # on the seen side, not behind the wall
-    assert frontier.position[0] < 4.0 and frontier.gain_m3 > min_gain()  # the unknown corners of the room beside it
-    assert tracker.prune(np.zeros((0, 4, 4)), mapped_room) == []
-    # where it cannot move out, the wall blinds it: dropped
-    buried = FrontierTracker(tracking_conf(gain_reduction="none", relocate_m=0.0), view_z=CAMERA_Z)
-    buried.add([observation((4.0, 1.5, 1.2), 90.0, gain=30.0)], 0, 0)
-    buried.update_gains(mapped_room)
-    assert buried.get(0).gain_m3 < min_gain() and buried.prune(np.zeros((0, 4, 4)), mapped_room) == [0]
-
-
 # -- visited poses ---------------------------------------------------------------------------------
 
 

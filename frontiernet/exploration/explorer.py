@@ -72,7 +72,6 @@ class ExplorationResult:
     reconstruction: dict = field(default_factory=dict)  # GLEAM's Chamfer distance and completeness
     account: dict = field(default_factory=dict)  # where the steps go (:func:`.steps.run_account`)
     forgiven: int = 0  # times the goals given up on had another chance before a stop (planner.forgive_before_stop)
-    map_fallbacks: int = 0  # times an image method's empty tracker took the map's frontiers (Explorer._map_fallback)
 
 
 class Explorer:
@@ -137,7 +136,6 @@ class Explorer:
         self.step_back, self.start_failed_at = start_failure == "step_back", None
         self.escape = None  # (4, 4) pose to step to first: off a spot a fresh route could not start from
         self.forgive, self.forgiven_at_m3 = bool(conf.planner.get("forgive_before_stop", False)), -np.inf
-        self.fallen_back_at_m3 = -np.inf  # the map's known volume at the last _map_fallback
 
     # -- sensing --------------------------------------------------------------------------------
 
@@ -336,30 +334,6 @@ class Explorer:
         self.result.forgiven += 1
         return True
 
-    def _map_fallback(self) -> bool:
-        """Before an image method's run stops with no frontier left (after looking around and
-        :meth:`_forgive`): the frontiers of the robot's own map (Yamauchi's, as ``classic`` takes them,
-        gain = the unknown volume a camera there sees) join the tracker, once per
-        ``tracking.min_gain_m3`` the map has learnt since the last time. The images propose nothing
-        where the camera stands, but the map may still hold open boundaries elsewhere (a corridor's
-        end the images' frontiers were lost at): the robot goes there and looks again, instead of
-        leaving the rest of its budget unused. Returns whether any joined (the loop then plans).
-        Map methods' frontiers are the map's already: nothing to add."""
-        from ..frontiers.map_frontiers import map_frontiers
-
-        known = float(self.map.known_volume_m3)
-        if self.method.fresh_frontiers or self.map_free \
-                or known < self.fallen_back_at_m3 + float(self.conf.tracking.min_gain_m3):
-            return False
-        self.fallen_back_at_m3 = known
-        observations = map_frontiers(self.map, self.motion.z, self.conf, self.agent.pose, "unknown_volume")
-        self.tracker.add(observations, len(self.poses) - 1, self.agent.steps)
-        self.tracker.prune(np.stack(self.poses), self.map)
-        if not len(self.tracker):
-            return False
-        self.result.map_fallbacks += 1
-        return True
-
     def _start_turn(self) -> np.ndarray | None:
         """The next increment of the turn on the spot at the start (``motion.start_turn_deg``), or
         None once it is done: the first goal is chosen from what the camera saw all around, not
@@ -410,7 +384,7 @@ class Explorer:
                 target = self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
-                    if self._forgive() or self._map_fallback():
+                    if self._forgive():
                         continue
                     self.result.stop_reason = "no frontiers left"
                     break

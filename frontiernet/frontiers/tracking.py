@@ -253,11 +253,6 @@ class FrontierTracker:
         view sees from the frontier at the best of those headings around its direction (as
         datagen's label takes the best heading): mapped surroundings end a frontier whatever
         its direction.
-
-        First, a frontier in a voxel `occupancy` marks occupied moves out of it (``relocate_m``, as
-        :meth:`prune` would): anchored on a wall's edge, its gain view would start inside the wall,
-        see nothing, and the cap would drop it as low gain at birth (KTH plans: the frontiers at a
-        corridor's open end, so the robot never went on).
         """
         mode = str(self.conf["gain_reduction"])
         if mode not in ("beyond_frame", "absolute", "none"):
@@ -265,8 +260,6 @@ class FrontierTracker:
         if not self.frontiers:
             return
         frontiers = list(self.frontiers.values())
-        for frontier in frontiers:  # viewed from inside a wall's voxel a frontier sees nothing: out first
-            self._out_of_walls(frontier, occupancy)
         view = self.conf["gain_view"]
         settings = (int(view["width_px"]), float(view["focal_px"]), float(view["max_depth_m"]))
         positions = np.stack([f.position for f in frontiers])
@@ -343,11 +336,8 @@ class FrontierTracker:
 
     def _out_of_walls(self, frontier: Frontier, occupancy) -> bool:
         """Whether `frontier` lies in space the map does not mark occupied (at `view_z`), after
-        moving it to the nearest such voxel centre within ``relocate_m`` if it did not: the nearest
-        known-free one, else the nearest unknown one. Free first: a frontier on a wall's edge
-        belongs on the side the camera saw, where the robot can go, not in the unknown behind the
-        wall (from where its gain view would count the room beyond as the frontier's)."""
-        from ..mapping import FREE, OCCUPIED
+        moving it to the nearest such voxel centre within ``relocate_m`` if it did not."""
+        from ..mapping import OCCUPIED
 
         at = frontier.position.copy()
         if self.view_z is not None:
@@ -365,10 +355,7 @@ class FrontierTracker:
         distance = np.linalg.norm(candidates[:, :2] - at[:2], axis=1)
         order = np.argsort(distance[distance <= radius], kind="stable")
         candidates = candidates[distance <= radius][order]
-        states = occupancy.state_at(candidates)
-        free = np.flatnonzero(states == FREE)
-        if not len(free):
-            free = np.flatnonzero(states != OCCUPIED)
+        free = np.flatnonzero(occupancy.state_at(candidates) != OCCUPIED)
         if not len(free):
             return False
         frontier.position[:2] = candidates[free[0], :2]
