@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 import re
+import sys
 
 NEGATIVE_NUMBER = re.compile(r"-\.?\d")
 """What the parser reads as a (negative) number, not an option (CPython's current argparse pattern, ``match``)."""
@@ -32,9 +34,6 @@ class Parser(argparse.ArgumentParser):
         the closest one it may have meant: otherwise argparse reports its value as a misplaced
         argument (``datagen --views 3``: "invalid choice '3'") or a required option as missing
         (``explore --scen x``)."""
-        import difflib
-        import sys
-
         tokens = list(sys.argv[1:] if args is None else args)
         known = set(self._option_string_actions)
         commands = {name for action in self._actions if isinstance(action, argparse._SubParsersAction)
