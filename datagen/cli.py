@@ -37,8 +37,7 @@ def add_parser(subparsers) -> None:
     options.no_progress(parser)
     parser.set_defaults(func=run_generate)
     # what the actions refuse when given before them (they would drop it: _Actions)
-    parser.set_defaults(own_option_defaults={action.dest: action.default for action in parser._actions
-                                             if action.option_strings and action.dest != "help"})
+    parser.set_defaults(own_option_defaults=options.option_defaults(parser._actions))
     actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser), action=_Actions)
     preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
     preview.add_argument("dataset", metavar="DIR", help="dataset folder (or one shard .zip)")
@@ -75,12 +74,11 @@ class _Actions(argparse._SubParsersAction):
     them (its own option of the same name replaces the value), so :func:`_refuse_options_before` refuses them."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        defaults = getattr(namespace, "own_option_defaults", {})
-        given = [dest for dest, default in defaults.items() if getattr(namespace, dest, default) != default]
-        taken = {action.dest for action in self._name_parser_map[values[0]]._actions} if values[0] in \
-            self._name_parser_map else set()
+        given = options.given_options(namespace, getattr(namespace, "own_option_defaults", {}))
+        taken = {flag for action in self._name_parser_map[values[0]]._actions for flag in action.option_strings} \
+            if values[0] in self._name_parser_map else set()
         super().__call__(parser, namespace, values, option_string)
-        namespace.options_before_action = [(dest, dest in taken) for dest in given]
+        namespace.options_before_action = [(flag, flag in taken) for flag in given]
 
 
 def _refuse_options_before(args) -> None:
@@ -90,9 +88,8 @@ def _refuse_options_before(args) -> None:
 
     given = getattr(args, "options_before_action", [])
     if given:
-        option = {dest: f"--{dest.replace('_', '-')}" for dest, _ in given}
-        also = [option[dest] for dest, taken in given if taken]  # the action's own: given after its name
-        raise InputError(f"{'/'.join(option.values())} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet "
+        also = [flag for flag, taken in given if taken]  # the action's own: given after its name
+        raise InputError(f"{'/'.join(flag for flag, _ in given)} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet "
                          f"datagen` itself, not to `datagen {args.action}`"
                          + (f" (give {'/'.join(also)} after `{args.action}`)" if also else ""))
 

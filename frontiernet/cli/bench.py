@@ -88,17 +88,16 @@ def _exploration_options(parser) -> None:
     options.config_file(group, options.EXPLORE_CONFIG)
     options.config_overrides(group, "planner.clearance_m=0.3 depth.emulated.scale_per_frame=false", option=True)
     # what --pack and --report, which read the folder alone, refuse (they would ignore it)
-    parser.set_defaults(run_option_defaults={action.dest: action.default for action in group._group_actions
-                                             if action.dest not in ("out", "pack", "report")})
+    parser.set_defaults(run_option_defaults=options.option_defaults(group._group_actions, skip=("out", "pack", "report")))
 
 
 def _refuse_run_options(args, what: str) -> None:
     """InputError naming the first option of a benchmark run given to `what` (``--pack``, ``--report``)."""
     from ..errors import InputError
 
-    given = [dest for dest, default in args.run_option_defaults.items() if getattr(args, dest, default) != default]
+    given = options.given_options(args, args.run_option_defaults)
     if given:
-        raise InputError(f"{what} reads the benchmark folder (--out) alone, so --{given[0].replace('_', '-')} would "
+        raise InputError(f"{what} reads the benchmark folder (--out) alone, so {given[0]} would "
                          "be ignored; leave it out (the folder's plan.json holds the run's settings)")
 
 

@@ -21,6 +21,21 @@ EXPLORE_CONFIG = ("configs/explore.yaml, and sim.yaml, depth.yaml and scenes.yam
 of :func:`~frontiernet.exploration.run.load_run_config`."""
 
 
+def option_defaults(actions, skip=()) -> dict:
+    """``{dest: (flag, default)}`` of the options (flags, not positionals) among argparse `actions` (a
+    parser's ``_actions`` or a group's ``_group_actions``), but ``help`` and the dests in `skip`, each
+    with its longest flag: what :func:`given_options` compares a parsed namespace with."""
+    return {action.dest: (max(action.option_strings, key=len), action.default) for action in actions
+            if action.option_strings and action.dest != "help" and action.dest not in skip}
+
+
+def given_options(namespace, defaults: dict) -> list[str]:
+    """The flags of the options of `defaults` (:func:`option_defaults`) that `namespace` holds another
+    value for: the options a user gave where they would be ignored (``bench --report --methods``,
+    ``datagen --scenes S preview``), to be refused by name."""
+    return [flag for dest, (flag, default) in defaults.items() if getattr(namespace, dest, default) != default]
+
+
 class Once(argparse.Action):
     """An option given at most once: a second one is refused (argparse would keep the last one and
     drop the first without a word)."""
