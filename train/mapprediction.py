@@ -156,16 +156,13 @@ def open_map_training_data(conf):
     file or config key for a dataset of another resolution, a refused scene or too little data."""
     from datagen.mapshards import check_voxel_size, open_map_dataset, read_map_dataset_info
 
-    from frontiernet.io import input_folder
-
     from .config import check_scene_list
     from .data import _limit, split_scenes
 
     spec = predictor_spec(conf)
-    if Path(conf.data.path).exists():
-        input_folder(conf.data.path, "map dataset")  # a file: "is a file, expected a folder"
-    else:
+    if not Path(conf.data.path).exists():
         raise InputError(f"{conf.data.path}: map dataset folder not found (make one with frontiernet mapgen)")
+    # (a file: "is a file, expected a folder (map dataset)", from read_map_dataset_info's input_folder)
     check_voxel_size(read_map_dataset_info(conf.data.path), conf.data.path, spec.voxel_size, "predictor.voxel_size")
     dataset = open_map_dataset(conf.data.path)
     refused = [scene for scene in dataset.scenes if _refused(scene, conf.data.refuse_scenes or [])]
