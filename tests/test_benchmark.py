@@ -200,8 +200,9 @@ def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_other
 
 def test_monocular_keys_change_only_monocular_runs_and_a_methods_section_only_its_runs():
     """What --redo-changed may redo: a ``monocular_*`` key of the map or the planner (read only with a
-    depth source that has flying pixels) changes a gt,emulated plan's emulated runs only; a method's own
-    section (``nbvp``) its runs only; any other key, its every run."""
+    depth source that has flying pixels) changes a gt,emulated plan's emulated runs only;
+    ``planner.traversed_is_free`` its ground-truth runs only while ``monocular_traversed_is_free`` holds;
+    a method's own section (``nbvp``) its runs only; any other key, its every run."""
     from omegaconf import OmegaConf
 
     from frontiernet.benchmark.plan import runs_changed
@@ -223,7 +224,15 @@ def test_monocular_keys_change_only_monocular_runs_and_a_methods_section_only_it
     assert changed("map.monocular_log_odds_miss", -1.2) == ["classic@emulated", "nbvp@emulated"]
     assert changed("nbvp.degressive_coeff", 0.25) == ["nbvp@ground_truth", "nbvp@emulated"]
     assert changed("omniscient.yaw_count", 4) == []  # a method the plan does not run
-    assert changed("planner.traversed_is_free", True) is None
+    # the way back kept open: monocular sources keep it whatever traversed_is_free says, while
+    # monocular_traversed_is_free holds; without that, every run reads it
+    flipped_all = not stored["conf"]["planner"]["traversed_is_free"]
+    assert stored["conf"]["planner"]["monocular_traversed_is_free"]
+    assert changed("planner.traversed_is_free", flipped_all) == ["classic@ground_truth", "nbvp@ground_truth"]
+    without = OmegaConf.create(stored["conf"])
+    OmegaConf.update(without, "planner.monocular_traversed_is_free", False)
+    no_monocular = {"settings": {**stored, "conf": OmegaConf.to_container(without)}, "runs": runs}
+    assert changed("planner.traversed_is_free", flipped_all, no_monocular) is None
     assert changed("planner.clearance_m", 0.35) is None
     gt_only = {"settings": {**stored, "depth": "gt"}, "runs": [{"key": "nbvp", "method": "nbvp"}]}
     assert changed("map.monocular_log_odds_miss", -1.2, gt_only) == []
@@ -343,6 +352,7 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         # (docs/benchmark/published/resume.sh adds --set planner.gain_exponent=1: the plan ran with 1,
         # the default since 2026-11-27 is 2)
         overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", "planner.approach_radius_m=0",
+                     "planner.traversed_is_free=false",
                      *OLD_ROBOT, *overrides)
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
@@ -351,8 +361,10 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     # today's default exponent is a change of settings for this plan: refused, naming the key
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
         resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(
-            None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0", *OLD_ROBOT]), resolve=True)})
-    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 \\\n    " + " ".join(OLD_ROBOT) + " $SETTINGS" in \
+            None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0", "planner.traversed_is_free=false",
+                   *OLD_ROBOT]), resolve=True)})
+    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 \\\n    planner.traversed_is_free=false " + \
+        " ".join(OLD_ROBOT) + " $SETTINGS" in \
         (published / "resume.sh").read_text()
     assert "SETTINGS=${SETTINGS-planner.gain_exponent=1}" in (published / "resume.sh").read_text()
     with pytest.raises(InputError, match=r"\(conf.planner.approach_radius_m: 0.0 in the plan, 1.5 now\)"):
@@ -408,7 +420,8 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
     from frontiernet.exploration.run import load_run_config
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
-        overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", *OLD_ROBOT,
+        overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", "planner.traversed_is_free=false",
+                     *OLD_ROBOT,
                      *overrides)  # published/resume.sh sets these for all
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}

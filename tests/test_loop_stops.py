@@ -65,8 +65,9 @@ def test_classic_on_monocular_depth_spends_its_budget_instead_of_stopping_with_t
         return json.loads((tmp_path / name / "metrics.json").read_text())
 
     old_map = ("map.monocular_log_odds_miss=null", "map.monocular_max_incidence_deg=null",  # the map of then: its
-               "planner.monocular_traversed_is_free=false",  # thick walls caused the stop (since 2026-12-06 the
-               # monocular map draws them thin and keeps the way back open, and the stop is gone either way) ...
+               "planner.monocular_traversed_is_free=false", "planner.traversed_is_free=false",  # thick walls
+               # caused the stop (since 2026-12-06 the monocular map draws them thin and keeps the way back
+               # open, and the stop is gone either way) ...
                "sim.agent.radius_m=0.2", "sim.voxels.floor_clearance_m=0.2", "planner.clearance_m=0.3")  # ... for
     # the robot of then (a 0.1 m body planned 0.2 m clear since 2026-12-06 passes where it was refused)
     before = run("before", "planner.start_failure=blame", "planner.forgive_before_stop=false", *old_map)

@@ -275,19 +275,26 @@ class Readers:
         return " ".join(words + ["runs"])
 
 
-def _runs_reading(dotted: str) -> Readers | None:
+def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None = None) -> Readers | None:
     """The benchmark runs that alone read the setting `dotted` (``conf.<section>.<key>...``): the map's
     monocular sensor model and its depth-edge filter apply only to sources with flying pixels
     (:meth:`~frontiernet.mapping.checks.MapSettings.ray_model`), as the planner's ``monocular_*`` keys
-    (:class:`~frontiernet.exploration.explorer.Explorer`), a source's own ``depth`` section only to
-    it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs; None for every
-    other setting (read by every run)."""
+    (:class:`~frontiernet.exploration.explorer.Explorer`), and ``planner.traversed_is_free`` only to
+    sources without them while ``planner.monocular_traversed_is_free`` holds in both the stored and
+    this run's `settings` (the others keep their traversed cells either way); a source's own ``depth``
+    section only to it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs;
+    None for every other setting (read by every run)."""
     from ..depth import SOURCES
 
     parts = dotted.split(".")
     section, key = (parts[1], parts[2]) if len(parts) > 2 and parts[0] == "conf" else (None, "")
+    flying = frozenset(name for name, source in SOURCES.items() if source.flying_pixels)
     if (section in ("map", "planner") and key.startswith("monocular_")) or (section, key) == ("map", "depth_edge_rtol"):
-        return Readers(sources=frozenset(name for name, source in SOURCES.items() if source.flying_pixels))
+        return Readers(sources=flying)
+    if (section, key) == ("planner", "traversed_is_free") and all(
+            bool(((side or {}).get("conf") or {}).get("planner", {}).get("monocular_traversed_is_free"))
+            for side in (stored, settings)):
+        return Readers(sources=frozenset(SOURCES) - flying)
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
         return Readers(sources=frozenset({parts[2]}))
     if len(parts) > 1 and parts[0] == "conf" and parts[1] in METHOD_SECTIONS:
@@ -299,7 +306,7 @@ def blocking_difference(stored: dict, settings: dict) -> str | None:
     """The first of :func:`differences` that :func:`runs_changed` cannot redo (a setting that every
     run reads), as its text; else the first difference; None when equal."""
     found = list(differences(stored, settings))
-    blocking = [text for dotted, text in found if _runs_reading(dotted) is None]
+    blocking = [text for dotted, text in found if _runs_reading(dotted, stored, settings) is None]
     return (blocking or [text for _, text in found] or [None])[0]
 
 
@@ -317,7 +324,7 @@ def runs_changed(plan: dict, settings: dict) -> tuple[list[str], list[Readers]] 
     methods = {run["method"] for run in plan["runs"]}
     readers = []
     for dotted, _ in differences(stored, settings):
-        reader = _runs_reading(dotted)
+        reader = _runs_reading(dotted, stored, settings)
         if reader is None:
             return None
         reader = Readers(None if reader.sources is None else reader.sources & frozenset(sources),
