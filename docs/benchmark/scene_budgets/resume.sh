@@ -13,11 +13,12 @@
 # --redo-changed: where the pinned code changes settings that only some runs read (the monocular keys:
 # the emulated-depth runs; a method's own section: its runs), those runs are redone, the others kept.
 # The folder was made anew on ddf24ef (the 0.1 m robot, sessions.md); 671581e's NBVP edges keep the
-# move check's body clear (nbvp.edge_check), so its nbvp runs are redone, the others kept.
+# move check's body clear (nbvp.edge_check), so its nbvp runs were redone, the others kept; a0ae25f keeps
+# the way back open on ground truth too (planner.traversed_is_free), so its ground-truth runs are redone.
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 671581e ../pinned_scene_budgets_671581e}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh a0ae25f ../pinned_scene_budgets_a0ae25f}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
