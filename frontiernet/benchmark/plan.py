@@ -291,9 +291,8 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     flying = frozenset(name for name, source in SOURCES.items() if source.flying_pixels)
     if (section in ("map", "planner") and key.startswith("monocular_")) or (section, key) == ("map", "depth_edge_rtol"):
         return Readers(sources=flying)
-    if (section, key) == ("planner", "traversed_is_free") and all(
-            bool(((side or {}).get("conf") or {}).get("planner", {}).get("monocular_traversed_is_free"))
-            for side in (stored, settings)):
+    if (section, key) == ("planner", "traversed_is_free") and all(bool(((side or {}).get("conf") or {}).get(
+            "planner", {}).get("monocular_traversed_is_free")) for side in (stored, settings)):
         return Readers(sources=frozenset(SOURCES) - flying)
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
         return Readers(sources=frozenset({parts[2]}))
