@@ -461,6 +461,8 @@ def test_a_refused_exploration_leaves_no_out_folder(plan_spec, tmp_path, argv, m
     # issue 55's second probe: map-free mode with a map method ran as if in map mode
     (["--method", "nbvp", "--map-free"], "--map-free (planner.mode=map_free): method nbvp grows its tree"),
     (["--method", "vacuum", "--map-free"], "method vacuum plans no route"),
+    # issue 55's fourth probe: a ZeroDivisionError after the run (the video's clock), exit 1
+    (["run.video_fps=0"], "run.video_fps must be a positive number of frames per second, got 0"),
 ])
 def test_explore_refuses_bad_settings_before_its_setup(plan_spec, tmp_path, no_setup, argv, message,
                                                        one_line_error, monkeypatch):

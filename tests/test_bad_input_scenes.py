@@ -69,3 +69,26 @@ def test_a_focal_length_past_a_pinhole_field_of_view_is_refused(tmp_path, one_li
                  "--config", str(tmp_path / "c.yaml")]) == 2
     assert "camera.focal_px 1e-09 gives a" in one_line_error()
     assert not (tmp_path / "o").exists()
+
+
+def test_a_config_section_set_to_null_is_one_line(tmp_path, one_line_error):
+    # issue 55's fourth probe: `camera: null` in a render config was an internal error (TypeError)
+    (tmp_path / "c.yaml").write_text("camera: null\n")
+    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(tmp_path / "o"),
+                 "--config", str(tmp_path / "c.yaml")]) == 2
+    assert "c.yaml: config key 'camera' is a section (its keys: width, height" in one_line_error()
+    assert not (tmp_path / "o").exists()
+    assert main(["explore", "--scene", "procedural:3", "--out", str(tmp_path / "e"), "planner=null"]) == 2
+    assert "override: config key 'planner' is a section" in one_line_error()
+
+
+def test_a_floor_plan_resolution_that_leaves_no_building_is_one_line(tmp_path, one_line_error):
+    # issue 55's fourth probe: ?resolution=1e-6 (a 100-pixel plan 0.1 mm wide) asked for 2 TiB (MemoryError)
+    import cv2
+    import numpy as np
+
+    plan = np.full((100, 100), 255, np.uint8)
+    plan[[0, -1], :] = plan[:, [0, -1]] = 0
+    cv2.imwrite(str(tmp_path / "plan.png"), plan)
+    assert main(["scene", "info", f"floorplan:{tmp_path / 'plan.png'}?resolution=1e-6"]) == 2
+    assert "100 x 100 pixels at 1e-06 m/pixel span 0.0001 x 0.0001 m, less than 1 m a side" in one_line_error()

@@ -91,7 +91,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
               rerun: bool = False, show_prediction=None, video: bool = True) -> tuple[int, int, str]:
     """Before a run's setup (:func:`main` calls it first; a command before it makes any folder): the
     run's step budget, seed and depth source name, resolved; InputError for a budget < 1, a seed
-    < 0, an unknown depth source or method, a `model` the method does not run or that is no file,
+    < 0, a ``run.video_fps`` <= 0, an unknown depth source or method, a `model` the method does not run or that is no file,
     a malformed `start`, a ``planner.clearance_m`` too small for the agent, `rerun` without
     rerun-sdk, a `show_prediction` without the video or whose predictor does not load
     (:func:`~.predicted.open_predictor`). (What needs the scene, such as a start outside it, is
@@ -105,6 +105,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     budget = whole_number(conf.run.max_steps if max_steps is None else max_steps,
                           "the step budget (--max-steps, run.max_steps)", 1, MAX_STEPS)
     seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
+    positive_number(conf.run.video_fps, "run.video_fps", "frames per second")  # the video's and --mcap's clock
     depth_name = run_depth_source(depth, conf)
     check_depth_files(depth_name, conf.get("depth"))
     check_method(method, model, conf)  # a method's own file checks (seer, mapex: the predictor)

@@ -24,6 +24,7 @@ from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
 
+MIN_PLAN_EXTENT_M = 1.0  # a plan narrower than this holds no room a robot fits in: its resolution is wrong
 IMAGE_SUFFIXES = (".png", ".pgm", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
@@ -97,6 +98,10 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
     image = _load_array(path) if path.suffix.lower() == ".npy" else _load_image(path)
     if image.ndim != 2 or min(image.shape) < 3:
         raise InputError(f"{path}: a floor plan must be a 2D image of at least 3x3 pixels, got shape {image.shape}")
+    if min(image.shape) * resolution < MIN_PLAN_EXTENT_M:  # a wrong ?resolution= (mm for m), not a building
+        raise InputError(f"{spec_text}: {image.shape[1]} x {image.shape[0]} pixels at {resolution:g} m/pixel span "
+                         f"{image.shape[1] * resolution:.3g} x {image.shape[0] * resolution:.3g} m, less than "
+                         f"{MIN_PLAN_EXTENT_M:g} m a side: check its resolution (metres per pixel)")
     occupied = image < occupied_below
     free = image > free_above
     if valid is not None:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, whole_number
+from ..errors import InputError, positive_number, whole_number
 from ..io import claim_output_folder, ensure_dir, write_json
 from .gravity import gravity_alignment
 from .outputs import write_arrows, write_frontiers
@@ -170,7 +170,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
-    The frames, ``network.size``, the depth and `out` are checked before any work; a run refused after (an
+    The frames, ``outputs.video_fps``, ``network.size``, the depth and `out` are checked before any work; a run refused after (an
     :class:`InputError`: a recording without depth, a reconstruction that fails, ...) removes the `out`
     folder if it made it, else the work folders it made there (``cache``, ``recording``, ``colmap``), while an
     interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
@@ -178,6 +178,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
+    positive_number(conf.outputs.video_fps, "outputs.video_fps", "frames per second")  # the video's and ROS clock
     check_network(conf.network)
     check_depth(depth, conf)
     out = Path(out)
