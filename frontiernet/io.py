@@ -133,7 +133,8 @@ def check_output_file(path: str | Path, force: bool = True) -> Path:
 
 
 def check_output_folder(path: str | Path, force: bool = False) -> Path:
-    """Before the work: InputError when output folder `path` is a file or lies under one, or
+    """Before the work: InputError when output folder `path` is a file or lies under one, or cannot be
+    made or written in (:func:`check_writable_folder` where it is or will be made), or
     already holds files and `force` is off (a command's earlier outputs are not replaced unless
     asked: :data:`FORCE`; the lock of :func:`claim_output_folder` is no output), or has a name too long."""
     path = Path(path)
@@ -143,6 +144,8 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
     blocking = next((parent for parent in path.parents if parent.exists() and not parent.is_dir()), None)
     if blocking is not None:
         raise InputError(f"{path}: cannot create the output folder: {blocking} is a file")
+    # where the folder is (or will be) made: a file must be creatable there (not /proc, not read-only)
+    check_writable_folder(next(folder for folder in (path, *path.parents) if folder.exists()), str(path))
     if path.is_dir() and not force and any(entry.name != LOCK_NAME for entry in path.iterdir()):
         raise InputError(f"{path}: folder already holds files (earlier outputs?); pass {FORCE} to write over "
                          f"them, or choose another --out")

@@ -92,3 +92,12 @@ def test_a_floor_plan_resolution_that_leaves_no_building_is_one_line(tmp_path, o
     cv2.imwrite(str(tmp_path / "plan.png"), plan)
     assert main(["scene", "info", f"floorplan:{tmp_path / 'plan.png'}?resolution=1e-6"]) == 2
     assert "100 x 100 pixels at 1e-06 m/pixel span 0.0001 x 0.0001 m, less than 1 m a side" in one_line_error()
+
+
+@pytest.mark.skipif(not __import__("os").path.isdir("/proc/self"), reason="needs /proc, a folder no file can be made in")
+@pytest.mark.parametrize("argv", [["render", "procedural:3", "--pose", "3,3,1.2,0"],
+                                  ["explore", "--scene", "procedural:3", "--max-steps", "2"]])
+def test_an_output_folder_where_nothing_can_be_made_is_one_line(argv, one_line_error):
+    # issue 55's fourth probe: `train out=/proc/t` was an internal error (FileNotFoundError) after its setup
+    assert main([*argv, "--out", "/proc/frontiernet-probe/o"]) == 2
+    assert "/proc/frontiernet-probe/o: cannot write in /proc" in one_line_error()
