@@ -100,6 +100,17 @@ def test_a_crop_larger_than_the_datasets_own_views_is_refused_before_the_cache(t
     assert not runs.exists() and not (two_scenes / "cache").exists()
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs /proc, a folder no file can be made in")
+def test_a_training_cache_where_nothing_can_be_written_is_refused_not_waited_on(two_scenes, tmp_path,
+                                                                              one_line_error):
+    # issue 55's fourth probe: data.cache=/proc/c waited forever for the lock beside it (a hang)
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", f"data.path={two_scenes}", f"out={runs}", *TINY,
+                 "data.cache=/proc/frontiernet-probe-cache"]) == 2
+    assert "data.cache: cannot write in /proc" in one_line_error()
+    assert not runs.exists()
+
+
 def test_resuming_from_a_checkpoint_that_cannot_resume_is_refused_before_anything(two_scenes, tmp_path,
                                                                                  one_line_error):
     # {"state_dict": {}} passed the check, then Lightning failed (KeyError 'pytorch-lightning_version', an

@@ -303,6 +303,10 @@ def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, worker
                          f"set data.cache=FOLDER to put it elsewhere") from None
     from filelock import FileLock
 
+    from frontiernet.io import check_writable_folder
+
+    check_writable_folder(path.parent, "data.cache")  # else the lock below waits forever (/proc, read-only)
+
     # two runs on one dataset (e.g. two trainings started together) would share <path>.partial:
     # the second waits for the first's build and opens its cache
     with FileLock(str(path.with_name(path.name + ".lock"))):

@@ -41,6 +41,17 @@ def check_frames(stride, max_frames) -> tuple[int, int | None]:
     return stride, None if max_frames is None else whole_number(max_frames, "frames.max_frames (--max-frames)", 1)
 
 
+def check_outputs(conf) -> None:
+    """InputError naming the key of a setting of the outputs that cannot be used, before any frame is
+    read: ``outputs.video_fps`` (the video's and the ROS output's clock) and ``outputs.point_voxel_m`` not
+    positive, ``outputs.point_stride_px`` and ``outputs.ros.map_every_frames`` under 1, ``seed`` negative."""
+    positive_number(conf.outputs.video_fps, "outputs.video_fps", "frames per second")
+    positive_number(conf.outputs.point_voxel_m, "outputs.point_voxel_m", "metres")
+    whole_number(conf.outputs.point_stride_px, "outputs.point_stride_px", 1)
+    whole_number(conf.outputs.ros.map_every_frames, "outputs.ros.map_every_frames", 1)
+    whole_number(conf.seed, "seed", 0)
+
+
 def check_network(network) -> None:
     """InputError naming ``network.size`` unless it is null (the model's) or a network input size in
     pixels (:func:`~frontiernet.model.predictor.input_size`: an integer in [8, 2048])."""
@@ -170,7 +181,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
-    The frames, ``outputs.video_fps``, ``network.size``, the depth and `out` are checked before any work; a run refused after (an
+    The frames, the outputs (:func:`check_outputs`), ``network.size``, the depth and `out` are checked before any work; a run refused after (an
     :class:`InputError`: a recording without depth, a reconstruction that fails, ...) removes the `out`
     folder if it made it, else the work folders it made there (``cache``, ``recording``, ``colmap``), while an
     interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
@@ -178,7 +189,7 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
-    positive_number(conf.outputs.video_fps, "outputs.video_fps", "frames per second")  # the video's and ROS clock
+    check_outputs(conf)
     check_network(conf.network)
     check_depth(depth, conf)
     out = Path(out)
