@@ -109,8 +109,9 @@ def _kind(value) -> str | None:
 def check_keys(base: Mapping, extra: Mapping, source: str, noun: str = "config key") -> None:
     """InputError naming the first key of `extra` that `base` lacks, with its closest spellings
     (else the valid keys there), or whose value is of another kind than the default's
-    (:func:`_kind`; null is taken, except for a section: a default that is a non-empty mapping). `source` (a file, "override", a scene spec) starts
-    the message; `noun` names what a key is to the user ("config key", "option")."""
+    (:func:`_kind`; null is taken, except for a section: a default that is a non-empty mapping).
+    `source` (a file, "override", a scene spec) starts the message; `noun` names what a key is to the
+    user ("config key", "option")."""
     from difflib import get_close_matches
 
     def deeper(tree: dict, prefix: str):  # every dotted key below `tree`
@@ -131,8 +132,8 @@ def check_keys(base: Mapping, extra: Mapping, source: str, noun: str = "config k
             default = defaults[key]
             expected = _kind(default)
             if value is None and isinstance(default, dict) and default:  # a section, not an optional value
-                raise InputError(f"{source}: {noun} '{name}' is a section (its keys: "
-                                 f"{', '.join(str(k) for k in list(default)[:4])}{', ...' if len(default) > 4 else ''}), "
+                keys = ", ".join(str(k) for k in list(default)[:4]) + (", ..." if len(default) > 4 else "")
+                raise InputError(f"{source}: {noun} '{name}' is a section (its keys: {keys}), "
                                  "not a value that can be null")
             if value is not None and expected is not None and _kind(value) != expected:
                 shown = "" if isinstance(default, dict) else f" (default {default!r})"

@@ -91,9 +91,9 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
               rerun: bool = False, show_prediction=None, video: bool = True) -> tuple[int, int, str]:
     """Before a run's setup (:func:`main` calls it first; a command before it makes any folder): the
     run's step budget, seed and depth source name, resolved; InputError for a budget < 1, a seed
-    < 0, a ``run.video_fps`` <= 0, an unknown depth source or method, a `model` the method does not run or that is no file,
-    a malformed `start`, a ``planner.clearance_m`` too small for the agent, `rerun` without
-    rerun-sdk, a `show_prediction` without the video or whose predictor does not load
+    < 0, a ``run.video_fps`` <= 0, an unknown depth source or method, a `model` the method does not run
+    or that is no file, a malformed `start`, a ``planner.clearance_m`` too small for the agent, `rerun`
+    without rerun-sdk, a `show_prediction` without the video or whose predictor does not load
     (:func:`~.predicted.open_predictor`). (What needs the scene, such as a start outside it, is
     checked after it loads.)"""
     from ..depth import check_depth_files
