@@ -196,6 +196,8 @@ def run(args) -> int:
     counts(repeats=args.repeats)  # (a typo such as 100001 ran until killed)
     for size in args.sizes:
         input_size(size, "--sizes")
+    if len(set(args.sizes)) < len(args.sizes):  # (each size is timed once; a repeat only doubled the wait)
+        raise InputError(f"--sizes {' '.join(map(str, args.sizes))}: a size given twice; give each once")
 
     if args.model is not None and is_export(args.model):
         raise InputError(f"{args.model}: bench inference times a torch model against its own ONNX and TorchScript "

@@ -79,6 +79,9 @@ SMALL_DATAGEN = ["--views-per-scene", "2", "--no-progress", "--set", "camera.wid
     # issue 55: nonsense that ran (a method twice, a model no method runs, starts without end)
     (["bench", "--scenes", "procedural:3", "--methods", "classic,classic", "--max-steps", "4"],
      "--methods names classic twice"),
+    # issue 55's fourth probe: 'classic,' ran as 'classic' (while --depth 'gt,' is refused)
+    (["bench", "--scenes", "procedural:3", "--methods", "classic,", "--max-steps", "4"],
+     "--methods 'classic,': an empty method name"),
     (["bench", "--scenes", "procedural:3", "--methods", "classic", "--model", "m.safetensors", "--max-steps", "4"],
      "none of the methods classic runs a FrontierNet model"),
     (["bench", "--scenes", "procedural:3", "--starts", "100000000", "--max-steps", "4"],
@@ -188,6 +191,7 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
     (["predict", "--image", "{tmp}/rgb.png", "--size", "100000", "--out", "{tmp}/p"], "--size (or 0: the image's own "
                                                                                       "size) must be an integer in [8"),
     (["bench", "inference", "--sizes", "320", "100000"], "--sizes must be an integer in [8, 2048], got 100000"),
+    (["bench", "inference", "--sizes", "64", "64"], "--sizes 64 64: a size given twice"),  # timed twice, a 90 s wait
     (["evaluate", "{tmp}", "--data", "{tmp}"], "is a folder, expected a file (model file)"),
     (["datagen", "consistency", "--scenes", "procedural:12", "--views-per-scene", "1", "--json", "{tmp}"],
      "is a folder; give the output's file name"),  # was after the labelling

@@ -136,7 +136,9 @@ def run_exploration_benchmark(args) -> int:
     if conf.run.max_steps != load_run_config().run.max_steps:  # (set by --config or --set: read by no run here)
         raise InputError(f"run.max_steps={conf.run.max_steps}: the benchmark gives each scene its budget "
                          "(configs/bench.yaml budget), or one fixed budget with --max-steps N; use that instead")
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    methods = [m.strip() for m in args.methods.split(",")]
+    if not all(methods):  # as --depth: 'classic,' is a comma too many, not a list of one
+        raise InputError(f"--methods '{args.methods}': an empty method name (a comma too many?)")
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
                   model=args.model, depth=args.depth, scene_starts=args.scene_starts,
