@@ -72,6 +72,8 @@ SMALL_DATAGEN = ["--views-per-scene", "2", "--no-progress", "--set", "camera.wid
 @pytest.mark.parametrize("argv, message", [
     (["explore", "--scene", "procedural:3", "--seed=-1", "--max-steps", "1", "--no-video"], "--seed, run.seed"),
     (["explore", "--scene", "procedural:3", "run.seed=-3", "--max-steps", "1", "--no-video"], "got -3"),
+    (["explore", "--scene", "procedural:3", "--depth", "", "--max-steps", "1", "--no-video"],  # ran on the default
+     "depth source ''"),
     (["bench", "--scenes", "procedural:3", "--seed", "-1", "--max-steps", "4"], "--seed, run.seed"),
     (["bench", "--scenes", "procedural:3", "--depth", "sonar", "--max-steps", "4"], "depth source 'sonar'"),
     (["bench", "--scenes", "procedural:3", "--workers", "0", "--max-steps", "4"], "--workers must be"),

@@ -83,7 +83,7 @@ def run_depth_source(depth: str | None, conf) -> str:
     for an unknown one (:func:`~frontiernet.depth.known_source`)."""
     from ..depth import known_source
 
-    return known_source(depth or str(conf.run.depth))
+    return known_source(str(conf.run.depth) if depth is None else depth)  # ('' is no source: refused)
 
 
 def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | None = None,
