@@ -89,8 +89,9 @@ def _refuse_options_before(args) -> None:
     given = getattr(args, "options_before_action", [])
     if given:
         also = [flag for flag, taken in given if taken]  # the action's own: given after its name
-        raise InputError(f"{'/'.join(flag for flag, _ in given)} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet "
-                         f"datagen` itself, not to `datagen {args.action}`"
+        flags = "/".join(flag for flag, _ in given)
+        raise InputError(f"{flags} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet datagen` itself, not to "
+                         f"`datagen {args.action}`"
                          + (f" (give {'/'.join(also)} after `{args.action}`)" if also else ""))
 
 

@@ -89,6 +89,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     if not methods:
         raise InputError(f"--methods names no method; valid: {', '.join(valid)}")
     for index, method in enumerate(methods):
+        if not method:  # as --depth: 'classic,' is a comma too many, not a list of one
+            raise InputError(f"--methods '{','.join(methods)}': an empty method name (a comma too many?)")
         if method not in valid:
             raise InputError(f"unknown method '{method}'; valid: {', '.join(valid)}")
         if method in methods[:index]:

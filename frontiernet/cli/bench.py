@@ -88,7 +88,8 @@ def _exploration_options(parser) -> None:
     options.config_file(group, options.EXPLORE_CONFIG)
     options.config_overrides(group, "planner.clearance_m=0.3 depth.emulated.scale_per_frame=false", option=True)
     # what --pack and --report, which read the folder alone, refuse (they would ignore it)
-    parser.set_defaults(run_option_defaults=options.option_defaults(group._group_actions, skip=("out", "pack", "report")))
+    parser.set_defaults(run_option_defaults=options.option_defaults(group._group_actions,
+                                                                    skip=("out", "pack", "report")))
 
 
 def _refuse_run_options(args, what: str) -> None:
@@ -136,9 +137,7 @@ def run_exploration_benchmark(args) -> int:
     if conf.run.max_steps != load_run_config().run.max_steps:  # (set by --config or --set: read by no run here)
         raise InputError(f"run.max_steps={conf.run.max_steps}: the benchmark gives each scene its budget "
                          "(configs/bench.yaml budget), or one fixed budget with --max-steps N; use that instead")
-    methods = [m.strip() for m in args.methods.split(",")]
-    if not all(methods):  # as --depth: 'classic,' is a comma too many, not a list of one
-        raise InputError(f"--methods '{args.methods}': an empty method name (a comma too many?)")
+    methods = [m.strip() for m in args.methods.split(",")]  # (an empty item is refused by main, as --depth's)
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
                   model=args.model, depth=args.depth, scene_starts=args.scene_starts,

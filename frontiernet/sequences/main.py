@@ -184,8 +184,8 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     The frames, the outputs (:func:`check_outputs`), ``network.size``, the depth and `out` are checked
     before any work; a run refused after (an :class:`InputError`: a recording without depth, a
     reconstruction that fails, ...) removes the `out` folder if it made it, else the work folders it
-    made there (``cache``, ``recording``, ``colmap``), while an interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
-    (:func:`~frontiernet.io.claim_output_folder`).
+    made there (``cache``, ``recording``, ``colmap``), while an interrupted run keeps them to resume; a
+    second run on `out` while this one writes there is refused (:func:`~frontiernet.io.claim_output_folder`).
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
