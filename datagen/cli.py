@@ -13,7 +13,6 @@ point (``frontiernet`` itself never imports ``datagen``).
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
@@ -36,9 +35,10 @@ def add_parser(subparsers) -> None:
     options.config_overrides(parser, "writer.shard_size=16", option=True)
     options.no_progress(parser)
     parser.set_defaults(func=run_generate)
-    # what the actions refuse when given before them (they would drop it: _Actions)
+    # what the actions refuse when given before them (they would drop it: options.Subcommands)
     parser.set_defaults(own_option_defaults=options.option_defaults(parser._actions))
-    actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser), action=_Actions)
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser),
+                                    action=options.Subcommands)
     preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
     preview.add_argument("dataset", metavar="DIR", help="dataset folder (or one shard .zip)")
     preview.add_argument("--n", type=int, default=16, help="number of samples (spread over the dataset)")
@@ -68,31 +68,15 @@ def add_parser(subparsers) -> None:
     add_mapgen_parser(subparsers)  # frontiernet mapgen: the map predictors' data (docs/mapprediction.md)
 
 
-class _Actions(argparse._SubParsersAction):
-    """datagen's actions (preview, bench, consistency), noting in ``args.options_before_action`` the options of
-    ``frontiernet datagen`` itself given before one (and which of them the action takes too): the action drops
-    them (its own option of the same name replaces the value), so :func:`_refuse_options_before` refuses them."""
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        given = options.given_options(namespace, getattr(namespace, "own_option_defaults", {}))
-        taken = {flag for action in self._name_parser_map[values[0]]._actions for flag in action.option_strings} \
-            if values[0] in self._name_parser_map else set()
-        super().__call__(parser, namespace, values, option_string)
-        namespace.options_before_action = [(flag, flag in taken) for flag in given]
-
-
 def _refuse_options_before(args) -> None:
     """InputError naming the options of ``frontiernet datagen`` given before the action `args.action`
-    (``datagen --scenes S preview DIR``: dropped without a word before)."""
+    (``datagen --scenes S preview DIR``: dropped without a word before;
+    :class:`~frontiernet.cli.options.Subcommands`)."""
     from frontiernet.errors import InputError
 
-    given = getattr(args, "options_before_action", [])
-    if given:
-        also = [flag for flag, taken in given if taken]  # the action's own: given after its name
-        flags = "/".join(flag for flag, _ in given)
-        raise InputError(f"{flags} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet datagen` itself, not to "
-                         f"`datagen {args.action}`"
-                         + (f" (give {'/'.join(also)} after `{args.action}`)" if also else ""))
+    message = options.options_before_subcommand(args, "datagen")
+    if message:
+        raise InputError(message)
 
 
 def run_generate(args) -> int:

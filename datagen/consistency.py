@@ -214,10 +214,12 @@ def label_consistency(specs: list[str], views_per_scene: int, conf, seed: int = 
     each summary as :meth:`Agreement.summary`. `progress(done, total)` is called after each view.
     """
     from frontiernet.scenes.spec import expand_specs
+    from frontiernet.errors import check_seed
 
     from .generate import MAX_VIEWS
 
     whole_number(views_per_scene, "--views-per-scene", 1, MAX_VIEWS)
+    check_seed(seed, "--seed")  # (-1 labelled with a seed of its own hash)
     settings = _settings(conf)
     specs = expand_specs(specs)
     if not specs:

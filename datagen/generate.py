@@ -24,6 +24,7 @@ from frontiernet import __version__
 from frontiernet.errors import InputError, whole_number
 from frontiernet.io import write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
+from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
 from frontiernet.workers import check_backend
 
@@ -83,7 +84,7 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
     if not specs:
         raise InputError("no scenes given (--scenes SPEC ...)")
     whole_number(views_per_scene, "--views-per-scene", 1, MAX_VIEWS)
-    whole_number(seed, "--seed")
+    check_seed(seed, "--seed")
     resolve_backend(conf.raycast.backend)  # an unknown or absent ray-cast engine fails before any work
     shard_size = conf.writer.shard_size
     if not isinstance(shard_size, int) or shard_size < 1:
@@ -101,10 +102,12 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
 
 def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "seed", "scenes", "views_per_scene",
                                                                "generator_version"),
-                   read_info=read_dataset_info, write_info=write_dataset_info) -> None:
+                   read_info=read_dataset_info, write_info=write_dataset_info, command: str = "datagen") -> None:
     """Create `out` with its dataset.json (`write_info`), or check that it matches when resuming: the
     `keys` of the one `read_info` reads there must equal `info`'s (nothing written on a refusal).
-    Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys and files."""
+    Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys and files (and `command`,
+    which starts the note of a `resume` with no dataset to resume: a new one is started, and that is said
+    on stdout, ``<command>: note: --resume: ...``; an error would still be the one line on stderr)."""
     if (out / INFO_NAME).exists():
         if not resume:
             raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")
@@ -118,6 +121,9 @@ def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "se
         raise InputError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not (out / SHARDS_DIR).is_dir():
         raise InputError(f"{out}: folder is not empty and holds no dataset; choose another --out")
+    if resume:  # (a typo in --out would otherwise start a second dataset without a word)
+        print(f"{command}: note: --resume: {out} holds no dataset yet (no {INFO_NAME}), so there is nothing to "
+              "resume; starting a new one")
     try:
         (out / SHARDS_DIR).mkdir(parents=True, exist_ok=True)
         write_info(out, info)

@@ -28,6 +28,7 @@ from omegaconf import OmegaConf
 from frontiernet import __version__
 from frontiernet.errors import InputError, positive_number, whole_number
 from frontiernet.io import write_json
+from frontiernet.errors import check_seed
 
 from .generate import _slug, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
@@ -255,7 +256,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
     out = Path(out)
     if not scenes:
         raise InputError("no scenes given (--scenes SPEC ...)")
-    whole_number(seed, "--seed")
+    check_seed(seed, "--seed")
     check_backend(backend, workers)
     runs = check_runs(conf)
     voxel_size = positive_number(conf.sim.voxels.voxel_size, "sim.voxels.voxel_size", "metres")
@@ -271,7 +272,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}
     created, existed = not (out / INFO_NAME).exists(), out.exists()
     prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
-                   _read_info_rehashed, write_map_dataset_info)
+                   _read_info_rehashed, write_map_dataset_info, command="mapgen")
     remove_stale_temporaries(out / SHARDS_DIR)
     tasks = plan_map_tasks(specs, runs, seed, out)
     todo = [task for task in tasks if not map_shard_complete(task.path)]

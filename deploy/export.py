@@ -33,6 +33,19 @@ def _config_json(conf: dict) -> str:
     return json.dumps({key: conf[key] for key in ("network", "input", "labels", "inference", "info") if key in conf})
 
 
+def check_threshold(value: float, labels: dict) -> float:
+    """`value` (``--frontier-threshold``, the l of F = [D < l]) as a float in (0, r], r the model's
+    ``labels.truncation_px``: its distance D is a softplus-decoded ``r * exp(-y)`` <= r, so any l above r
+    marks every pixel of every image a frontier. InputError naming the option otherwise."""
+    r = float(labels["truncation_px"])
+    value = positive_number(value, "--frontier-threshold", "pixels")
+    if value > r:
+        raise InputError(f"--frontier-threshold must be in (0, {r:g}] pixels, got {value:g}: the model's distance "
+                         f"field is truncated at labels.truncation_px = {r:g} px, so a larger threshold marks every "
+                         f"pixel a frontier (this model's own: {float(labels['frontier_threshold_px']):g} px)")
+    return value
+
+
 def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool = False,
            frontier_threshold_px: float | None = None) -> Path:
     """Write the model (a model file or training checkpoint; None: the shipped one) as `fmt`.
@@ -56,10 +69,11 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
                          f"{' or '.join('*' + suffix for suffix in SUFFIXES[fmt])}")
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: output folder does not exist")
+    if frontier_threshold_px is not None:  # (its upper bound is the model's: check_threshold)
+        positive_number(frontier_threshold_px, "--frontier-threshold", "pixels")
     model, conf = load_model(model_path)
     if frontier_threshold_px is not None:
-        conf["labels"]["frontier_threshold_px"] = positive_number(frontier_threshold_px, "--frontier-threshold",
-                                                                  "pixels")
+        conf["labels"]["frontier_threshold_px"] = check_threshold(frontier_threshold_px, conf["labels"])
     if fmt == "safetensors":
         return save_model(out, model, conf, info=conf.get("info"), half=half, base=model_base(conf))
     channels = model.config.in_channels

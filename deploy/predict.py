@@ -44,7 +44,7 @@ def load_predict_config(user_file=None, overrides=()):
     from frontiernet.depth import source_options
 
     conf = OmegaConf.create({"depth": source_options(), "anchoring": load_config("explore").anchoring})
-    return merge_user(conf, user_file, overrides)
+    return merge_user(conf, user_file, overrides, layout={"depth": "depth", "anchoring": "explore.anchoring"})
 
 
 def depth_model_name(depth: str | Path | None) -> str | None:

@@ -16,6 +16,7 @@ from typing import ClassVar, Iterable, Mapping, Sequence
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from .config_ranges import Layout, layout_ranges
 from .errors import InputError, check_keys
 
 
@@ -125,18 +126,34 @@ def load_config(
     """
     names = [name] if isinstance(name, str) else list(name)
     conf = OmegaConf.merge(*[_read_yaml(default_config_path(n)) for n in names])
-    return merge_user(conf, user_file, overrides)
+    return merge_user(conf, user_file, overrides, layout={"": names})
 
 
-def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides: Iterable[str] = ()) -> DictConfig:
+def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides: Iterable[str] = (), *,
+               layout: Layout) -> DictConfig:
     """`conf` with a user YAML file, then ``key.sub=value`` overrides, merged on top. Every key
     they set must exist in `conf` (a typo would otherwise be ignored in silence), except under
-    a key whose default is null or an empty mapping (open option sections)."""
+    a key whose default is null or an empty mapping (open option sections), and every value must
+    be in its declared range (:func:`check_ranges` with `layout`: where `conf`'s shipped files sit)."""
     if user_file is not None:
         user = _read_yaml(Path(user_file))
         check_keys(conf, user, str(user_file))
         conf = OmegaConf.merge(conf, user)
-    return apply_overrides(conf, overrides)
+    conf = apply_overrides(conf, overrides)
+    check_ranges(conf, layout)
+    return conf
+
+
+def check_ranges(conf, layout: Layout) -> None:
+    """InputError naming the first key of `conf` (a DictConfig or plain dict) whose value is outside
+    its range declared in ``configs/ranges/`` (:mod:`frontiernet.config_ranges`), e.g.
+    ``planner.gain_exponent must be a number >= 0, got -2``. `layout` says where each shipped file's
+    keys sit in `conf` (``{"": "explore", "scenes": "scenes"}``); keys `conf` lacks are skipped."""
+    tree = OmegaConf.to_container(conf, resolve=True) if isinstance(conf, DictConfig) else conf
+    for key, spec in layout_ranges(layout).items():
+        parent, leaf = dotted_parent(tree, key)
+        if parent is not None and leaf in parent and not spec.admits(parent[leaf]):
+            raise InputError(f"{key} must be {spec.describe()}, got {parent[leaf]!r}")
 
 
 def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConfig:
@@ -151,7 +168,8 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
         # sets its defaults first and passes the user's key=value after them)
         empty = next((item for item in overrides if not item.split("=", 1)[1].strip()), None)
         if empty is not None:
-            raise InputError(f"override '{empty}' has no value (write {empty}null for none)")
+            key = empty.split("=", 1)[0].strip()
+            raise InputError(f"override '{empty}' has no value (write {key}=null for none)")
         try:
             extra = OmegaConf.from_dotlist(overrides)
         except OmegaConfBaseException as error:

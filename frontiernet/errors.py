@@ -4,7 +4,7 @@ The CLI turns an :class:`InputError` into a single line on stderr and exit code 
 with no traceback. Library code raises it whenever a file, value or spec given by
 the user is wrong, and names that input in the message. The checks here are the shared
 ones: numbers (:func:`positive_number`, :func:`number_range`, :func:`whole_number`,
-:func:`cpu_count_option`) and keys
+:func:`cpu_count_option`, :func:`check_seed`) and keys
 (:func:`check_keys`, for config files, overrides and scene-spec options alike).
 """
 
@@ -72,6 +72,24 @@ def whole_number(value, name: str, minimum: int = 0, maximum: float = math.inf) 
         bound = f">= {minimum}" if maximum == math.inf else f"in [{minimum}, {maximum}]"
         raise InputError(f"{name} must be an integer {bound}, got {value!r}")
     return int(value)
+
+
+MAX_SEED = 2**32 - 1
+"""The largest seed a command takes (``--seed``, ``run.seed``, ``seed``): numpy's seeding (``np.random.seed``,
+``RandomState``) and Lightning's ``seed_everything`` take 0 to 2**32 - 1 (``default_rng``, which draws the
+poses, takes any size; a seed past this range is a typo). ``configs/ranges/*.yaml`` declare the same range."""
+
+
+def check_seed(value, name: str, repeats: int = 1) -> int:
+    """`value` as an int seed in [0, :data:`MAX_SEED`]; with `repeats` (runs seeded ``seed .. seed + repeats -
+    1``: ``bench --repeats``) the last one too. Otherwise InputError naming `name`, e.g. ``"--seed must be an
+    integer in [0, 4294967295], got 100000000000000000000 (numpy's seed range)"``."""
+    try:
+        return whole_number(value, name, 0, MAX_SEED - (max(int(repeats), 1) - 1))
+    except InputError as error:
+        last = f"; the runs' seeds are --seed to --seed + {int(repeats) - 1} (--repeats {int(repeats)})" \
+            if repeats > 1 else ""
+        raise InputError(f"{error} (numpy's seed range{last})") from None
 
 
 PER_CORE = 4

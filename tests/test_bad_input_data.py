@@ -93,7 +93,7 @@ def test_sequence_refuses_a_network_size_out_of_range(tmp_path, one_line_error):
     for size in (5, 0, 4096):
         assert main(["sequence", "--input", str(folder), "--out", str(tmp_path / "o"), "--no-video",
                      f"network.size={size}"]) == 2
-        assert f"network.size must be an integer in [8, 2048], got {size}" in one_line_error()
+        assert f"network.size must be an integer in [8, 2048] (or null), got {size}" in one_line_error()
         assert not (tmp_path / "o").exists()
 
 

@@ -23,7 +23,7 @@ def test_a_background_that_is_no_colour_is_one_line_before_the_scene_loads(tmp_p
     (tmp_path / "c.yaml").write_text(f"camera:\n  background: {background}\n")
     assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(tmp_path / "o"),
                  "--config", str(tmp_path / "c.yaml")]) == 2
-    assert "camera.background must be an RGB colour of three integers 0-255" in one_line_error()
+    assert "camera.background must be a list of 3 integers in [0, 255], got" in one_line_error()
     assert not (tmp_path / "o").exists()
 
 

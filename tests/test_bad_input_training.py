@@ -61,11 +61,10 @@ def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Pa
     # no loss term weighed: trained on a loss of 0
     (["loss.distance_weight=0", "loss.ce_weight=0", "loss.dice_weight=0"],
      "loss.distance_weight, loss.ce_weight, loss.dice_weight: all 0, so the loss is 0 and nothing trains"),
-    (["loss.ce_weight=-1"], "loss.ce_weight must be a number in [0, inf], got -1"),
+    (["loss.ce_weight=-1"], "loss.ce_weight must be a number >= 0, got -1"),
     # a learning-rate fraction of 2 ended the cosine at twice the rate
-    (["optim.final_lr_fraction=2"], "optim.final_lr_fraction: the cosine ends at lr times this fraction, which "
-                                    "must be between 0 and 1; got 2"),
-    (["optim.final_lr_fraction=-0.1"], "must be between 0 and 1; got -0.1"),
+    (["optim.final_lr_fraction=2"], "optim.final_lr_fraction must be a number in [0, 1], got 2"),
+    (["optim.final_lr_fraction=-0.1"], "optim.final_lr_fraction must be a number in [0, 1], got -0.1"),
     # one scene as text was read as its characters: "'3' is not a scene of the dataset"
     (["data.val_scenes=procedural:3"], "data.val_scenes: takes a list of scene specs (or null), got "
                                        "'procedural:3'; write one scene as a one-element list, e.g. "

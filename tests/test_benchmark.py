@@ -274,11 +274,11 @@ def test_the_ray_backend_gives_the_rows_of_local_processes(plan_spec, tmp_path):
 def test_a_failing_run_is_recorded_with_its_error_and_the_rest_go_on(plan_spec, tmp_path):
     out = tmp_path / "bench"
     code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "vacuum", "--starts", "1", "--repeats", "1",
-                                 "--max-steps", "8", "--out", out, "--set", "motion.translation_m=-0.11")
+                                 "--max-steps", "8", "--out", out, "--set", "planner.clearance_m=0.05")
     assert code == 1 and "1 of 1 runs failed; their errors are in" in stderr, stderr  # (a bad --depth is
     # refused up front: tests/test_bad_input.py)
     rows = list(csv.DictReader(open(out / "results.csv")))
-    assert rows[0]["status"] == "failed" and "motion.translation_m" in rows[0]["error"]
+    assert rows[0]["status"] == "failed" and "planner.clearance_m" in rows[0]["error"]
     assert "1 run(s) failed" in (out / "table.md").read_text()
     assert list((out / "failed").glob("*.json"))
     assert bench("--report", "--out", out)[0] == 0 and "1 run(s) failed" in (out / "table.md").read_text()

@@ -60,7 +60,7 @@ def test_poses_read_the_same_on_every_command():
     (["render", "{plan}", "--pose", "2,2.5,abc,0", "--out", "{out}"], "not a number"),
     (["render", "{plan}", "--pose", "2,2.5,1.2", "--out", "{out}"], "expected x,y,z,yaw"),
     (["scene", "info", "no/such/scene.glb"], "not found"),
-    (["scene", "info", "floorplan:x.png?resolution=-1"], "positive"),
+    (["scene", "info", "floorplan:x.png?resolution=-1"], "resolution must be a number > 0 (or null), got -1"),
     (["scene", "topdown", "{plan}", "--out", "{out}/top.txt"], "top.txt: not an image file name"),
 ])
 def test_bad_input_is_one_line_and_exit_code_2(plan_spec, tmp_path, capsys, args, message):

@@ -48,8 +48,10 @@ def test_a_value_of_another_kind_than_the_default_is_refused(tmp_path):
     user.write_text("planner: 3\n")  # a whole section replaced by a number (was a traceback later)
     with pytest.raises(InputError, match="flat.yaml: config key 'planner' takes a section"):
         load_config("explore", user)
-    # null is always taken (train_tiny.yaml sets data.image_size: null), integers for floats too
-    assert load_config("explore", overrides=["planner.clearance_m=1", "run.max_steps=null"]).planner.clearance_m == 1
+    # null is taken where the key's range has it (train_tiny.yaml sets data.image_size: null), integers for floats
+    assert load_config("explore", overrides=["planner.clearance_m=1", "map.depth_edge_rtol=null"]).planner.clearance_m == 1
+    with pytest.raises(InputError, match="run.max_steps must be an integer in \\[1, 100000\\], got None"):
+        load_config("explore", overrides=["run.max_steps=null"])  # (configs/ranges/explore.yaml)
 
 
 def test_open_sections_and_other_configs_sections_are_accepted(tmp_path):

@@ -333,13 +333,13 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
     (["--method", "nope"], "df-uniform, discontinuity-gain, discontinuity-uniform"),
     (["planner.mode=bogus"], "planner.mode"),
     (["planner.clearance_m=0.15"], "planner.clearance_m = 0.15 is too small for the agent radius"),
-    (["tracking.gain_reduction=sometimes"], "beyond_frame, absolute or none"),
+    (["tracking.gain_reduction=sometimes"], "tracking.gain_reduction must be one of beyond_frame, absolute, none"),
     # the run's config holds sim.yaml and depth.yaml too: their keys are checked like the others
     (["--depth", "emulated", "depth.emulated.fill_dept=20"],
      "override: unknown config key 'depth.emulated.fill_dept'; did you mean depth.emulated.fill_depth"),
     (["depth.source=emulated"], "unknown config key 'depth.source'"),  # the source is --depth / run.depth
     (["--depth", "emulated", "depth.emulated.fill_invalid=zero"], "depth.emulated.fill_invalid"),
-    (["sim.camera.max_depth=-1"], "camera.max_depth must be a positive number of metres, got -1"),
+    (["sim.camera.max_depth=-1"], "sim.camera.max_depth must be a number > 0, got -1"),
     (["scenes.floorplan.wall_heigth=2"], "unknown config key 'scenes.floorplan.wall_heigth'"),
 ])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
@@ -405,7 +405,7 @@ def test_the_ray_cast_engine_of_the_run_config_is_the_one_used(plan_spec, tmp_pa
             assert raycast.active_backend() == engine  # the run selected it (it used to keep the shipped one)
         code, _, stderr = run_cli(explore_args(plan_spec, tmp_path / "bad", 2, "--no-video",
                                                "sim.raycast.backend=nosuch"))
-        assert code == 2 and "raycast.backend 'nosuch' is unknown" in stderr
+        assert code == 2 and "raycast.backend must be one of auto, open3d, embree, got 'nosuch'" in stderr
     finally:
         raycast.select_backend(load_config("sim").raycast.backend)
 

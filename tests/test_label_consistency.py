@@ -71,7 +71,7 @@ def test_bad_consistency_input_is_one_line_exit_2(one_line_error):
     assert "consistency.max_tries" in one_line_error()
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set",
                  "consistency.resampled_labelings=1.5"]) == 2
-    assert "consistency.resampled_labelings must be a positive integer" in one_line_error()
+    assert "consistency.resampled_labelings must be an integer in [1, 100], got 1.5" in one_line_error()
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set",
                  "consistency.translation_m=-1"]) == 2
     assert "consistency.translation_m" in one_line_error()

@@ -278,3 +278,10 @@ def test_predictor_runs_each_input_kind(tmp_path):
         assert distance.shape == (48, 64) and distance.dtype == np.float32
         assert logits.shape == (11, 48, 64)
         assert (distance > 0).all() and (distance <= MODEL_CONF["labels"]["truncation_px"] + 1e-5).all()
+
+
+def test_a_pad_multiple_the_encoder_cannot_take_is_refused():
+    # pad_multiple=16 built a network that crashed in the decoder on a 336 px input (issue 55)
+    with pytest.raises(InputError, match="network.pad_multiple must be a positive multiple of 32 .*got 16"):
+        NetworkConfig(pad_multiple=16)
+    assert NetworkConfig(pad_multiple=64).pad_multiple == 64

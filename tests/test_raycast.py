@@ -169,5 +169,5 @@ def test_engine_comes_from_the_config_and_a_bad_one_is_one_line(tmp_path, capsys
     out = tmp_path / "data"
     assert main(["datagen", "--scenes", "procedural:1", "--views-per-scene", "1", "--out", str(out),
                  "--set", "raycast.backend=optix", "--no-progress"]) == 2
-    assert "raycast.backend 'optix'" in one_line_error()
+    assert "raycast.backend must be one of auto, open3d, embree, got 'optix'" in one_line_error()
     assert not out.exists()

@@ -288,6 +288,27 @@ def _one_thread(worker_id: int) -> None:
     torch.set_num_threads(1)  # each worker decodes one view at a time; processes give the parallelism
 
 
+def check_cache_folder(cache, path: Path | None = None) -> None:
+    """Before anything is made: InputError naming ``data.cache`` when its folder (`cache`, or `path` for
+    ``auto``; nothing for null or false, no cache) is a file, or is not there and cannot be made: the
+    folder it goes in is missing (a cache is made only in a folder that is there, so a typo makes none)
+    or cannot be written in (:func:`~frontiernet.io.check_writable_folder`)."""
+    from frontiernet.io import check_writable_folder
+
+    if not cache or (str(cache) == "auto" and path is None):
+        return
+    path = Path(str(cache)) if path is None else path
+    if path.exists() and not path.is_dir():
+        raise InputError(f"data.cache={cache}: is a file, expected the training cache's folder")
+    if path.is_dir():
+        return
+    if not path.parent.is_dir():
+        raise InputError(f"data.cache={cache}: the folder it goes in, {path.parent}, does not exist (a cache "
+                         "folder is made only in one that does): make it first, or set data.cache=auto (beside "
+                         "the dataset)")
+    check_writable_folder(path.parent, "data.cache")
+
+
 def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, workers: int = 0,
                  progress=None) -> TrainingCache:
     """The cache named by ``data.cache`` (``auto``: :func:`default_cache_dir`; or a folder), built
@@ -296,16 +317,14 @@ def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, worker
     path = default_cache_dir(dataset_root, size, labels_conf) if str(cache) == "auto" else Path(str(cache))
     if path.exists():
         return open_cache(path, dataset_root, size, labels_conf)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise InputError(f"{path.parent}: cannot create the training cache folder ({error.strerror}); "
-                         f"set data.cache=FOLDER to put it elsewhere") from None
+    if str(cache) == "auto":  # <dataset>/cache/, made beside the dataset's shards
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise InputError(f"{path.parent}: cannot create the training cache folder ({error.strerror}); "
+                             f"set data.cache=FOLDER to put it elsewhere") from None
+    check_cache_folder(cache, path)  # (else the lock below waits forever: /proc, read-only)
     from filelock import FileLock
-
-    from frontiernet.io import check_writable_folder
-
-    check_writable_folder(path.parent, "data.cache")  # else the lock below waits forever (/proc, read-only)
 
     # two runs on one dataset (e.g. two trainings started together) would share <path>.partial:
     # the second waits for the first's build and opens its cache

@@ -20,7 +20,8 @@ def load_train_config(user_file: str | Path | None = None, overrides: Iterable[s
     """The resolved training config (see ``configs/train.yaml``). InputError naming the key: no
     ``data.path``; a bad loss option, or every loss weight 0 (:data:`LOSS_WEIGHTS`); a
     ``data.val_scenes`` that is not a list (or null)."""
-    conf = merge_user(OmegaConf.merge({"model": load_config("model")}, load_config("train")), user_file, overrides)
+    conf = merge_user(OmegaConf.merge({"model": load_config("model")}, load_config("train")), user_file, overrides,
+                      layout={"model": "model", "": "train"})
     if not conf.data.path:
         raise InputError("data.path is not set: give the dataset folder (data.path=DIR)")
     from .losses import loss_settings

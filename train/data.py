@@ -188,16 +188,25 @@ class FrontierDataModule(L.LightningDataModule):
         self.train_set = self.val_set = None
         self.train_scenes = self.val_scenes = []
 
+    def split(self) -> tuple[list[int], list[int]]:
+        """(training, validation) view indices of the dataset (:func:`split_scenes`, then at most
+        ``data.max_*_samples``), its scenes set as ``train_scenes`` and ``val_scenes``: what a run's loop
+        settings are judged by before the training cache is built."""
+        data, seed = self.conf["data"], int(self.conf["seed"])
+        if self.dataset is None:
+            self.dataset = open_training_data(data["path"])
+        self.train_scenes, self.val_scenes = split_scenes(self.dataset.scenes, data["val_scenes"],
+                                                          float(data["val_fraction"]), seed)
+        return (_limit(self.dataset.indices_for_scenes(self.train_scenes), data["max_train_samples"], seed),
+                _limit(self.dataset.indices_for_scenes(self.val_scenes), data["max_val_samples"], seed))
+
     def setup(self, stage: str | None = None) -> None:
         if self.train_set is not None:
             return
         data, seed = self.conf["data"], int(self.conf["seed"])
         model_conf, augment_conf = self.conf["model"], self.conf["augment"]
-        dataset = self.dataset if self.dataset is not None else open_training_data(data["path"])
-        self.train_scenes, self.val_scenes = split_scenes(dataset.scenes, data["val_scenes"],
-                                                          float(data["val_fraction"]), seed)
-        train = _limit(dataset.indices_for_scenes(self.train_scenes), data["max_train_samples"], seed)
-        val = _limit(dataset.indices_for_scenes(self.val_scenes), data["max_val_samples"], seed)
+        train, val = self.split()
+        dataset = self.dataset
         if not data["cache"]:
             size = data["image_size"]
             self.train_set = TrainingSamples(dataset.subset(train), model_conf, size, augment_conf, seed)

@@ -19,6 +19,7 @@ import json
 import logging
 import os
 import platform
+import re
 import time
 import warnings
 from datetime import timedelta
@@ -38,7 +39,8 @@ from frontiernet.model import load_model, save_model
 from frontiernet.model.files import check_finite, model_base
 
 from .config import plain
-from .data import FrontierDataModule, open_training_data, view_size
+from .cache import check_cache_folder
+from .data import FrontierDataModule, open_training_data, view_size, worker_count
 from .finetune import freeze, init_file, initial_weights, shared_base
 from .module import FrontierNetModule, check_schedule
 
@@ -127,15 +129,19 @@ def check_settings(conf) -> None:
     under one; an epoch or step budget with no end (Lightning's -1 needs the other set); a crop or
     image size outside [8, 2048] px; an augmentation probability outside [0, 1] or an amplitude
     outside [0, 1); a crop larger than ``data.image_size`` (:func:`check_crop`); an
-    ``optim.final_lr_fraction`` outside [0, 1]; threads outside 1 to 4 per core; a checkpoint period
-    that is not positive."""
+    ``optim.final_lr_fraction`` outside [0, 1]; threads or loader workers outside 0 (1) to 4 per core; a
+    checkpoint period that is not positive; a ``trainer.max_time`` of no time (:func:`check_max_time`); a
+    ``data.cache`` folder that cannot be made (:func:`~train.cache.check_cache_folder`)."""
     from frontiernet.errors import cpu_count_option, positive_number, whole_number
     from frontiernet.io import check_output_folder
     from frontiernet.model.predictor import input_size
+    from frontiernet.errors import check_seed
 
-    if not str(conf.name) or Path(str(conf.name)).name != str(conf.name) or str(conf.name) in (".", ".."):
+    if not str(conf.name).strip():  # (' ' trained into a folder named ' ')
+        raise InputError(f"name: the run's folder name inside out= is blank ({conf.name!r}); give one, e.g. name=tiny")
+    if Path(str(conf.name)).name != str(conf.name) or str(conf.name) in (".", ".."):
         raise InputError(f"name: the run's folder name inside out= (no / or ..), got {conf.name!r}")
-    whole_number(conf.seed, "seed", 0)
+    check_seed(conf.seed, "seed")  # (Lightning's seed_everything raises past its range)
     check_output_folder(run_dir(conf), force=True)  # (a run resumes in it)
     trainer, data, augment = conf.trainer, conf.data, conf.augment
     steps, epochs = trainer.max_steps, trainer.max_epochs
@@ -169,6 +175,35 @@ def check_settings(conf) -> None:
         cpu_count_option(trainer.threads, "trainer.threads (or null)")
     positive_number(trainer.checkpoint_every_minutes, "trainer.checkpoint_every_minutes", "minutes")
     whole_number(trainer.checkpoint_every_n_epochs, "trainer.checkpoint_every_n_epochs", 1)
+    check_max_time(trainer.max_time)
+    for key in ("num_workers", "cache_workers"):  # (read when the loaders start: after the trainer's setup)
+        worker_count(data[key], f"data.{key}")
+    check_cache_folder(data.cache)  # where nothing can be made, or under a folder that is not there
+
+
+MAX_TIME = re.compile(r"(\d+):(\d\d):(\d\d):(\d\d)")
+"""``trainer.max_time`` as text: DD:HH:MM:SS, as Lightning's Timer reads it."""
+
+
+def check_max_time(value) -> None:
+    """InputError naming ``trainer.max_time`` unless it is null (no limit), DD:HH:MM:SS text or a mapping of
+    timedelta's keys (``{hours: 2}``), as Lightning takes it, of more than 0 s: 00:00:00:00 stopped the run
+    before its first step, which then failed at its end ("last.ckpt: model file not found") and left its
+    folder behind."""
+    if value is None:
+        return
+    try:
+        if isinstance(value, str):
+            days, hours, minutes, seconds = (int(part) for part in MAX_TIME.fullmatch(value.strip()).groups())
+            length = timedelta(days=days, hours=hours, minutes=minutes, seconds=seconds)
+        else:
+            length = timedelta(**plain(value))
+    except (AttributeError, TypeError, ValueError, OverflowError):  # (no match, not a mapping, a bad key)
+        raise InputError(f"trainer.max_time: a wall-clock limit is DD:HH:MM:SS (e.g. 00:01:00:00), or null for "
+                         f"none; got {value!r}") from None
+    if length.total_seconds() <= 0:
+        raise InputError(f"trainer.max_time: {value} leaves no time to train (the run would stop before its first "
+                         "step); give a limit above 0 (e.g. 00:01:00:00), or null for none")
 
 
 def check_crop(crop, size: int, size_key: str) -> None:
@@ -261,8 +296,23 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         check_crop(conf.augment.crop_size, view_size(dataset), "data.image_size: null keeps the dataset's size")
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
     datamodule = FrontierDataModule(conf, progress, dataset)
+    check_loop_settings(conf, len(datamodule.split()[0]))  # before the training cache is built
+    checkpoints = out / "checkpoints"
+    best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
+                           enable_version_counter=False)
+    periodic = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
+                               train_time_interval=timedelta(minutes=float(conf.trainer.checkpoint_every_minutes)))
+    epoch_end = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
+                                every_n_epochs=int(conf.trainer.checkpoint_every_n_epochs),
+                                save_on_train_epoch_end=True)
+    callbacks = [best, periodic, epoch_end, LastCheckpoint(last), LearningRateMonitor("step")]
+    try:  # (also before the cache: a trainer setting Lightning refuses leaves no cache either)
+        trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
+                            logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
+                            enable_model_summary=False, deterministic=False)
+    except (ValueError, TypeError, ImportError, MisconfigurationException) as error:
+        raise InputError(f"trainer: {str(error).splitlines()[0]}") from None
     datamodule.setup()
-    check_loop_settings(conf, len(datamodule.train_set))
 
     L.seed_everything(int(conf.seed), workers=True, verbose=False)
     if conf.trainer.threads:
@@ -280,21 +330,6 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     module.freeze(freeze(module.net, base))
     if base is not None:  # the frozen layers are meant to be in eval mode (their BatchNorm statistics kept)
         warnings.filterwarnings("ignore", message=r"Found \d+ module\(s\) in eval mode at the start of training")
-    checkpoints = out / "checkpoints"
-    best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
-                           enable_version_counter=False)
-    periodic = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
-                               train_time_interval=timedelta(minutes=float(conf.trainer.checkpoint_every_minutes)))
-    epoch_end = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
-                                every_n_epochs=int(conf.trainer.checkpoint_every_n_epochs),
-                                save_on_train_epoch_end=True)
-    callbacks = [best, periodic, epoch_end, LastCheckpoint(last), LearningRateMonitor("step")]
-    try:
-        trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
-                            logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
-                            enable_model_summary=False, deterministic=False)
-    except (ValueError, TypeError, ImportError, MisconfigurationException) as error:
-        raise InputError(f"trainer: {str(error).splitlines()[0]}") from None
     # every check passed: only now is anything written to the run folder
     if resume is not None and (out / "metrics.csv").is_file():
         # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions

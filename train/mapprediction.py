@@ -31,6 +31,7 @@ from frontiernet.mapprediction.networks import NetworkSettings, PredictorSpec, p
 from frontiernet.mapprediction.predictor import save_predictor
 from frontiernet.mapprediction.quality import scores
 
+from .main import check_max_time
 from .module import FrontierNetModule, check_schedule
 
 
@@ -56,11 +57,13 @@ def load_map_train_config(user_file, overrides=()):
         raise InputError(f"{user_file}: predictor.kind must be seer or mapex, got {kind!r}")
     shipped = load_config("train")
     base = OmegaConf.merge({"optim": shipped.optim, "trainer": shipped.trainer}, load_config(f"train_{kind}"))
-    conf = merge_user(base, user_file, overrides)
+    conf = merge_user(base, user_file, overrides,
+                      layout={"optim": "train.optim", "trainer": "train.trainer", "": f"train_{kind}"})
     if not conf.data.path:
         raise InputError("data.path is not set: give the map dataset folder (data.path=DIR)")
     predictor_spec(conf)  # a bad architecture or schedule fails here, before any data is read
     check_schedule(conf.optim, bool(conf.trainer.max_time))
+    check_max_time(conf.trainer.max_time)  # (00:00:00:00 trained nothing and left a run folder)
     return conf
 
 

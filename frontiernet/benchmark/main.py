@@ -11,7 +11,7 @@ from omegaconf import OmegaConf
 
 from ..config import dotted_parent, load_config
 from ..depth import check_depth_files
-from ..errors import InputError, whole_number
+from ..errors import InputError, check_seed, whole_number
 from ..exploration.methods import check_method, method_names
 from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
 from ..io import LOCK_NAME, check_output_folder, claim_output_folder
@@ -73,9 +73,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     budget = rule.min_steps if rule is not None else whole_number(max_steps, "--max-steps", 1, MAX_STEPS)
     if budget < MIN_BUDGET:
         raise InputError(f"the step budget must be at least {MIN_BUDGET} steps to measure Vox@25, got {budget}")
-    seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     whole_number(starts, "--starts", 1, MAX_STARTS)
     whole_number(repeats, "--repeats", 1, MAX_STARTS)
+    seed = check_seed(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)", repeats)
     out = check_output_folder(out, force=True)  # (a benchmark folder resumes)
     if out.is_dir() and plan_file(out) is None and any(path.name != LOCK_NAME for path in out.iterdir()):
         raise InputError(f"{out} holds files but no benchmark (no plan.json): give an empty or new --out "

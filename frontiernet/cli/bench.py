@@ -25,8 +25,10 @@ def add_parser(subparsers) -> None:
                                    description=__doc__.split("\n\n")[0],
                                    allow_abbrev=False)  # `bench map --scene` is not --scenes abbreviated
     _exploration_options(parser)
+    # what a hot-path benchmark refuses when given before it (it would drop it: _Benchmarks)
+    parser.set_defaults(own_option_defaults=options.option_defaults(parser._actions))
     actions = parser.add_subparsers(dest="action", metavar="BENCHMARK", required=False,
-                                    parser_class=type(parser))
+                                    parser_class=type(parser), action=_Benchmarks)
     parser.set_defaults(func=run_exploration_benchmark)
     render = scene_benchmark(actions, "render", "render time per frame vs a bare cast_rays", run_render)
     render.add_argument("--repeats", type=int, default=20, help="timed repetitions (median is reported)")
@@ -50,6 +52,19 @@ def add_parser(subparsers) -> None:
     options.config_overrides(explore, "mapex.predictor=runs/mapex/predictor.safetensors planner.clearance_m=0.3")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)
+
+
+class _Benchmarks(options.Subcommands):
+    """bench's hot-path benchmarks (render, map, explore, and those of packages: inference, train), which
+    read none of the exploration benchmark's options: one given before a benchmark's name is refused as the
+    command line is read (``bench --methods classic explore`` timed frontiernet; ``bench --depth emulated
+    explore`` ground truth), naming the benchmark's own option to give after its name where it has one."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        super().__call__(parser, namespace, values, option_string)
+        message = options.options_before_subcommand(namespace, "bench")
+        if message:
+            parser.error(message)
 
 
 def _exploration_options(parser) -> None:

@@ -62,7 +62,6 @@ def summary_line(record: dict, out) -> str:
 def run(args) -> int:
     from ..exploration.run import check_run, load_run_config, main
     from ..io import check_output_folder, claim_output_folder
-
     check_output_folder(args.out, args.force)
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # --map-free wins
     conf = load_run_config(args.config, overrides)

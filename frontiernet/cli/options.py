@@ -36,6 +36,41 @@ def given_options(namespace, defaults: dict) -> list[str]:
     return [flag for dest, (flag, default) in defaults.items() if getattr(namespace, dest, default) != default]
 
 
+class Subcommands(argparse._SubParsersAction):
+    """The subcommands of a command that has options of its own (``datagen``'s actions, ``bench``'s hot-path
+    benchmarks): notes in ``args.options_before_action`` the command's own options (``own_option_defaults``,
+    :func:`option_defaults`) given before the subcommand's name, each with the subcommand's option of that name
+    or one spelt close to it (None: none): the subcommand drops them (its own option of the same name replaces
+    the value), so :func:`options_before_subcommand` names them to be refused."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import difflib
+
+        given = given_options(namespace, getattr(namespace, "own_option_defaults", {}))
+        chosen = self._name_parser_map.get(values[0])
+        taken = sorted(flag for action in (chosen._actions if chosen else ()) for flag in action.option_strings
+                       if flag.startswith("--"))
+        super().__call__(parser, namespace, values, option_string)
+        namespace.options_before_action = [
+            (flag, flag if flag in taken else next(iter(difflib.get_close_matches(flag, taken, n=1, cutoff=0.8)), None))
+            for flag in given]
+
+
+def options_before_subcommand(args, command: str) -> str | None:
+    """What is wrong with the options of ``frontiernet <command>`` given before its subcommand ``args.action``
+    (:class:`Subcommands`), or None when none was: ``--scenes applies to `frontiernet datagen` itself, not to
+    `datagen preview```, with the subcommand's own option of that name to give after it instead."""
+    given = getattr(args, "options_before_action", [])
+    if not given:
+        return None
+    flags = "/".join(flag for flag, _ in given)
+    same = [flag for flag, own in given if own == flag]  # the subcommand's own: given after its name
+    close = [f"{own} (not {flag})" for flag, own in given if own not in (None, flag)]
+    after = [*same, *close]
+    return (f"{flags} appl{'ies' if len(given) == 1 else 'y'} to `frontiernet {command}` itself, not to "
+            f"`{command} {args.action}`" + (f" (give {'/'.join(after)} after `{args.action}`)" if after else ""))
+
+
 class Once(argparse.Action):
     """An option given at most once: a second one is refused (argparse would keep the last one and
     drop the first without a word)."""

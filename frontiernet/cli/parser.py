@@ -33,17 +33,47 @@ class Parser(argparse.ArgumentParser):
         have, given before its subcommand (if any; the subcommand's parser checks the rest), with
         the closest one it may have meant: otherwise argparse reports its value as a misplaced
         argument (``datagen --views 3``: "invalid choice '3'") or a required option as missing
-        (``explore --scen x``)."""
+        (``explore --scen x``); and a word where the subcommand's name goes that names none
+        (``frontiernet explor --scene x``: was "unrecognized option --scene"), with the closest
+        subcommand, as :meth:`_unknown_subcommand` says."""
         tokens = list(sys.argv[1:] if args is None else args)
         known = set(self._option_string_actions)
-        commands = {name for action in self._actions if isinstance(action, argparse._SubParsersAction)
-                    for name in action.choices}
+        subcommands = next((action for action in self._actions if isinstance(action, argparse._SubParsersAction)),
+                           None)
+        commands = set(subcommands.choices) if subcommands is not None else set()
+        values = 0  # the values the option before still takes (-1: any number, nargs + or *)
         for token in tokens:
             name = token.split("=", 1)[0]
             if token == "--" or token in commands:
                 break
-            if name.startswith("--") and len(name) > 2 and name not in known:
-                close = [option for option in sorted(known) if option.startswith(name)][:1] \
-                    or difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
-                self.error(f"unrecognized option {name}" + (f" (did you mean {close[0]}?)" if close else ""))
+            if token.startswith("-") and len(token) > 1 and not NEGATIVE_NUMBER.match(token):
+                action = self._option_string_actions.get(name)
+                values = 0 if action is None or "=" in token else self._values_taken(action)
+                if name.startswith("--") and len(name) > 2 and name not in known:
+                    close = [option for option in sorted(known) if option.startswith(name)][:1] \
+                        or difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
+                    self.error(f"unrecognized option {name}" + (f" (did you mean {close[0]}?)" if close else ""))
+                continue
+            if values:
+                values -= values > 0
+                continue
+            if subcommands is not None:
+                self._unknown_subcommand(token, subcommands)
         return super().parse_known_args(tokens, namespace)
+
+    @staticmethod
+    def _values_taken(action: argparse.Action) -> int:
+        """How many words after `action`'s flag are its values: -1 for any number (nargs + or *)."""
+        nargs = action.nargs
+        if nargs in ("+", "*", argparse.REMAINDER):
+            return -1
+        return 1 if nargs in (None, "?") else int(nargs) if isinstance(nargs, int) else 0
+
+    def _unknown_subcommand(self, token: str, subcommands: argparse._SubParsersAction) -> None:
+        """Exit 2 with one line: `token` stands where a subcommand's name goes and names none
+        (``unknown command 'explor' (did you mean explore?); the commands: scene, render, ...``)."""
+        what = str(subcommands.metavar or "command").lower()
+        names = list(subcommands.choices)
+        close = difflib.get_close_matches(token, names, n=1, cutoff=0.6)
+        hint = f"did you mean {close[0]}?" if close else f"the {what}s: {', '.join(names)}"
+        self.error(f"unknown {what} '{token}' ({hint})")

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from ..errors import InputError, whole_number
+from ..errors import InputError, check_seed, whole_number
 from ..geometry import parse_pose_text, pose_from_heading
 from .region import sample_start
 
@@ -60,7 +60,14 @@ def load_run_config(user_file=None, overrides=(), names=("explore",)):
     conf = load_config(tuple(names))
     sections = {section: shipped_section(section) for section in RUN_SECTIONS}
     conf = OmegaConf.merge(conf, sections)
-    return merge_user(conf, user_file, overrides)
+    return merge_user(conf, user_file, overrides, layout=run_layout(names))
+
+
+def run_layout(names=("explore",)) -> dict:
+    """Where the shipped files of a run's config sit in it (:func:`~frontiernet.config.check_ranges`):
+    `names` at the top, each of :data:`RUN_SECTIONS` under its section."""
+    return {"": names, **{section: name if key is None else f"{name}.{key}"
+                          for section, (name, key) in RUN_SECTIONS.items()}}
 
 
 def run_section(conf, section: str):
@@ -97,6 +104,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     (:func:`~.predicted.open_predictor`). (What needs the scene, such as a start outside it, is
     checked after it loads.)"""
     from ..depth import check_depth_files
+    from ..config import check_ranges
     from ..errors import positive_number
     from ..io import input_file
     from .methods import check_method
@@ -104,8 +112,8 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
 
     budget = whole_number(conf.run.max_steps if max_steps is None else max_steps,
                           "the step budget (--max-steps, run.max_steps)", 1, MAX_STEPS)
-    seed = whole_number(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
-    positive_number(conf.run.video_fps, "run.video_fps", "frames per second")  # the video's and --mcap's clock
+    seed = check_seed(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
+    check_ranges(conf, run_layout())  # (a library caller's own config too: run.video_fps is the video's clock)
     depth_name = run_depth_source(depth, conf)
     check_depth_files(depth_name, conf.get("depth"))
     check_method(method, model, conf)  # a method's own file checks (seer, mapex: the predictor)

@@ -56,7 +56,7 @@ def _edges_m3(bin_edges, bin_unit_m3: float) -> np.ndarray:
     if len(edges) < 2 or not np.all(np.isfinite(edges)) or np.any(np.diff(edges) <= 0) \
             or not float(bin_unit_m3) > 0:
         raise InputError(f"gain bin_edges must be >= 2 increasing finite numbers with a positive "
-                         f"bin_unit_m3, got {list(np.asarray(bin_edges).reshape(-1))} x {bin_unit_m3!r}")
+                         f"bin_unit_m3, got {np.asarray(bin_edges).reshape(-1).tolist()} x {bin_unit_m3}")
     return edges
 
 

@@ -100,7 +100,7 @@ class OccupancyMap:
         settings = MapSettings.from_config(conf)
         bounds = np.asarray(bounds, np.float64)
         if bounds.shape != (2, 3) or not np.all(np.isfinite(bounds)) or not np.all(bounds[1] > bounds[0]):
-            raise InputError(f"map bounds must be finite (2, 3) [min, max] corners with max > min, got {bounds!r}")
+            raise InputError(f"map bounds must be finite [min, max] corners, max > min, got {bounds.round(3).tolist()}")
         shape = np.maximum(np.ceil((bounds[1] - bounds[0]) / settings.voxel_size - 1e-9), 1).astype(np.int64)
         return cls(bounds[0], tuple(shape.tolist()), settings)
 

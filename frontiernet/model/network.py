@@ -56,6 +56,9 @@ FEATURE_ENCODERS = {
     "efficientnet_b0": ((2, 16), (3, 24), (4, 40), (6, 112), (8, 320)),
 }
 ENCODERS = (*RESNET_ENCODERS, *FEATURE_ENCODERS)
+ENCODER_STRIDE = 32
+"""Every encoder's deepest output stride: an input padded to a multiple of it keeps the skip features'
+sizes at exactly half of the level above (another multiple fails in the decoder's concatenation)."""
 INPUT_CHANNELS = {"rgbd": 4, "rgb": 3, "depth": 1}
 
 
@@ -88,8 +91,11 @@ class NetworkConfig:
         if len(self.decoder_channels) != 5 or min(self.decoder_channels) < 1:
             raise InputError(f"network.decoder_channels must list 5 positive widths, got "
                              f"{list(self.decoder_channels)}")
-        if self.num_classes < 2 or self.head_channels < 1 or self.pad_multiple < 1:
-            raise InputError("network.num_classes must be >= 2, head_channels and pad_multiple >= 1")
+        if self.num_classes < 2 or self.head_channels < 1:
+            raise InputError("network.num_classes must be >= 2 and head_channels >= 1")
+        if self.pad_multiple < 1 or self.pad_multiple % ENCODER_STRIDE:
+            raise InputError(f"network.pad_multiple must be a positive multiple of {ENCODER_STRIDE} (the encoder's "
+                             f"stride), got {self.pad_multiple}")
 
     @property
     def in_channels(self) -> int:

@@ -96,6 +96,8 @@ def validate_options(conf, spec_text: str = "procedural") -> SimpleNamespace:
         raise InputError(f"{spec_text}: option resolution must be at most 0.1 m/pixel, got {values['resolution']}")
     for key in ("texture_pixels", "rooms_min", "rooms_max", "max_attempts"):
         values[key] = int(values[key])
+    if values["texture_pixels"] % 4:  # the brick and tile patterns divide it in quarters
+        raise InputError(f"{spec_text}: option texture_pixels must be a multiple of 4, got {values['texture_pixels']}")
     return SimpleNamespace(**values)
 
 

@@ -48,6 +48,7 @@ import numpy as np
 import yaml
 from omegaconf import DictConfig, OmegaConf
 
+from ..config import check_ranges
 from ..errors import InputError, check_keys
 from ..registry import Registry
 from .scene import Scene
@@ -148,15 +149,19 @@ def parse_spec(text: str) -> SceneSpec:
     text = str(text).strip()
     if not text:
         raise InputError("empty scene spec")
-    if text == "default":
-        text = DEFAULT_SPEC
-    body, _, query = text.partition("?")
+    body, mark, query = text.partition("?")
+    if body == "default":  # (with options too: default?bounds=... is procedural:0?bounds=...)
+        body = DEFAULT_SPEC
+        text = body + mark + query
     options = {}
     if query:
         for item in query.split("&"):
             key, eq, value = item.partition("=")
             if not eq or not key:
                 raise InputError(f"scene spec '{text}': option '{item}' is not key=value")
+            if not value.strip():  # (read as null: the option would be dropped without a word)
+                raise InputError(f"scene spec '{text}': option {key}= has no value; give {key}=VALUE, or leave "
+                                 f"{key} out")
             options[key] = _parse_value(value)
     source, colon, argument = body.partition(":")
     if colon and source in SOURCES:
@@ -265,7 +270,12 @@ def _section(conf: DictConfig, source: str, spec: SceneSpec) -> DictConfig:
     base = conf[source]
     own = {key: value for key, value in spec.options.items() if key not in EXPLORABLE_OPTIONS}
     check_keys(base, own, f"scene spec '{spec.text}'", noun=f"{source} option")
-    return OmegaConf.merge(base, own)
+    merged = OmegaConf.merge(base, own)
+    try:  # the spec's options keep to configs/ranges/scenes.yaml as a config's do
+        check_ranges(merged, {"": f"scenes.{source}"})
+    except InputError as error:
+        raise InputError(f"scene spec '{spec.text}': {source} option {error}") from None
+    return merged
 
 
 def load_scene(spec: str | SceneSpec, conf: DictConfig) -> Scene:

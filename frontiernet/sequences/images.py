@@ -78,7 +78,8 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     """(H, W) float32 metres from a depth file; 0 = invalid (see the module doc for `encoding`).
 
     NaN (the convention of ``frontiernet render``'s ``depth.npy``), 0 and negative values are invalid.
-    Integer depth (an image or a ``.npy`` array) is divided by `depth_scale`; float depth is metres.
+    Integer depth (an image or a ``.npy`` array) is divided by `depth_scale`; float depth is metres. An 8-bit
+    image is refused: depth images are 16-bit (a 0-255 picture of depth read as millimetres is no depth map).
     `scale_given`: the user gave `depth_scale` (``--depth-scale``), so float depth, which it does not
     apply to, is refused rather than read with the scale silently ignored.
     """
@@ -93,6 +94,9 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
         depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
         if depth is None:
             raise InputError(f"{path}: not a readable depth image")
+        if depth.dtype in (np.uint8, np.int8):  # a picture of depth (0-255), not a depth map
+            raise InputError(f"{path}: an 8-bit image; depth images must be 16-bit (integer units, millimetres unless "
+                             "a depth scale says otherwise) or float (metres), e.g. a uint16 PNG of millimetres")
     if not (np.issubdtype(depth.dtype, np.integer) or np.issubdtype(depth.dtype, np.floating)):
         raise InputError(f"{path}: holds {depth.dtype} values, not depth (integer units or float metres)")
     floating = encoding == "scale" and np.issubdtype(depth.dtype, np.floating)  # metres, no scale

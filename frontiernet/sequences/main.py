@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, positive_number, whole_number
+from ..errors import InputError, whole_number
 from ..io import claim_output_folder, ensure_dir, write_json
 from .gravity import gravity_alignment
 from .outputs import write_arrows, write_frontiers
@@ -42,14 +42,14 @@ def check_frames(stride, max_frames) -> tuple[int, int | None]:
 
 
 def check_outputs(conf) -> None:
-    """InputError naming the key of a setting of the outputs that cannot be used, before any frame is
-    read: ``outputs.video_fps`` (the video's and the ROS output's clock) and ``outputs.point_voxel_m`` not
-    positive, ``outputs.point_stride_px`` and ``outputs.ros.map_every_frames`` under 1, ``seed`` negative."""
-    positive_number(conf.outputs.video_fps, "outputs.video_fps", "frames per second")
-    positive_number(conf.outputs.point_voxel_m, "outputs.point_voxel_m", "metres")
-    whole_number(conf.outputs.point_stride_px, "outputs.point_stride_px", 1)
-    whole_number(conf.outputs.ros.map_every_frames, "outputs.ros.map_every_frames", 1)
-    whole_number(conf.seed, "seed", 0)
+    """InputError naming the first key of `conf` (a sequence's config) outside its declared range, before
+    any frame is read (:func:`~frontiernet.config.check_ranges`; a library caller's own config too):
+    ``outputs.video_fps`` is the video's and the ROS output's clock, ``seed`` numpy's, ``bounds_margin_m``
+    the map's extent."""
+    from ..config import check_ranges
+    from .stream import SEQUENCE_LAYOUT
+
+    check_ranges(conf, SEQUENCE_LAYOUT)
 
 
 def check_network(network) -> None:

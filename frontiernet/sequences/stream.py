@@ -79,7 +79,12 @@ def load_sequence_config(user_file=None, overrides=()):
     explore = load_config("explore")
     base = OmegaConf.create({**{key: explore[key] for key in ("anchoring", "tracking", "map")},
                              "depth": source_options()})
-    return merge_user(OmegaConf.merge(base, load_config("sequence")), user_file, overrides)
+    return merge_user(OmegaConf.merge(base, load_config("sequence")), user_file, overrides, layout=SEQUENCE_LAYOUT)
+
+
+SEQUENCE_LAYOUT = {**{key: f"explore.{key}" for key in ("anchoring", "tracking", "map")}, "depth": "depth",
+                   "": "sequence"}
+"""Where the shipped files of a sequence's config sit in it (:func:`~frontiernet.config.check_ranges`)."""
 
 
 def _matrix(value, shape: tuple, what: str) -> np.ndarray:

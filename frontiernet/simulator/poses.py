@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import InputError, number_range
+from ..errors import InputError, number_range, whole_number
 from ..geometry import poses_from_headings
 from .raycast import cast_rays, distance_to_surface
 from .voxels import VoxelGrid

@@ -189,13 +189,16 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
     bounds = scene.bounds
     origin = bounds[0] - np.array([margin, margin, 0.0])
     extent = bounds[1] + np.array([margin, margin, 0.0]) - origin
-    shape = np.floor(extent / size).astype(np.int64) + 1  # closed upper bound: a top face gets a layer
-    count = math.prod(int(n) for n in shape)  # (Python's integers: NumPy's product wraps past 2**63)
-    if count > int(conf.max_voxels):
-        raise InputError(f"{scene.metadata.spec}: voxel_size {size} m gives a {tuple(shape.tolist())} grid "
-                         f"({count:,} voxels > voxels.max_voxels {int(conf.max_voxels):,}) for a scene of "
+    cells = np.floor(extent / size) + 1  # closed upper bound: a top face gets a layer (float: a scene of 1e30 m
+    count = math.prod(float(n) for n in cells)  # overflows int64, with numpy's warning, and NumPy's product wraps)
+    if not count <= int(conf.max_voxels):  # (inf too)
+        shown = ", ".join(f"{int(n)}" if n < 1e15 else f"{n:.3g}" for n in cells)
+        voxels = f"{count:,.0f}" if count < 1e15 else f"{count:.3g}"
+        raise InputError(f"{scene.metadata.spec}: voxel_size {size} m gives a ({shown}) grid "
+                         f"({voxels} voxels > voxels.max_voxels {int(conf.max_voxels):,}) for a scene of "
                          f"{' x '.join(f'{v:.4g}' for v in bounds[1] - bounds[0])} m; check its scale (metres), "
                          "or use a larger voxel size")
+    shape = cells.astype(np.int64)
     rule = conf.explorable
     if rule not in EXPLORABLE_RULES:
         raise InputError(f"voxels.explorable must be one of {', '.join(EXPLORABLE_RULES)}, got {rule!r}")

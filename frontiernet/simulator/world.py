@@ -54,7 +54,7 @@ def load_world_config(user_file=None, overrides=(), names=("sim",)):
         InputError: an unreadable file, an unknown key or a value of the wrong kind.
     """
     conf = OmegaConf.merge(load_config(tuple(names)), {"scenes": load_config("scenes")})
-    return merge_user(conf, user_file, overrides)
+    return merge_user(conf, user_file, overrides, layout={"": names, "scenes": "scenes"})
 
 
 def build_world(scene: str | Scene, sim_conf, scenes_conf=None, *, voxels: bool = True,
