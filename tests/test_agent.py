@@ -118,7 +118,7 @@ def test_free_move_reaches_target_and_counts_a_step(two_room_scene, two_room_vox
     agent = Agent(two_room_scene, pose_from_heading(1.0, 1.0, 1.2, 0.0), AGENT, voxels=two_room_voxels)
     target = pose_from_heading(2.0, 3.0, 1.4, np.pi / 2, 0.1)
     result = agent.move_to(target)
-    assert result.reached and not result.collided and not result.left_free_space
+    assert result.reached and not result.collided and not result.left_free_space and result.contact_point is None
     assert np.allclose(result.T_world_cam, target) and np.allclose(agent.pose, target)
     assert result.distance_m == pytest.approx(np.sqrt(1 + 4 + 0.04))
     assert result.steps_added == 1 and agent.steps == 1
@@ -139,6 +139,8 @@ def test_move_into_a_wall_stops_before_it(two_room_scene):
     assert distance_to_surface(two_room_scene, final[None])[0] >= radius - 1e-5
     assert result.clearance_m >= radius - 1e-5
     assert result.blocked_at is not None and result.blocked_at[0] <= 2.9
+    # the bump sensor's report: the point of the partition's face the sphere touched
+    assert np.allclose(result.contact_point, [2.9, 0.5, 1.2], atol=0.01)
     assert result.distance_m == pytest.approx(final[0] - 1.5)
     # orientation interpolated part of the way (slerp), not snapped to the target
     angle = rotation_angle(pose_from_heading(0, 0, 0, 0.0)[:3, :3], result.T_world_cam[:3, :3])

@@ -352,7 +352,7 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         # (docs/benchmark/published/resume.sh adds --set planner.gain_exponent=1: the plan ran with 1,
         # the default since 2026-11-27 is 2)
         overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", "planner.approach_radius_m=0",
-                     "planner.traversed_is_free=false",
+                     "planner.traversed_is_free=false", "planner.bumps_are_obstacles=false",
                      *OLD_ROBOT, *overrides)
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
@@ -362,8 +362,9 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
         resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(
             None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0", "planner.traversed_is_free=false",
-                   *OLD_ROBOT]), resolve=True)})
-    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 \\\n    planner.traversed_is_free=false " + \
+                   "planner.bumps_are_obstacles=false", *OLD_ROBOT]), resolve=True)})
+    assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 \\\n    planner.traversed_is_free=false " \
+        "planner.bumps_are_obstacles=false " + \
         " ".join(OLD_ROBOT) + " $SETTINGS" in \
         (published / "resume.sh").read_text()
     assert "SETTINGS=${SETTINGS-planner.gain_exponent=1}" in (published / "resume.sh").read_text()
@@ -421,7 +422,7 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
         overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", "planner.traversed_is_free=false",
-                     *OLD_ROBOT,
+                     "planner.bumps_are_obstacles=false", *OLD_ROBOT,
                      *overrides)  # published/resume.sh sets these for all
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}

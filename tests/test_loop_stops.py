@@ -15,6 +15,7 @@ from frontiernet.depth import make_depth_source
 from frontiernet.exploration.explorer import Explorer
 from frontiernet.exploration.methods import MethodContext, make_method
 from frontiernet.geometry import pose_from_heading
+from frontiernet.mapping import OCCUPIED, UNKNOWN
 from frontiernet.simulator.camera import Renderer
 from frontiernet.simulator.voxels import voxelize_scene
 from test_move_check import ROBOT, SMALL, room_scene
@@ -77,3 +78,22 @@ def test_classic_on_monocular_depth_spends_its_budget_instead_of_stopping_with_t
     assert after["coverage"] > before["coverage"] + 0.05
     today = run("today")  # today's map (thin walls) with today's planner
     assert not today["premature_stop"] and today["coverage"] > before["coverage"] + 0.05
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_a_bump_marks_what_the_camera_never_saw_in_the_map_for_good(on):
+    # procedural:1008, classic, ground truth: a shelf's edge end-on at the camera's height, never mapped, stopped
+    # every route's first increment (36 collisions from one spot) until every goal was given up on (issue 54)
+    explorer = explorer_in_a_room(bumps_are_obstacles=on)  # the pillar 0.15 m west, never looked at
+    contact = np.array([[1.84, 1.5, 1.2]])  # in the voxel of the pillar's east face, 0.1 m from the robot
+    for _ in range(12):  # turn to face east, away from it (a turn's increment at a time)
+        explorer.move(explorer.motion.turn_to(explorer.agent.pose, 0.0)[0])
+        explorer.sense()
+    assert explorer.map.state_at(contact)[0] == UNKNOWN
+    target = explorer.agent.pose
+    target[0, 3] -= 0.2  # west (backwards), into the pillar
+    assert explorer.move(target)  # collided
+    for _ in range(3):  # turning further, never west: the robot's own free sphere reaches the voxel each frame
+        explorer.move(explorer.motion.turn_by(explorer.agent.pose, -np.radians(30.0)))
+        explorer.sense()
+    assert (explorer.map.state_at(contact)[0] == OCCUPIED) == on

@@ -450,6 +450,26 @@ def test_clear_sphere_frees_the_robot_footprint():
     assert occupancy.known_volume_m3 == pytest.approx(occupancy.observed.sum() * 1e-3)
 
 
+def test_a_contact_stays_occupied_whatever_frames_and_the_robot_sphere_say(renderer):
+    # a thing the camera misses (a shelf's edge end-on) felt by the robot's bump sensor (issue 54)
+    contact = np.array([2.5, 1.5, 1.2])  # on the camera's line of sight to the wall x = 4: every frame passes it
+    T = pose_from_heading(*CAMERA, yaw=0.0)
+    occupancy = OccupancyMap.from_bounds(BOUNDS, map_conf())
+    record = occupancy.changes(status_only=True)
+    occupancy.mark_contact(contact)
+    assert occupancy.state_at(contact[None])[0] == OCCUPIED and occupancy.known_volume_m3 == pytest.approx(1e-3)
+    assert record.take() is not None  # told like any update: the band views and the change records follow
+    before = occupancy.slice_2d(1.0, 1.4)[1].copy()
+    for _ in range(5):
+        frame = renderer.render(T)
+        occupancy.integrate(frame.depth, frame.K, T)
+        occupancy.clear_sphere(contact, 0.2)
+    assert occupancy.state_at(np.array([contact, [2.0, 1.5, 1.2]])).tolist() == [OCCUPIED, FREE]
+    assert occupancy.log_odds[tuple(occupancy.world_to_index(contact[None])[0])] == map_conf()["log_odds_max"]
+    assert occupancy.slice_2d(1.0, 1.4)[1][tuple(occupancy.world_to_index(contact[None])[0][:2])] and before.any()
+    occupancy.mark_contact(np.array([99.0, 0.0, 0.0]))  # off the grid: nothing
+
+
 def test_cylinder_touches_an_occupied_column_exactly_when_it_overlaps_its_square():
     occupancy = OccupancyMap.from_bounds(np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]), map_conf())
     depth = np.full((9, 9), 1.0, np.float32)  # a frame looking along +x from x = 0.05 hits the voxel layer [1.0, 1.1)

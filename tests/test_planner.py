@@ -441,6 +441,12 @@ def test_traversed_cells_are_the_cells_the_path_passed_through():
     assert record.contains((1.02, 0.51)) and not record.contains((1.02, 0.75)) and not record.contains((-1.0, 0.5))
     record.add((1.55, -0.95))  # off the grid: the cells inside are marked, nothing fails
     assert record.mask[15, 0] and record.mask.sum() == 26 + 5
+    # a bump at (1.55, 1.0) unmarks the cells whose squares come within 0.2 m of it (i = 14..16, j = 8..11)
+    record.forget((1.55, 1.0), 0.2)
+    assert not record.mask[15, 8:12].any() and record.mask[15, 7] and record.mask[15, 12]
+    assert record.mask.sum() == 31 - 4
+    record.forget((-5.0, -5.0), 0.2)  # off the grid: nothing
+    assert record.mask.sum() == 27
 
 
 def sealed_corridor_map():

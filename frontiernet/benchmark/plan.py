@@ -68,14 +68,14 @@ KEYS_ADDED_AFTER_PLANS = {
     "map.monocular_normal_window_px": 9,
     "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
     "planner.monocular_traversed_is_free": False,  # issue 54: monocular maps alone decide what is traversable, as before
+    "planner.bumps_are_obstacles": False,  # issue 54: a collision leaves the robot's map as it was, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "attempts_per_node": 1000,
              "stall_frames": 17, "found_on": "views", "yaw_window_deg": 45.0, "sample_region": "box",
              "edge_check": "body"},
-    # issue 54: NBVP's gain test on the branch's views and its node yaws within the drive window; a plan
-    # made with the nbvp section before them ran the discounted test and uniform yaws (one without
-    # the section ran no nbvp: the section above, today's settings)
+    # issue 54: NBVP's gain test on the branch's views and its node yaws within the drive window; a plan made with
+    # the nbvp section before them ran the discounted test and uniform yaws (one without it ran no nbvp: the above)
     "nbvp.found_on": "discounted",
     "nbvp.yaw_window_deg": 180.0,
     "nbvp.sample_region": "known_free",  # issue 54: the tree's goals drawn over the known-free cells, as before the key

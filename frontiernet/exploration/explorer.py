@@ -111,6 +111,7 @@ class Explorer:
             bool(conf.planner.monocular_traversed_is_free) and bool(depth_source.flying_pixels))
         context.traversed = TraversedCells.like(self.map) if keep_open and not self.map_free else None
         self.traversed = context.traversed
+        self.bumps_are_obstacles = bool(conf.planner.bumps_are_obstacles) and not self.map_free
         self.move_check = MoveCheck(self.map, self.motion, conf.planner, self.body_radius, self.traversed)
         self.score = context.ground_truth()  # the metrics; the robot never reads them
         self.tracker = FrontierTracker(conf.tracking, view_z=self.motion.z)
@@ -351,6 +352,11 @@ class Explorer:
         self.result.path_length_m += result.distance_m
         if result.collided or result.left_free_space:
             self.result.collisions += int(result.collided)
+            if self.bumps_are_obstacles and result.contact_point is not None:  # (planner.bumps_are_obstacles)
+                self.map.mark_contact(result.contact_point)  # then step off it before planning again
+                if self.traversed is not None:
+                    self.traversed.forget(result.contact_point[:2], float(self.conf.planner.clearance_m))
+                self.escape = self._away_pose(self.agent.pose)
             self._goal_failed()
             if self.method.moves is not None:
                 self.method.moves.bumped(self.agent.pose)

@@ -107,6 +107,13 @@ class MapUpdates:
     def __init__(self, observed: np.ndarray, log_odds: np.ndarray, occupied_threshold: float, bands) -> None:
         self._observed, self._log_odds, self._threshold = observed, log_odds, float(occupied_threshold)
         self._bands, self._records = bands, []
+        self._pinned, self._pinned_log_odds = np.empty((0, 3), np.int64), np.empty(0, np.float32)
+
+    def pin(self, index: np.ndarray, log_odds: float) -> None:
+        """Hold voxel `index` ((3,) int) observed at `log_odds` through every later update (each
+        :meth:`after` sets it again): call between :meth:`before` and :meth:`after` of its box."""
+        self._pinned = np.vstack([self._pinned, np.asarray(index, np.int64).reshape(1, 3)])
+        self._pinned_log_odds = np.append(self._pinned_log_odds, np.float32(log_odds))
 
     def record(self, status_only: bool = False) -> ChangedBox:
         """A new :class:`ChangedBox`, told of every update from now on."""
@@ -122,7 +129,12 @@ class MapUpdates:
         return self._states(lo, hi) if any(record.status_only for record in self._records) else None
 
     def after(self, lo: np.ndarray, hi: np.ndarray, before: np.ndarray | None) -> None:
-        """The box [lo, hi) ((3,) int) was updated; its states were `before` (:meth:`before`)."""
+        """The box [lo, hi) ((3,) int) was updated; its states were `before` (:meth:`before`). The
+        pinned voxels in it (:meth:`pin`) are set again first."""
+        inside = np.all((self._pinned >= lo) & (self._pinned < hi), axis=1)
+        if inside.any():
+            index = tuple(self._pinned[inside].T)
+            self._log_odds[index], self._observed[index] = self._pinned_log_odds[inside], True
         self._bands.changed(lo, hi)
         flipped = None if before is None else flipped_box(before, self._states(lo, hi), lo)
         for record in self._records:

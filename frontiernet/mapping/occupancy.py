@@ -37,6 +37,10 @@ UNKNOWN, FREE, OCCUPIED = 0, 1, 2
 """Voxel states returned by :meth:`OccupancyMap.state_at` (int8)."""
 
 _FORMAT = "frontiernet-occupancy-1"
+_KEYS_ADDED_AFTER_FILES = {"depth_edge_rtol": None, **dict.fromkeys(("monocular_hit_range_m", "monocular_log_odds_miss",
+                           "monocular_free_fraction", "monocular_far_hit_max", "monocular_max_incidence_deg")),
+                           "monocular_normal_window_px": 9}
+"""Map settings a file written before them lacks, as such a file was made: no depth-edge filter, no monocular model."""
 
 
 class OccupancyMap:
@@ -131,8 +135,7 @@ class OccupancyMap:
         return self._observed & (self._log_odds <= self.settings.occupied_threshold)
 
     def unknown_mask(self) -> np.ndarray:
-        """(X, Y, Z) bool, voxels never updated."""
-        return ~self._observed
+        return ~self._observed  # (X, Y, Z) bool, voxels never updated
 
     @property
     def known_volume_m3(self) -> float:
@@ -141,10 +144,9 @@ class OccupancyMap:
 
     def cylinder_touches_occupied(self, xy: np.ndarray, radius_m: float, z_min: float, z_max: float) -> bool:
         """Whether an upright cylinder of `radius_m` around world point `xy` ((2,) metres) over the
-        height band [z_min, z_max] (the voxel layers :meth:`slice_2d` takes) overlaps an occupied
-        voxel (exact disk-square test on the band's occupied columns, over the cylinder's
-        footprint only): the planning grid's view
-        of a body there, so a move it allows is one the grid could have planned."""
+        height band [z_min, z_max] (the layers :meth:`slice_2d` takes) overlaps an occupied voxel (exact
+        disk-square test): the planning grid's view of a body there, so a move it allows is one the grid
+        could have planned."""
         xy, radius, lo, window = self._disk_window(xy, radius_m, z_min, z_max, "cylinder_touches_occupied")
         if window is None:
             return False
@@ -260,10 +262,9 @@ class OccupancyMap:
         self._updates.after(lo, hi, before)
 
     def changes(self, status_only: bool = False) -> ChangedBox:
-        """A record of the index box that this map's updates (:meth:`integrate`, :meth:`clear_sphere`)
-        touch from now on; take it with :meth:`ChangedBox.take`. Outside that box no voxel changed.
-        `status_only`: the box of the voxels whose state (unknown, free, occupied) flipped, for a
-        consumer that reads :attr:`observed` and :attr:`occupied` alone."""
+        """A record of the index box that this map's updates (:meth:`integrate`, :meth:`clear_sphere`,
+        :meth:`mark_contact`) touch from now on (:meth:`ChangedBox.take`); no voxel outside it changed.
+        `status_only`: the box of the voxels whose state (unknown, free, occupied) flipped."""
         return self._updates.record(status_only)
 
     def clear_sphere(self, centre: np.ndarray, radius_m: float) -> None:
@@ -277,6 +278,17 @@ class OccupancyMap:
         miss = np.float32(max(self.settings.log_odds_miss, self.settings.log_odds_min))
         self._log_odds[box] = np.where(inside, np.minimum(self._log_odds[box], miss), self._log_odds[box])
         self._updates.after(lo, hi, before)
+
+    def mark_contact(self, point: np.ndarray) -> None:
+        """Hold the voxel holding `point` ((3,) world metres; none off the grid) occupied at ``log_odds_max``
+        from now on, whatever later frames and :meth:`clear_sphere` say: where the robot's bump sensor
+        (:attr:`~frontiernet.simulator.agent.MoveResult.contact_point`) felt what its camera never mapped."""
+        index = self.world_to_index(np.asarray(point, np.float64).reshape(1, 3))[0]
+        if self.in_grid(index):
+            before = self._updates.before(index, index + 1)
+            self._known_voxels += int(not self._observed[tuple(index)])
+            self._updates.pin(index, self.settings.log_odds_max)
+            self._updates.after(index, index + 1, before)
 
     # -- queries ---------------------------------------------------------------------------------
 
@@ -371,14 +383,7 @@ class OccupancyMap:
             with np.load(path, allow_pickle=False) as data:
                 if str(data["format"]) != _FORMAT:
                     raise InputError(f"{path}: not an occupancy map file (format {str(data['format'])!r})")
-                settings = ast.literal_eval(str(data["settings"]))
-                settings.setdefault("depth_edge_rtol", None)  # files written before the key: no edge filter
-                settings.setdefault("monocular_hit_range_m", None)  # ... and none of the monocular sensor model
-                settings.setdefault("monocular_log_odds_miss", None)
-                settings.setdefault("monocular_free_fraction", None)
-                settings.setdefault("monocular_far_hit_max", None)
-                settings.setdefault("monocular_max_incidence_deg", None)  # ... nor its oblique-view rule
-                settings.setdefault("monocular_normal_window_px", 9)
+                settings = {**_KEYS_ADDED_AFTER_FILES, **ast.literal_eval(str(data["settings"]))}
                 occupancy = cls(data["origin"], data["log_odds"].shape, settings)
                 occupancy._log_odds[...] = data["log_odds"]
                 occupancy._observed[...] = data["observed"]

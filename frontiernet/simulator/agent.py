@@ -125,6 +125,10 @@ class MoveResult:
         steps_added: steps counted by this move (0 or 1).
         blocked_at: (3,) float64 first sample of the segment found unsafe, or None.
         clearance_m: distance from the final position to the mesh (metres).
+        contact_point: (3,) float64 world metres, what a bump sensor reports when the move was
+            stopped (None otherwise): the mesh point the sphere touched at `blocked_at`, or
+            `blocked_at` itself where the move would have left the free space
+            (:meth:`Agent.contact_point`).
     """
 
     reached: bool
@@ -135,6 +139,12 @@ class MoveResult:
     steps_added: int
     blocked_at: np.ndarray | None
     clearance_m: float
+    contact_point: np.ndarray | None = None
+
+
+CONTACT_PROBE_M = 0.005
+"""Step of the central differences that give a contact's direction (:meth:`Agent.contact_point`):
+well under the agent's radius and a voxel, well over float error."""
 
 
 class Agent:
@@ -249,7 +259,25 @@ class Agent:
             self._trajectory.append(T_final.copy())
             steps = int(self.counter.update(T_final))
         return MoveResult(reached=reached, collided=collided, left_free_space=left, T_world_cam=T_final.copy(),
-                          distance_m=moved, steps_added=steps, blocked_at=blocked_at, clearance_m=final_clearance)
+                          distance_m=moved, steps_added=steps, blocked_at=blocked_at, clearance_m=final_clearance,
+                          contact_point=None if blocked_at is None else self.contact_point(blocked_at, collided))
+
+    def contact_point(self, point: np.ndarray, touches_mesh: bool) -> np.ndarray:
+        """Where the sphere centred at `point` ((3,) world metres, a sample a move stopped before)
+        meets what stopped it, as a bump sensor reports it: with `touches_mesh`, the nearest
+        point of the mesh, along the distance field's gradient (central differences of
+        :data:`CONTACT_PROBE_M`) at the clearance; otherwise (the sample leaves the free space)
+        `point` itself. (3,) float64 world metres."""
+        point = np.asarray(point, np.float64)
+        if not touches_mesh:
+            return point.copy()
+        offsets = np.vstack([np.eye(3), -np.eye(3)]) * CONTACT_PROBE_M
+        distances = self._clearance(np.vstack([point[None], point + offsets]))
+        gradient = (distances[1:4] - distances[4:7]) / (2.0 * CONTACT_PROBE_M)
+        norm = float(np.linalg.norm(gradient))
+        if norm < 1e-9:  # (inside a thin gap: no direction) the sample itself
+            return point.copy()
+        return point - gradient / norm * float(distances[0])
 
     def _interpolate(self, T_target: np.ndarray, t: float) -> np.ndarray:
         """Pose at fraction `t` of the way from the current pose to `T_target` (lerp + slerp)."""
