@@ -54,9 +54,9 @@ def load_mapgen_config(user_file=None, overrides=()):
 
 def config_hash(conf) -> str:
     """Short SHA-256 of the resolved config without :data:`RUNTIME_KEYS` and without the method sections
-    (:data:`~frontiernet.benchmark.plan.METHOD_SECTIONS`, e.g. ``nbvp``) that no run of ``mapgen.runs``
+    (:data:`~frontiernet.benchmark.changes.METHOD_SECTIONS`, e.g. ``nbvp``) that no run of ``mapgen.runs``
     reads: names a dataset's settings, so a change to another method leaves the dataset resumable."""
-    from frontiernet.benchmark.plan import METHOD_SECTIONS
+    from frontiernet.benchmark.changes import METHOD_SECTIONS
 
     settings = OmegaConf.to_container(conf, resolve=True)
     for section, key in RUNTIME_KEYS:

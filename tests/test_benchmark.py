@@ -205,7 +205,7 @@ def test_monocular_keys_change_only_monocular_runs_and_a_methods_section_only_it
     a method's own section (``nbvp``) its runs only; any other key, its every run."""
     from omegaconf import OmegaConf
 
-    from frontiernet.benchmark.plan import runs_changed
+    from frontiernet.benchmark.changes import runs_changed
     from frontiernet.exploration.run import load_run_config
 
     stored = {"depth": "gt,emulated", "conf": OmegaConf.to_container(load_run_config(), resolve=True)}
@@ -585,3 +585,18 @@ def test_a_run_whose_worker_is_killed_is_run_again_and_the_benchmark_completes(p
     assert "a worker process died; retrying" in stderr
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert [row["status"] for row in rows] == ["done", "done"], rows
+
+
+def test_a_setting_that_acts_only_on_a_collision_redoes_only_the_runs_that_collided():
+    # planner.bumps_are_obstacles (issue 54): a run without a collision is the same to the step either way
+    from frontiernet.benchmark.changes import runs_changed
+
+    runs = [{"key": f"s/{method}/start0_repeat0", "method": method} for method in ("classic", "nbvp", "oracle")]
+    conf = {"planner": {"bumps_are_obstacles": False}}
+    plan = {"settings": {"depth": "gt", "conf": conf}, "runs": runs}
+    finished = {"s/classic/start0_repeat0": {"collisions": 36}, "s/nbvp/start0_repeat0": {"collisions": 0}}
+    records = type("Finished", (), {"metrics": staticmethod(finished.get)})()
+    settings = {"depth": "gt", "conf": {"planner": {"bumps_are_obstacles": True}}}
+    keys, readers = runs_changed(plan, settings, records)
+    assert keys == ["s/classic/start0_repeat0"] and [str(reader) for reader in readers] == ["collided runs"]
+    assert runs_changed(plan, settings)[0] == [run["key"] for run in runs]  # without the records: every run

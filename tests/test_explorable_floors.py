@@ -107,7 +107,7 @@ def test_thin_floor_over_a_stairwell_counts_the_storey_not_the_void_under_it(one
 
 
 def test_without_the_storey_keys_the_rule_before_them_keeps_the_flight(one_storey):
-    """Benchmark plans made before the storey keys read them as null (frontiernet/benchmark/plan.py):
+    """Benchmark plans made before the storey keys read them as null (frontiernet/benchmark/changes.py):
     then only the void under the building is cut, and the space over the flight still counts."""
     conf = OmegaConf.merge(load_config("sim").voxels, {"storey_floor_share": None, "storey_slab_share": None})
     grid = voxelize_scene(load_scene(str(one_storey), scenes_config()), conf)

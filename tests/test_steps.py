@@ -273,7 +273,7 @@ def test_benchmarks_planned_before_the_account_read_its_settings_as_shipped():
     """The account changes no run: a plan made before the ``steps`` section resumes with it."""
     from omegaconf import OmegaConf
 
-    from frontiernet.benchmark.plan import KEYS_ADDED_AFTER_PLANS
+    from frontiernet.benchmark.changes import KEYS_ADDED_AFTER_PLANS
 
     assert KEYS_ADDED_AFTER_PLANS["steps"] == OmegaConf.to_container(CONF.steps)
 

@@ -17,8 +17,8 @@ from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
 from ..io import LOCK_NAME, check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
-from .plan import (MIN_BUDGET, blocking_difference, depth_sources, plan_runs, runs_changed, with_idle_keys,
-                   with_keys_added_after)
+from .changes import blocking_difference, runs_changed, with_idle_keys, with_keys_added_after
+from .plan import MIN_BUDGET, depth_sources, plan_runs
 from .budget import BudgetRule
 from .report import write_report
 from .runner import finished_row, run_all, with_copies
@@ -58,7 +58,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         redo_changed: resume a benchmark whose settings differ only in settings that some of its
             runs alone read (``map.monocular_*`` and a source's ``depth`` section: that source's runs;
             a method's own section, ``nbvp``, ``omniscient``...: that method's runs;
-            :func:`~frontiernet.benchmark.plan.runs_changed`): those finished runs are discarded and
+            :func:`~frontiernet.benchmark.changes.runs_changed`): those finished runs are discarded and
             run again under this run's settings, the others kept.
     Returns:
         ``{"rows": [...], "results": path, "table": path, "plots": [...], "wall_s": s}``.
@@ -161,16 +161,16 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
     """The plan stored in benchmark folder `out` (``plan.json``) when a benchmark with `settings`
     (as :func:`main` builds them) may resume it; InputError naming the first setting that differs.
     Settings that only some of its runs read (those of some depth sources or methods) may differ with
-    `redo_changed` (:func:`~frontiernet.benchmark.plan.runs_changed`): the plan then carries
+    `redo_changed` (:func:`~frontiernet.benchmark.changes.runs_changed`): the plan then carries
     ``redo_runs``, the keys of the runs they change and their description (:func:`main` discards
     those finished).
 
     A plan made before the run config had a section of
     :data:`~frontiernet.exploration.run.RUN_SECTIONS` (``sim``, ``depth``, ``ground_truth``,
     ``scenes``) used the shipped file, as it was then (:func:`shipped_before`);
-    one made before a key of :data:`~frontiernet.benchmark.plan.KEYS_ADDED_AFTER_PLANS` existed
+    one made before a key of :data:`~frontiernet.benchmark.changes.KEYS_ADDED_AFTER_PLANS` existed
     ran as that key's listed value does; a plan made before a key of
-    :data:`~frontiernet.benchmark.plan.KEYS_IDLE_WHEN` existed, whose runs that key does not change
+    :data:`~frontiernet.benchmark.changes.KEYS_IDLE_WHEN` existed, whose runs that key does not change
     (ground-truth depth, map mode), takes this run's value.
     Anything else that differs is a change of settings."""
     previous = read_plan(out)
@@ -188,7 +188,7 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
                          "--out: its runs are not mixed with this protocol's")
     if previous["settings"] != settings:
         difference = blocking_difference(previous["settings"], settings)
-        redo = runs_changed(previous, settings)
+        redo = runs_changed(previous, settings, FinishedRuns(out))
         if redo is None:
             raise InputError(f"{out} holds a benchmark with other settings ({difference}); use another --out or "
                              "remove it")
