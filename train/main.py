@@ -132,10 +132,9 @@ def check_settings(conf) -> None:
     ``optim.final_lr_fraction`` outside [0, 1]; threads or loader workers outside 0 (1) to 4 per core; a
     checkpoint period that is not positive; a ``trainer.max_time`` of no time (:func:`check_max_time`); a
     ``data.cache`` folder that cannot be made (:func:`~train.cache.check_cache_folder`)."""
-    from frontiernet.errors import cpu_count_option, positive_number, whole_number
+    from frontiernet.errors import check_seed, cpu_count_option, positive_number, whole_number
     from frontiernet.io import check_output_folder
     from frontiernet.model.predictor import input_size
-    from frontiernet.errors import check_seed
 
     if not str(conf.name).strip():  # (' ' trained into a folder named ' ')
         raise InputError(f"name: the run's folder name inside out= is blank ({conf.name!r}); give one, e.g. name=tiny")

@@ -14,11 +14,13 @@
 # the emulated-depth runs; a method's own section: its runs), those runs are redone, the others kept.
 # The folder was made anew on ddf24ef (the 0.1 m robot, sessions.md); 671581e's NBVP edges keep the
 # move check's body clear (nbvp.edge_check), so its nbvp runs were redone, the others kept; a0ae25f keeps
-# the way back open on ground truth too (planner.traversed_is_free), so its ground-truth runs are redone.
+# the way back open on ground truth too (planner.traversed_is_free), so its ground-truth runs are redone;
+# 9711f05 marks bumps in the map (planner.bumps_are_obstacles), which acts only on a collision: it redoes
+# the runs that collided (two when it was made) and keeps the others (the same to the step otherwise).
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh a0ae25f ../pinned_scene_budgets_a0ae25f}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 9711f05 ../pinned_scene_budgets_9711f05}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
