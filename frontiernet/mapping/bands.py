@@ -131,8 +131,8 @@ class MapUpdates:
     def after(self, lo: np.ndarray, hi: np.ndarray, before: np.ndarray | None) -> None:
         """The box [lo, hi) ((3,) int) was updated; its states were `before` (:meth:`before`). The
         pinned voxels in it (:meth:`pin`) are set again first."""
-        inside = np.all((self._pinned >= lo) & (self._pinned < hi), axis=1)
-        if inside.any():
+        inside = np.all((self._pinned >= lo) & (self._pinned < hi), axis=1) if len(self._pinned) else ()
+        if np.any(inside):
             index = tuple(self._pinned[inside].T)
             self._log_odds[index], self._observed[index] = self._pinned_log_odds[inside], True
         self._bands.changed(lo, hi)
