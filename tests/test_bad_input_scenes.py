@@ -62,22 +62,25 @@ def test_floor_plan_thresholds_that_contradict_are_refused(plan_spec, options, m
     assert message in one_line_error()
 
 
-def test_a_focal_length_past_a_pinhole_field_of_view_is_refused(tmp_path, one_line_error):
-    # issue 55's third probe: focal_px 1e-9 rendered "valid depth 100%, range 0.00-0.00 m"
-    (tmp_path / "c.yaml").write_text("camera:\n  focal_px: 1.0e-9\n")
+def refused_render_config(tmp_path, text: str, one_line_error) -> str:
+    """The one line `render` refuses a `--config` file holding `text` with (exit 2, no output folder)."""
+    (tmp_path / "c.yaml").write_text(text)
     assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(tmp_path / "o"),
                  "--config", str(tmp_path / "c.yaml")]) == 2
-    assert "camera.focal_px 1e-09 gives a" in one_line_error()
     assert not (tmp_path / "o").exists()
+    return one_line_error()
+
+
+def test_a_focal_length_past_a_pinhole_field_of_view_is_refused(tmp_path, one_line_error):
+    # issue 55's third probe: focal_px 1e-9 rendered "valid depth 100%, range 0.00-0.00 m"
+    assert "camera.focal_px 1e-09 gives a" in refused_render_config(tmp_path, "camera:\n  focal_px: 1.0e-9\n",
+                                                                    one_line_error)
 
 
 def test_a_config_section_set_to_null_is_one_line(tmp_path, one_line_error):
     # issue 55's fourth probe: `camera: null` in a render config was an internal error (TypeError)
-    (tmp_path / "c.yaml").write_text("camera: null\n")
-    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(tmp_path / "o"),
-                 "--config", str(tmp_path / "c.yaml")]) == 2
-    assert "c.yaml: config key 'camera' is a section (its keys: width, height" in one_line_error()
-    assert not (tmp_path / "o").exists()
+    assert "c.yaml: config key 'camera' is a section (its keys: width, height" in refused_render_config(
+        tmp_path, "camera: null\n", one_line_error)
     assert main(["explore", "--scene", "procedural:3", "--out", str(tmp_path / "e"), "planner=null"]) == 2
     assert "override: config key 'planner' is a section" in one_line_error()
 
