@@ -234,15 +234,24 @@ def disks_touch_cells(mask: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy
     Returns:
         (N,) bool.
     """
+    cells, near = cells_near(xy, origin_xy, cell_m, radius_m)
+    inside = cells_inside(cells, mask.shape)
+    hit = np.zeros(inside.shape, bool)
+    hit[inside] = mask[cells[inside][:, 0], cells[inside][:, 1]]
+    return (hit & near).any(axis=1)
+
+
+def cells_near(xy: np.ndarray, origin_xy: np.ndarray, cell_m: float, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """The cells of a 2D grid (as in :func:`disks_touch_cells`) around each of the (N, 2) world points `xy`
+    (metres), within reach of a disk of `radius_m` metres: (N, K, 2) int64 cells (the square block of K
+    cells around each point's own; they may lie off the grid) and (N, K) bool, whether the cell's square
+    comes within `radius_m` of the point (an exact disk-square test)."""
     xy = np.asarray(xy, np.float64).reshape(-1, 2)
     reach = int(np.ceil(radius_m / cell_m))
     steps = np.arange(-reach, reach + 1)
     offsets = np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)
     cells = grid_cells(xy, origin_xy, cell_m)[:, None, :] + offsets[None]  # (N, K, 2)
-    inside = cells_inside(cells, mask.shape)
-    hit = np.zeros(inside.shape, bool)
-    hit[inside] = mask[cells[inside][:, 0], cells[inside][:, 1]]
-    return (hit & (squared_distance_to_cells(cells, origin_xy, cell_m, xy[:, None, :]) < radius_m ** 2)).any(axis=1)
+    return cells, squared_distance_to_cells(cells, origin_xy, cell_m, xy[:, None, :]) < radius_m ** 2
 
 
 def squared_distance_to_cells(cells: np.ndarray, origin_xy: np.ndarray, cell_m: float, xy: np.ndarray) -> np.ndarray:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry import cells_inside, grid_cells, grid_values, squared_distance_to_cells
+from ..geometry import cells_inside, cells_near, grid_cells, grid_values
 
 
 @dataclass
@@ -58,14 +58,9 @@ class TraversedCells:
         """Unmark the cells whose squares come within `radius_m` of world point `xy` ((2,) metres):
         the robot bumped into something there, which is newer than its passing (the map's clearance
         rule decides those cells again; kept open, a route cut the corner it bumped into)."""
-        reach = int(np.ceil(radius_m / self.cell_m)) + 1
-        steps = np.arange(-reach, reach + 1)
-        cells = grid_cells(np.asarray(xy, np.float64)[None, :2], self.origin_xy, self.cell_m)[0] + \
-            np.stack(np.meshgrid(steps, steps, indexing="ij"), -1).reshape(-1, 2)
-        cells = cells[cells_inside(cells, self.mask.shape)]
-        near = squared_distance_to_cells(cells, self.origin_xy, self.cell_m, np.asarray(xy, np.float64)[:2]) \
-            < radius_m ** 2
-        self.mask[cells[near, 0], cells[near, 1]] = False
+        cells, near = cells_near(np.asarray(xy, np.float64)[:2], self.origin_xy, self.cell_m, radius_m)
+        cells = cells[0][near[0] & cells_inside(cells[0], self.mask.shape)]
+        self.mask[cells[:, 0], cells[:, 1]] = False
 
     def contains(self, xy: np.ndarray) -> bool:
         """Whether the cell under world point `xy` ((2,) metres) was passed through."""
