@@ -16,7 +16,7 @@ from typing import ClassVar, Iterable, Mapping, Sequence
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from .config_ranges import Layout, layout_ranges
+from .config_ranges import Layout, layout_ranges, layout_relations
 from .errors import InputError, check_keys
 
 
@@ -147,13 +147,22 @@ def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides:
 def check_ranges(conf, layout: Layout) -> None:
     """InputError naming the first key of `conf` (a DictConfig or plain dict) whose value is outside
     its range declared in ``configs/ranges/`` (:mod:`frontiernet.config_ranges`), e.g.
-    ``planner.gain_exponent must be a number >= 0, got -2``. `layout` says where each shipped file's
+    ``planner.gain_exponent must be a number >= 0, got -2``, or breaks a declared relation between keys
+    (``map.occupied_threshold < map.log_odds_max must hold (...)``). `layout` says where each shipped file's
     keys sit in `conf` (``{"": "explore", "scenes": "scenes"}``); keys `conf` lacks are skipped."""
     tree = OmegaConf.to_container(conf, resolve=True) if isinstance(conf, DictConfig) else conf
     for key, spec in layout_ranges(layout).items():
         parent, leaf = dotted_parent(tree, key)
         if parent is not None and leaf in parent and not spec.admits(parent[leaf]):
             raise InputError(f"{key} must be {spec.describe()}, got {parent[leaf]!r}")
+    for relation in layout_relations(layout):
+        values = {}
+        for key in relation.keys():
+            parent, leaf = dotted_parent(tree, key)
+            values[key] = parent.get(leaf) if parent is not None else None
+        if relation.holds(values) is False:
+            got = ", ".join(f"{key}={value!r}" for key, value in values.items())
+            raise InputError(f"{relation.text()} must hold ({relation.reason}), got {got}")
 
 
 def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConfig:

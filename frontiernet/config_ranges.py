@@ -14,8 +14,20 @@ A declaration maps a dotted key to a spec. A YAML list is the choices of a text 
     "box [-50, 50]"             a [[min x, y, z], [max x, y, z]] box with min < max on each axis
     "list [0, inf)"             a list of numbers >= 0 (any length; "list length 3 ...": three)
     "increasing list int [1, inf)"  ... in strictly increasing order
+    "bool"                      true or false ("bool or null", "bool or auto": also those)
 
-Brackets are inclusive, parentheses exclusive, ``inf`` unbounded. Composite configs (a run's
+Brackets are inclusive, parentheses exclusive, ``inf`` unbounded.
+
+A key holding a comparison declares a *relation* between keys, its value the reason the message gives::
+
+    "map.log_odds_min <= map.occupied_threshold < map.log_odds_max": the clamped log-odds reach both sides
+    "labels.num_classes == len(labels.bin_edges)": one class a bin edge
+    "procedural.l_shape_probability + procedural.u_shape_probability <= 1": the rest is a rectangle
+    "map.max_range_m <= sim:camera.max_depth": rays beyond the sensor's range
+
+A chain of ``<``, ``<=``, ``==``, ``>=``, ``>`` between terms, each a sum (``+``) of products (``*``) of
+numbers, keys of the file, ``len(key)`` and ``file:key`` (a key of another shipped file: the relation holds where the layout
+holds both). A relation with a null or absent key is not checked (null turns a rule off). Composite configs (a run's
 config holds ``sim`` and ``scenes`` as sections) say where each file's keys sit with a *layout*,
 ``{"": "explore", "scenes": "scenes", "ground_truth": "datagen.ground_truth"}``: a section prefix
 of the composite, then the file, or the file and its section, whose declarations apply there.
@@ -25,6 +37,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import operator
 import re
 from dataclasses import dataclass
 from functools import lru_cache
@@ -37,6 +50,10 @@ from .errors import InputError
 _INTERVAL = re.compile(r"^(?P<words>[a-z0-9 ]*?)\s*(?P<open>[\[(])\s*(?P<low>[^,\s]+)\s*,\s*(?P<high>[^\])\s]+)\s*"
                        r"(?P<close>[\])])(?P<alternatives>(\s+or\s+[\w-]+)*)$")
 _SHAPES = ("pair", "box", "list", "increasing", "length", "int")
+_BOOLEAN = re.compile(r"^bool(?P<alternatives>(\s+or\s+[\w-]+)*)$")
+_COMPARISON = re.compile(r"\s+(<=|>=|==|<|>)\s+")
+_OPERATORS = {"<": operator.lt, "<=": operator.le, "==": operator.eq, ">=": operator.ge, ">": operator.gt}
+_LENGTH = re.compile(r"^len\((?P<key>[\w.:]+)\)$")
 
 Layout = Mapping[str, str | Sequence[str]]
 """Where a composite config's shipped files sit: section prefix ("" for the top) -> file name(s) or
@@ -52,7 +69,7 @@ class Range:
     low_closed: bool = True
     high_closed: bool = True
     integer: bool = False
-    shape: str = "value"  # value | pair | box | list
+    shape: str = "value"  # value | pair | box | list | bool
     length: int | None = None  # a list's required length
     increasing: bool = False
     nullable: bool = False
@@ -61,6 +78,9 @@ class Range:
 
     def describe(self) -> str:
         """What a value must be, as the message says it: ``an integer >= 1``, ``one of free, skip``."""
+        others = self.texts + (("null",) if self.nullable else ())
+        if self.shape == "bool":
+            return "true or false" + (f" (or {' or '.join(others)})" if others else "")
         if not self.numbers:
             return "one of " + ", ".join(self.texts) + (" (or null)" if self.nullable else "")
         kind = "integer" if self.integer else "number"
@@ -82,7 +102,6 @@ class Range:
             text = f"a list of {size}{kind}s{bound}" + (" in increasing order" if self.increasing else "")
         else:
             text = f"a{'n' if kind == 'integer' else ''} {kind}{bound}"
-        others = self.texts + (("null",) if self.nullable else ())
         return text + (f" (or {' or '.join(others)})" if others else "")
 
     def admits(self, value) -> bool:
@@ -91,6 +110,8 @@ class Range:
             return self.nullable
         if isinstance(value, str):
             return value in self.texts
+        if self.shape == "bool":
+            return isinstance(value, bool)
         if not self.numbers:
             return False
         if self.shape == "value":
@@ -132,6 +153,11 @@ def parse_range(spec, where: str) -> Range:
         if not texts or not all(isinstance(item, str) for item in texts):
             raise ValueError(f"{where}: choices must be a list of text (and null), got {spec!r}")
         return Range(numbers=False, texts=texts, nullable=None in spec)
+    boolean = _BOOLEAN.match(str(spec).strip())
+    if boolean is not None:
+        alternatives = boolean["alternatives"].split()[1::2]
+        return Range(shape="bool", numbers=False, nullable="null" in alternatives,
+                     texts=tuple(word for word in alternatives if word != "null"))
     match = _INTERVAL.match(str(spec).strip())
     if match is None:
         raise ValueError(f"{where}: not a range spec: {spec!r}")
@@ -157,29 +183,153 @@ def ranges_folder() -> Path:
     return Path(str(resources.files("frontiernet.configs").joinpath("ranges")))
 
 
+@dataclass(frozen=True)
+class Relation:
+    """A declared relation (module docstring): ``terms[0] operators[0] terms[1] ...``, each term a sum of
+    parts, each a product (``" * "``) of factors (a number text, a dotted key, ``len(key)``); `reason` is what the message says it is for."""
+
+    terms: tuple[tuple[str, ...], ...]
+    operators: tuple[str, ...]
+    reason: str
+
+    def keys(self) -> list[str]:
+        """The dotted keys the relation reads, in order."""
+        return [key for term in self.terms for part in term for factor in part.split(" * ")
+                if (key := _factor_key(factor)) is not None]
+
+    def renamed(self, names: Mapping[str, str]) -> "Relation":
+        """The relation with each key renamed by `names` (a file's key -> the composite config's)."""
+        def rename(factor: str) -> str:
+            key = _factor_key(factor)
+            return factor if key is None else factor.replace(key, names[key])
+        return Relation(tuple(tuple(" * ".join(rename(factor) for factor in part.split(" * ")) for part in term)
+                              for term in self.terms), self.operators, self.reason)
+
+    def text(self) -> str:
+        terms = [" + ".join(term) for term in self.terms]
+        return " ".join(item for pair in zip(terms, self.operators + ("",)) for item in pair).strip()
+
+    def holds(self, values: Mapping[str, object]) -> bool | None:
+        """Whether the relation holds for `values` (key -> plain value); None when a key is absent or null,
+        or a value no number (its own range refuses that)."""
+        sums = []
+        for term in self.terms:
+            total = 0.0
+            for part in term:
+                product = 1.0
+                for factor in part.split(" * "):
+                    value = _factor_value(factor, values)
+                    if value is None:
+                        return None
+                    product *= value
+                total += product
+            sums.append(total)
+        return all(_OPERATORS[op](a, b) for op, a, b in zip(self.operators, sums, sums[1:]))
+
+
+def _factor_key(factor: str) -> str | None:
+    """The key a factor reads (``len(a.b)``: ``a.b``), None for a number."""
+    length = _LENGTH.match(factor)
+    if length is not None:
+        return length["key"]
+    try:
+        float(factor)
+    except ValueError:
+        return factor
+    return None
+
+
+def _factor_value(factor: str, values: Mapping[str, object]) -> float | None:
+    key = _factor_key(factor)
+    if key is None:
+        return float(factor)
+    value = values.get(key)
+    if _LENGTH.match(factor):
+        return float(len(value)) if isinstance(value, (list, tuple)) else None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return None
+    return float(value)
+
+
+def parse_relation(text: str, reason, where: str) -> Relation:
+    """The :class:`Relation` declared as key `text` with value `reason` (module docstring)."""
+    pieces = _COMPARISON.split(text.strip())
+    terms = tuple(tuple(part.strip() for part in term.split(" + ")) for term in pieces[0::2])
+    if len(pieces) < 3 or any(not factor or " " in factor for term in terms for part in term
+                              for factor in part.split(" * ")):
+        raise ValueError(f"{where}: not a relation: {text!r}")
+    if not isinstance(reason, str) or not reason.strip():
+        raise ValueError(f"{where}: a relation's value says what it is for, got {reason!r}")
+    return Relation(terms, tuple(pieces[1::2]), reason.strip())
+
+
 @lru_cache(maxsize=None)
-def declared(name: str) -> dict[str, Range]:
-    """The declarations of ``configs/ranges/<name>.yaml``: dotted key of ``configs/<name>.yaml``
-    -> :class:`Range`; empty when the file does not exist."""
+def _declarations(name: str) -> tuple[dict[str, Range], tuple[Relation, ...]]:
     import yaml
 
     path = ranges_folder() / f"{name}.yaml"
     if not path.is_file():
-        return {}
+        return {}, ()
     table = yaml.safe_load(path.read_text()) or {}
-    return {str(key): parse_range(spec, f"{path}: {key}") for key, spec in table.items()}
+    relations = tuple(parse_relation(str(key), value, f"{path}: {key}") for key, value in table.items()
+                      if _COMPARISON.search(str(key)))
+    ranges = {str(key): parse_range(spec, f"{path}: {key}") for key, spec in table.items()
+              if not _COMPARISON.search(str(key))}
+    return ranges, relations
+
+
+def declared(name: str) -> dict[str, Range]:
+    """The ranges of ``configs/ranges/<name>.yaml``: dotted key of ``configs/<name>.yaml`` ->
+    :class:`Range`; empty when the file does not exist."""
+    return _declarations(name)[0]
+
+
+def declared_relations(name: str) -> tuple[Relation, ...]:
+    """The relations of ``configs/ranges/<name>.yaml``, in its keys (another file's: ``file:key``)."""
+    return _declarations(name)[1]
+
+
+def _sources(layout: Layout):
+    """(prefix, file name, the file's section's key prefix) for each shipped file of `layout`, in order."""
+    for prefix, sources in layout.items():
+        for source in [sources] if isinstance(sources, str) else sources:
+            name, _, section = source.partition(".")
+            yield prefix, name, f"{section}." if section else ""
+
+
+def _placed(layout: Layout, name: str, key: str) -> str | None:
+    """Where key `key` of shipped file `name` sits in a composite config of `layout`; None if nowhere."""
+    for prefix, source, start in _sources(layout):
+        if source == name and key.startswith(start):
+            rest = key[len(start):]
+            return f"{prefix}.{rest}" if prefix else rest
+    return None
 
 
 def layout_ranges(layout: Layout) -> dict[str, Range]:
     """Dotted key of a composite config -> its :class:`Range`, for a `layout` (module docstring):
     each prefix's files in order, a later file's declaration of a key winning."""
     out: dict[str, Range] = {}
-    for prefix, sources in layout.items():
-        for source in [sources] if isinstance(sources, str) else sources:
-            name, _, section = source.partition(".")
-            start = f"{section}." if section else ""
-            for key, spec in declared(name).items():
-                if key.startswith(start):
-                    rest = key[len(start):]
-                    out[f"{prefix}.{rest}" if prefix else rest] = spec
+    for prefix, name, start in _sources(layout):
+        for key, spec in declared(name).items():
+            if key.startswith(start):
+                rest = key[len(start):]
+                out[f"{prefix}.{rest}" if prefix else rest] = spec
+    return out
+
+
+def layout_relations(layout: Layout) -> list[Relation]:
+    """The declared relations of `layout`'s files in the composite config's keys: those whose keys all sit
+    in it (a file section's relations of keys outside the section, or of a file the layout lacks, are left out)."""
+    out: list[Relation] = []
+    for prefix, name, start in _sources(layout):
+        for relation in declared_relations(name):
+            names = {}
+            for key in relation.keys():
+                other, colon, other_key = key.partition(":")
+                placed = _placed(layout, other, other_key) if colon else (
+                    (f"{prefix}.{key[len(start):]}" if prefix else key[len(start):]) if key.startswith(start) else None)
+                names[key] = placed
+            if all(names.values()) and (renamed := relation.renamed(names)) not in out:
+                out.append(renamed)
     return out

@@ -1,4 +1,4 @@
-"""Declared ranges: every number of every shipped config has one (configs/ranges/), the shipped
+"""Declared ranges: every number and switch of every shipped config has one (configs/ranges/), the shipped
 values are in them, and a value outside is refused in one line naming the key, before any work."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import yaml
 
 from frontiernet.cli.main import main
 from frontiernet.config import check_ranges, load_config
-from frontiernet.config_ranges import declared, parse_range
+from frontiernet.config_ranges import declared, declared_relations, parse_range, parse_relation
 from frontiernet.errors import InputError
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
@@ -30,9 +30,10 @@ def _leaves(tree, prefix=""):
             yield name, value
 
 
-def _is_number(value) -> bool:
+def _is_declared(value) -> bool:
+    """Numbers, lists of numbers and switches (true / false) must be declared."""
     numeric = (int, float)
-    return (isinstance(value, numeric) and not isinstance(value, bool)) or (
+    return isinstance(value, numeric) or (
         isinstance(value, list) and bool(value) and all(isinstance(v, numeric) and not isinstance(v, bool)
                                                          for v in value))
 
@@ -44,7 +45,7 @@ CONFIG_NAMES = sorted(path.stem for path in CONFIGS.glob("*.yaml") if path.stem 
 def test_every_number_of_a_shipped_config_has_a_range_its_value_is_in(name):
     leaves = dict(_leaves(yaml.safe_load((CONFIGS / f"{name}.yaml").read_text()) or {}))
     ranges = declared(name)
-    undeclared = [key for key, value in leaves.items() if _is_number(value) and key not in ranges]
+    undeclared = [key for key, value in leaves.items() if _is_declared(value) and key not in ranges]
     assert not undeclared, f"configs/ranges/{name}.yaml lacks {undeclared}"
     stale = [key for key in ranges if key not in leaves]
     assert not stale, f"configs/ranges/{name}.yaml declares keys configs/{name}.yaml does not have: {stale}"
@@ -125,3 +126,70 @@ def test_a_scene_spec_option_keeps_to_the_same_ranges(spec, message):
 
     with pytest.raises(InputError, match=re.escape(message)):
         load_scene(spec, load_world_config().scenes)
+
+
+@pytest.mark.parametrize("text, values, holds", [
+    ("a <= b < c", {"a": -2, "b": 0.0, "c": 3.5}, True),
+    ("a <= b < c", {"a": -2, "b": 3.5, "c": 3.5}, False),
+    ("a + b <= 1", {"a": 0.6, "b": 0.5}, False),
+    ("a >= 2 * b + 0.5", {"a": 3.5, "b": 1.5}, True),
+    ("a >= 2 * b + 0.5", {"a": 3.0, "b": 1.5}, False),
+    ("a == len(b)", {"a": 11, "b": list(range(11))}, True),
+    ("a == len(b)", {"a": 5, "b": list(range(11))}, False),
+    ("a <= b", {"a": 1, "b": None}, None),   # null turns the rule off
+    ("a <= b", {"a": 1}, None),              # a key the config lacks
+    ("a <= b", {"a": "auto", "b": 1}, None),  # no number: its own range says so
+])
+def test_a_relation_holds_where_it_says(text, values, holds):
+    assert parse_relation(text, "why", "test").holds(values) is holds
+
+
+@pytest.mark.parametrize("text, reason", [("a", "why"), ("a <=", "why"), ("a <= b c", "why"), ("a <= b", "")])
+def test_a_malformed_relation_names_itself(text, reason):
+    with pytest.raises(ValueError, match="test"):
+        parse_relation(text, reason, "test")
+
+
+@pytest.mark.parametrize("name", CONFIG_NAMES)
+def test_every_relation_reads_declared_keys(name):
+    for relation in declared_relations(name):
+        for key in relation.keys():
+            other, colon, other_key = key.partition(":")
+            assert (other_key in declared(other)) if colon else (key in declared(name)), \
+                f"configs/ranges/{name}.yaml: {relation.text()} reads {key}, which no range declares"
+
+
+def test_the_shipped_run_config_keeps_its_cross_file_relations():
+    from frontiernet.exploration.run import load_run_config
+
+    load_run_config()  # explore's relation with sim.camera.max_depth holds for the shipped values
+    with pytest.raises(InputError, match=re.escape("map.max_range_m <= sim.camera.max_depth must hold")):
+        load_run_config(overrides=["map.max_range_m=5"])
+    load_config("explore", overrides=["map.max_range_m=5"])  # without a camera there is nothing to compare
+
+
+@pytest.mark.parametrize("argv, message", [  # the sixth bad-input probe's cross-key nonsense (issue 55)
+    (["explore", "--scene", "procedural:0", "map.occupied_threshold=4"],
+     "map.log_odds_min <= map.occupied_threshold < map.log_odds_max must hold"),
+    (["explore", "--scene", "procedural:0", "sim.camera.max_depth=2"], "map.max_range_m <= sim.camera.max_depth"),
+    (["explore", "--scene", "procedural:0", "planner.traversed_is_free=null"],
+     "planner.traversed_is_free must be true or false, got None"),
+    (["explore", "--scene", "procedural:0", "scenes.procedural.l_shape_probability=0.9"],
+     "scenes.procedural.l_shape_probability + scenes.procedural.u_shape_probability <= 1 must hold"),
+    (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--set", "ground_truth.gain.min_samples=64"],
+     "ground_truth.gain.min_samples <= ground_truth.gain.max_samples must hold"),
+    (["train", "data.path=x", "model.labels.num_classes=5"], "model.labels.num_classes == len(model.labels.bin_edges)"),
+    (["train", "data.path=x", "model.labels.frontier_threshold_px=20"],
+     "model.labels.frontier_threshold_px < model.labels.truncation_px"),
+])
+def test_a_broken_relation_is_one_line_before_any_work(argv, message, tmp_path, one_line_error):
+    test_a_value_outside_its_range_is_one_line_before_any_work(argv, message, tmp_path, one_line_error)
+
+
+def test_a_scene_spec_option_keeps_to_the_relations():
+    from frontiernet.scenes.spec import load_scene
+    from frontiernet.simulator.world import load_world_config
+
+    with pytest.raises(InputError, match=re.escape("procedural option footprint_short_min <= footprint_max must "
+                                                   "hold (the short side is at most the long one)")):
+        load_scene("procedural:0?footprint_short_min=40", load_world_config().scenes)
