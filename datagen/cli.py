@@ -14,6 +14,7 @@ point (``frontiernet`` itself never imports ``datagen``).
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from frontiernet.cli import options
@@ -113,6 +114,9 @@ def print_summary(summary: dict, out: Path) -> None:
     print(f"  gain classes 1-{max(len(hist) - 1, 1)} (% of gain pixels): {shares}")
     for failure in summary["failed_scenes"]:  # (the first is also the error line on stderr: run_generate)
         print(f"  failed: {failure['scene']}: {failure['error']}")
+    if summary["views"] and not summary["frontier_pixel_ratio"]:  # (a model learns no frontier from it)
+        print(f"datagen: warning: no view of {out} has a frontier pixel: nothing to learn frontiers from (are the "
+              "ground_truth settings, the camera or the scenes what you meant?)", file=sys.stderr)
 
 
 def run_preview(args) -> int:

@@ -26,9 +26,8 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from frontiernet import __version__
-from frontiernet.errors import InputError, positive_number, whole_number
+from frontiernet.errors import InputError, check_seed, positive_number, whole_number
 from frontiernet.io import write_json
-from frontiernet.errors import check_seed
 
 from .generate import _slug, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
@@ -44,12 +43,26 @@ log = logging.getLogger(__name__)
 _WORLD: dict = {}  # per process: (scene spec, config hash) -> World (the last one)
 
 
+RUN_KEYS_SET_HERE = {"max_steps": "each run's budget is mapgen.max_steps", "depth": "each run's depth is its "
+                     "entry's in mapgen.runs", "seed": "each run is seeded from --seed and its scene",
+                     "video_fps": "mapgen writes no video", "video_every_steps": "mapgen writes no video"}
+"""The ``run`` keys of ``configs/explore.yaml`` that mapgen does not read, and what it uses instead."""
+
+
 def load_mapgen_config(user_file=None, overrides=()):
     """``configs/explore.yaml`` with its run sections (:func:`~frontiernet.exploration.run.load_run_config`)
-    and ``configs/mapgen.yaml`` (section ``mapgen``), then a user YAML file and ``key=value`` overrides."""
+    and ``configs/mapgen.yaml`` (section ``mapgen``), then a user YAML file and ``key=value`` overrides.
+    InputError for a user's value of a key of :data:`RUN_KEYS_SET_HERE` (it would be ignored in silence)."""
     from frontiernet.exploration.run import load_run_config
 
-    return load_run_config(user_file, overrides, names=("explore", "mapgen"))
+    names = ("explore", "mapgen")
+    conf = load_run_config(user_file, overrides, names=names)
+    if user_file is not None or overrides:
+        shipped = load_run_config(names=names).run
+        for key, instead in RUN_KEYS_SET_HERE.items():
+            if conf.run.get(key) != shipped.get(key):
+                raise InputError(f"run.{key}: mapgen does not read it ({instead}), got {conf.run.get(key)!r}")
+    return conf
 
 
 def config_hash(conf) -> str:

@@ -20,7 +20,7 @@ import numpy as np
 
 from frontiernet.config import load_config, merge_user
 from frontiernet.errors import InputError
-from frontiernet.geometry import check_principal_point, intrinsics_matrix
+from frontiernet.geometry import check_intrinsics_fit, intrinsics_matrix
 from frontiernet.io import ensure_dir, write_bytes, write_image, write_json
 from frontiernet.model.predictor import beyond_range_invalid, fill_invalid_nearest
 from frontiernet.model.overlay import distance_picture, frontier_overlay
@@ -127,7 +127,7 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
         raise InputError(f"--depth {depth_model} estimates the depth from the image: give --image")
     if intrinsics is not None:
         height, width = (rgb if rgb is not None else depth_read).shape[:2]
-        check_principal_point(intrinsics[2], intrinsics[3], width, height)
+        check_intrinsics_fit(*intrinsics, width, height)
     K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
     depth_m = depth_read if depth_model is None else estimate_depth(depth_model, rgb, K_image, conf.depth)
     if depth_m is not None and not np.any(depth_m > 0):

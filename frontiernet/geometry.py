@@ -155,12 +155,22 @@ def parse_intrinsics_text(text: str) -> tuple[float, float, float, float]:
     return values
 
 
-def check_principal_point(cx: float, cy: float, width: int, height: int, what: str = "--intrinsics") -> None:
-    """InputError naming `what` when the principal point (`cx`, `cy`) pixels lies outside a `width` x `height`
-    image (the intrinsics of another image size, or typed wrong), as given, before any scaling."""
+MAX_FOCAL_PER_IMAGE_SIDE = 100.0
+"""Focal lengths above this many times an image's larger side are refused: a field of view under 0.6 degrees
+is a telescope's, not a robot's camera (the paper's: 77 degrees, f = 0.62 x 480 px)."""
+
+
+def check_intrinsics_fit(fx: float, fy: float, cx: float, cy: float, width: int, height: int,
+                         what: str = "--intrinsics") -> None:
+    """InputError naming `what` when pixels intrinsics do not fit a `width` x `height` image, as given before any
+    scaling: a principal point (`cx`, `cy`) outside it (the intrinsics of another image size, or typed wrong), or a
+    focal length above :data:`MAX_FOCAL_PER_IMAGE_SIDE` times its larger side."""
     if not (-0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5):
         raise InputError(f"{what}: the principal point ({cx:g}, {cy:g}) lies outside the {width} x {height} image "
                          f"(intrinsics of another image size?)")
+    if max(fx, fy) > MAX_FOCAL_PER_IMAGE_SIDE * max(width, height):
+        raise InputError(f"{what}: a focal length of {max(fx, fy):g} px is over {MAX_FOCAL_PER_IMAGE_SIDE:g} x the "
+                         f"{width} x {height} image's side (a field of view under 0.6 degrees); focal lengths are pixels")
 
 
 def back_projected_points(depth: np.ndarray, rgb: np.ndarray | None, K: np.ndarray, T_world_cam: np.ndarray,

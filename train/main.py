@@ -194,6 +194,8 @@ def check_max_time(value) -> None:
     try:
         if isinstance(value, str):
             days, hours, minutes, seconds = (int(part) for part in MAX_TIME.fullmatch(value.strip()).groups())
+            if hours > 23 or minutes > 59 or seconds > 59:  # (99:99:99:99 read as 103 days)
+                raise ValueError
             length = timedelta(days=days, hours=hours, minutes=minutes, seconds=seconds)
         else:
             length = timedelta(**plain(value))

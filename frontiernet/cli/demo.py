@@ -31,7 +31,7 @@ def run(args) -> int:
 
     check_output_folder(args.out, force=True)  # the demo writes over its own outputs (make demo)
     conf = load_run_config(args.config, args.overrides, names=("explore", "demo"))
-    scene = args.scene or str(conf.pop("scene"))
+    scene = str(conf.pop("scene")) if args.scene is None else args.scene  # (an empty --scene is refused, not the default)
     check_run(conf, model=args.model, max_steps=args.max_steps)  # before the folder is made
     with claim_output_folder(args.out, force=True) as out:
         record = main(conf, scene, out, model=args.model, max_steps=args.max_steps)

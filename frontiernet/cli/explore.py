@@ -60,10 +60,16 @@ def summary_line(record: dict, out) -> str:
 
 
 def run(args) -> int:
+    from ..errors import InputError
     from ..exploration.run import check_run, load_run_config, main
     from ..io import check_output_folder, claim_output_folder
+
     check_output_folder(args.out, args.force)
-    overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # --map-free wins
+    contrary = [item for item in args.overrides if item.replace(" ", "").startswith("planner.mode=")
+                and item.split("=", 1)[1].strip() != "map_free"]
+    if args.map_free and contrary:
+        raise InputError(f"--map-free contradicts {contrary[-1]}: give one of them")
+    overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # over a --config file's
     conf = load_run_config(args.config, overrides)
     settings = {"method": args.method, "model": args.model, "depth": args.depth, "max_steps": args.max_steps,
                 "start": args.start, "seed": args.seed, "rerun": args.rerun, "show_prediction": args.show_prediction}

@@ -13,7 +13,7 @@ in ``cache/`` (a re-run resumes from them).
 from __future__ import annotations
 
 from ..errors import InputError
-from ..geometry import check_principal_point, parse_intrinsics_text
+from ..geometry import check_intrinsics_fit, parse_intrinsics_text
 from . import options
 
 
@@ -61,7 +61,7 @@ def camera_from_intrinsics(text: str, input_path):
     if not images:
         raise InputError(f"{input_path}: no images found to size the camera of --intrinsics")
     width, height = image_size(images[0])
-    check_principal_point(cx, cy, width, height)
+    check_intrinsics_fit(fx, fy, cx, cy, width, height)
     return Camera.pinhole(fx, fy, cx, cy, width, height)
 
 

@@ -147,8 +147,9 @@ def _door_gaps(candidates: np.ndarray, space_labels: np.ndarray, free: np.ndarra
 
 def _load_array(path: Path) -> np.ndarray:
     array = read_npy(path)
-    if not np.issubdtype(array.dtype, np.number) and array.dtype != bool:
-        raise InputError(f"{path}: floor-plan array must be numeric, got {array.dtype}")
+    real = np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)
+    if not real and array.dtype != bool:  # (complex numbers lost their imaginary part in silence)
+        raise InputError(f"{path}: floor-plan array must hold real numbers or booleans, got {array.dtype}")
     return array.astype(np.float64) if array.dtype != bool else np.where(array, 254.0, 0.0)
 
 

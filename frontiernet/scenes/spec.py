@@ -41,6 +41,7 @@ sources costs nothing) and call that loader.
 from __future__ import annotations
 
 import glob
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -52,6 +53,8 @@ from ..config import check_ranges
 from ..errors import InputError, check_keys
 from ..registry import Registry
 from .scene import Scene
+
+log = logging.getLogger(__name__)
 
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply")
@@ -182,7 +185,7 @@ def expand_specs(texts) -> list[str]:
     gives the sorted paths it matches; a folder that is not itself a scene but holds
     scene folders (an HM3D split, a folder of KTH plans) gives those folders. Options
     after '?' and an explicit ``source:`` prefix carry over to every expanded spec.
-    Duplicates are dropped, order is kept. Raises :class:`InputError` when a range is
+    Duplicates (the same :func:`scene_identity`) are dropped with a warning, order is kept. Raises :class:`InputError` when a range is
     malformed or a pattern or folder yields no scene.
     """
     out: list[str] = []
@@ -219,7 +222,25 @@ def expand_specs(texts) -> list[str]:
             out += [f"{path}{suffix}" for path in folders]
         else:
             out.append(text)
-    return list(dict.fromkeys(out))
+    kept: dict[tuple, str] = {}
+    for text in out:
+        identity = scene_identity(text)
+        if identity in kept and kept[identity] != text:
+            log.warning("scene %s is %s, given already: it runs once", text, kept[identity])
+        kept.setdefault(identity, text)
+    return list(kept.values())
+
+
+def scene_identity(text: str) -> tuple:
+    """What makes two specs the same scene: the source, the seed (``procedural:03`` is ``procedural:3``) or the
+    resolved path, and the options in any order (``a.glb?up=z&scale=1`` is ``./a.glb?scale=1&up=z``)."""
+    spec = parse_spec(text)
+    argument = spec.argument
+    if spec.source == "procedural":
+        argument = int(argument) if argument.lstrip("-").isdigit() else argument
+    else:
+        argument = str(Path(argument).resolve())
+    return spec.source, argument, tuple(sorted((key, repr(value)) for key, value in spec.options.items()))
 
 
 def _mesh(spec, options):

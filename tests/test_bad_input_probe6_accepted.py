@@ -1,0 +1,90 @@
+"""Nonsense the sixth bad-input probe of issue 55 found accepted (docs/bad_input.md), other than the config
+relations (tests/test_config_ranges.py): each is now one line naming the value, exit code 2, no folder made,
+or (a spec given twice) run once. Each test failed before its fix: the command ran with the value."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pytest
+
+from frontiernet.cli.main import main
+from frontiernet.errors import InputError
+
+
+@pytest.mark.parametrize("argv, message", [
+    # mapgen sets these per run: the user's value was overridden in silence
+    (["mapgen", "--scenes", "procedural:0", "--out", "{out}", "--set", "run.depth=sonar"],
+     "run.depth: mapgen does not read it (each run's depth is its entry's in mapgen.runs), got 'sonar'"),
+    (["mapgen", "--scenes", "procedural:0", "--out", "{out}", "--set", "run.max_steps=20"],
+     "run.max_steps: mapgen does not read it (each run's budget is mapgen.max_steps)"),
+    # an empty --scene explored the default scene
+    (["demo", "--scene", "", "--out", "{out}"], "empty scene spec"),
+    # --map-free won over the planner.mode=map given beside it
+    (["explore", "--scene", "procedural:0", "--map-free", "planner.mode=map", "--out", "{out}"],
+     "--map-free contradicts planner.mode=map: give one of them"),
+    # a focal length of 1e30 px (a field of view of 0 degrees) rendered blank frames
+    (["explore", "--scene", "procedural:0", "sim.camera.focal_px=1e30", "--out", "{out}"],
+     "sim.camera.focal_px <= 100 * sim.camera.width must hold"),
+    # near_clip_m past the camera's range: a dataset of no frontier pixel
+    (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--out", "{out}", "--set",
+      "ground_truth.near_clip_m=5"], "ground_truth.near_clip_m < camera.max_depth must hold"),
+])
+def test_accepted_nonsense_is_one_line_before_any_folder(argv, message, tmp_path, one_line_error):
+    out = tmp_path / "o"
+    assert main([arg.format(out=out) for arg in argv]) == 2
+    assert message in one_line_error()
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("value", ["99:99:99:99", "00:24:00:00", "00:00:60:00"])
+def test_a_max_time_with_fields_past_their_clock_is_refused(value):
+    from train.main import check_max_time
+
+    check_max_time("01:23:59:59")
+    with pytest.raises(InputError, match="trainer.max_time: a wall-clock limit is DD:HH:MM:SS"):
+        check_max_time(value)  # 99:99:99:99 was read as 103 days
+
+
+def test_intrinsics_of_a_telescope_are_refused_for_a_photo(tmp_path, one_line_error):
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.zeros((48, 64, 3), np.uint8))
+    np.save(tmp_path / "depth.npy", np.ones((48, 64), np.float32))
+    out = tmp_path / "o"
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.npy"),
+                 "--intrinsics", "1e9,1e9,32,24", "--out", str(out)]) == 2
+    assert "--intrinsics: a focal length of 1e+09 px is over 100 x the 64 x 48 image's side" in one_line_error()
+    assert not out.exists()
+
+
+def test_a_complex_floor_plan_array_is_refused(tmp_path, one_line_error):
+    plan = np.full((60, 60), 254 + 1j)  # was read with its imaginary part dropped
+    plan[0] = 0
+    np.save(tmp_path / "plan.npy", plan)
+    assert main(["scene", "topdown", f"{tmp_path / 'plan.npy'}?resolution=0.05", "--out", str(tmp_path / "t.png")]) == 2
+    assert "floor-plan array must hold real numbers or booleans, got complex128" in one_line_error()
+
+
+def test_a_scene_given_twice_in_another_spelling_runs_once(tmp_path, caplog):
+    from frontiernet.scenes.spec import expand_specs
+
+    (tmp_path / "a.glb").write_bytes(b"")
+    with caplog.at_level(logging.WARNING):
+        specs = expand_specs(["procedural:3", "procedural:03", f"{tmp_path}/a.glb?up=z&scale=1",
+                              f"{tmp_path}/./a.glb?scale=1&up=z", "procedural:2-4"])
+    assert specs == ["procedural:3", f"{tmp_path}/a.glb?up=z&scale=1", "procedural:2", "procedural:4"]
+    assert "scene procedural:03 is procedural:3, given already: it runs once" in caplog.text
+
+
+def test_datagen_warns_of_a_dataset_without_a_frontier_pixel(tmp_path, capsys):
+    from datagen.cli import print_summary
+
+    summary = {"views": 4, "scenes": 1, "shards": 1, "shards_planned": 1, "views_this_run": 4, "seconds": 1.0,
+               "views_per_second": 4.0, "frontier_view_fraction": 0.0, "frontier_pixel_ratio": 0.0,
+               "candidates_per_view": 0.0, "gain_class_pixels": [10, 0], "failed_scenes": []}
+    print_summary(summary, tmp_path)
+    assert "has a frontier pixel: nothing to learn frontiers from" in capsys.readouterr().err
+    print_summary({**summary, "frontier_pixel_ratio": 0.01, "frontier_view_fraction": 0.5}, tmp_path)
+    assert capsys.readouterr().err == ""
