@@ -239,15 +239,15 @@ def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):
 
     out = tmp_path / "bench"
     args = ["--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "1", "--max-steps", "4",
-            "--depth", "emulated", "--out", out, "--set", "depth.emulated.scale_per_frame=false",
-            "sim.camera.max_depth=3.0"]
+            "--depth", "emulated", "--out", out, "--set", "map.max_range_m=3.0", "depth.emulated.scale_per_frame=false",
+            "sim.camera.max_depth=3.0"]  # (the map's rays reach no farther than the camera: configs/ranges/explore.yaml)
     code, stdout, stderr = bench(*args)
     assert code == 0 and "1 runs (0 failed)" in stdout, stderr
     conf = json.loads((out / "plan.json").read_text())["settings"]["conf"]
     assert conf["depth"]["emulated"]["scale_per_frame"] is False and conf["sim"]["camera"]["max_depth"] == 3.0
     used = yaml.safe_load(next((out / "runs").rglob("config.yaml")).read_text())
     assert used["depth"]["emulated"]["scale_per_frame"] is False and used["sim"]["camera"]["max_depth"] == 3.0
-    code, _, stderr = bench(*args[:-1], "sim.camera.max_depth=2.0")
+    code, _, stderr = bench(*args[:-1], "sim.camera.max_depth=3.2")
     assert code == 2 and "other settings" in stderr and stderr.count("\n") == 1
     # a plan made before runs had sim, depth and scenes sections used the shipped files: it resumes without --set
     plan = json.loads((out / "plan.json").read_text())
@@ -256,7 +256,7 @@ def test_set_reaches_sim_and_depth_keys_of_every_run(plan_spec, tmp_path):
     plan["settings"]["conf"]["planner"]["clearance_m"] = 0.3  # as such plans had it: the robot of then ...
     (out / "plan.json").write_text(json.dumps(plan))
     assert bench(*args)[0] == 2
-    code, stdout, stderr = bench(*args[:-3], "--set", *OLD_ROBOT)  # ... whose sim section was shipped then
+    code, stdout, stderr = bench(*args[:-4], "--set", "map.max_range_m=3.0", *OLD_ROBOT)  # ... whose sim section was shipped then
     assert code == 0 and "1 runs (0 failed)" in stdout, stderr
 
 
