@@ -26,6 +26,8 @@ from frontiernet.errors import InputError
 from frontiernet.simulator.raycast import select_backend
 from frontiernet.workers import check_backend, run_parallel, sigterm_as_interrupt
 
+from .summary import scene_error
+
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 2
@@ -106,7 +108,7 @@ def run_shard_task(task: dict, conf_dict: dict, info: dict) -> dict:
                 "seconds": time.perf_counter() - start, "load_seconds": loaded - start, "timings": timings,
                 "pid": os.getpid(), "raycast_backend": raycast}
     except InputError as error:
-        message, bad_input = str(error), True
+        message, bad_input = scene_error(task["spec"], error), True
     except Exception as error:  # a failing scene is reported, never kills the run
         log.debug("shard %s failed", name, exc_info=True)
         message, bad_input = f"{type(error).__name__}: {error}", False

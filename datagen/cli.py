@@ -29,7 +29,7 @@ def add_parser(subparsers) -> None:
                     "'consistency' measures how well the gain labels agree with themselves.")
     options.scene_specs(parser)
     parser.add_argument("--views-per-scene", type=int, metavar="N", help="views per scene")
-    parser.add_argument("--out", metavar="DIR", help="dataset folder")
+    parser.add_argument("--out", metavar="DIR", type=options.output_path, help="dataset folder")
     options.parallel(parser)
     options.dataset_run(parser)
     options.config_file(parser, "configs/sim.yaml and configs/datagen.yaml, and scenes.yaml under section scenes:")
@@ -43,7 +43,7 @@ def add_parser(subparsers) -> None:
     preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
     preview.add_argument("dataset", metavar="DIR", help="dataset folder (or one shard .zip)")
     preview.add_argument("--n", type=int, default=16, help="number of samples (spread over the dataset)")
-    preview.add_argument("--out", metavar="DIR", help="where to write (default: DIR/preview)")
+    preview.add_argument("--out", metavar="DIR", type=options.output_path, help="where to write (default: DIR/preview)")
     preview.set_defaults(func=run_preview)
     bench = scene_benchmark(actions, "bench", "cost of one ground-truth view in depth renders, views/s per core",
                             run_bench)
@@ -190,7 +190,7 @@ def run_consistency(args) -> int:
 
     _refuse_options_before(args)
     if args.json:
-        check_output_file(args.json)  # a folder given as --json fails now, not after the labelling
+        check_output_file(args.json, writable="--json")  # a folder given as --json fails now, not after the labelling
     conf = load_consistency_config(args.config, args.set)
     with Progress(transient=True) as bar:
         task = bar.add_task("labelling", total=None)

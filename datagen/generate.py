@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from frontiernet import __version__
 from frontiernet.errors import InputError, whole_number
-from frontiernet.io import write_json
+from frontiernet.io import check_not_dangling, write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
 from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
@@ -117,6 +117,7 @@ def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "se
                 raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
                                  f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
         return
+    check_not_dangling(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(out.iterdir()) and not (out / SHARDS_DIR).is_dir():

@@ -33,6 +33,7 @@ from .generate import _slug, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
                         write_map_shard)
 from .shards import INFO_NAME, SHARDS_DIR, remove_stale_temporaries
+from .summary import scene_error
 
 GENERATOR_VERSION = f"frontiernet-mapgen/{__version__}/1"
 """Names the snapshot recipe; bump the last number when the snapshots change."""
@@ -92,9 +93,10 @@ def _read_info_rehashed(out: Path) -> dict:
 
 def check_runs(conf) -> list[dict]:
     """The checked ``mapgen`` settings' runs as [{method, depth}]; InputError naming the first bad key (a
-    ``first_snapshot_step`` at or past ``max_steps`` too: no run would take a snapshot)."""
-    from frontiernet.depth import DEPTH_SOURCES, depth_source_name
-    from frontiernet.exploration.methods import METHODS
+    ``first_snapshot_step`` at or past ``max_steps`` too: no run would take a snapshot), or a run's method or
+    depth source whose files are missing (a predictor, a depth model's weights)."""
+    from frontiernet.depth import DEPTH_SOURCES, check_depth_files, depth_source_name
+    from frontiernet.exploration.methods import METHODS, check_method
     from frontiernet.exploration.run import MAX_STEPS
 
     section = conf.mapgen
@@ -119,6 +121,8 @@ def check_runs(conf) -> list[dict]:
         if depth not in DEPTH_SOURCES:
             raise InputError(f"mapgen.runs[{index}].depth: unknown depth source {run['depth']!r}; known: gt, "
                              f"{', '.join(DEPTH_SOURCES.names())}")
+        check_method(str(run["method"]), None, conf)  # its own files (seer's, mapex's predictor) and the
+        check_depth_files(depth, conf.get("depth"))  # depth model's weights: refused now, not by every run
         checked.append({"method": str(run["method"]), "depth": depth})
     return checked
 
@@ -219,7 +223,7 @@ def run_map_task(task: dict, conf_dict: dict, info: dict) -> dict:
         return {"task": name, "spec": task["spec"], "ok": True, "snapshots": len(snapshots.taken),
                 "steps": meta["steps"], "seconds": time.perf_counter() - start}
     except InputError as error:  # the scene's fault (a bad spec option, an unreadable file)
-        message, bad_input = str(error), True
+        message, bad_input = scene_error(task["spec"], error), True
     except Exception as error:  # a failing scene is reported, never kills the run
         log.debug("map shard %s failed", name, exc_info=True)
         message, bad_input = f"{type(error).__name__}: {error}", False

@@ -20,7 +20,7 @@ def add_parser(subparsers) -> None:
                     "few steps, with the scene's true voxels: the data of the map predictors "
                     "(docs/mapprediction.md). Writes DIR/dataset.json, DIR/shards/*.zip, DIR/summary.json.")
     options.scene_specs(parser, required=True)
-    parser.add_argument("--out", required=True, metavar="DIR", help="dataset folder")
+    parser.add_argument("--out", required=True, metavar="DIR", type=options.output_path, help="dataset folder")
     options.parallel(parser)
     options.dataset_run(parser)
     options.config_file(parser, "configs/mapgen.yaml and configs/explore.yaml (with its sections sim:, depth:, "

@@ -7,6 +7,12 @@ import numpy as np
 from .shards import read_shard_meta
 
 
+def scene_error(spec: str, error: Exception) -> str:
+    """The message of a scene's bad input `error` without the scene spec it starts with (``scene spec '<spec>':
+    ...``), which the run's report of failed scenes puts before it: the scene is named once."""
+    return str(error).removeprefix(f"scene spec '{spec}': ").removeprefix(f"{spec}: ")
+
+
 def summarise(out, tasks, results: list[dict], elapsed_s: float, done_before: int = 0) -> dict:
     """Aggregate the shards on disk and this run's results into a JSON-able summary.
 

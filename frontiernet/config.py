@@ -90,18 +90,25 @@ def default_config_path(name: str) -> Path:
 
 
 def _read_yaml(path: Path) -> DictConfig:
-    from .io import input_file
+    from .io import check_yaml_mapping, input_file
 
     input_file(path, "config file")
     import yaml
 
     try:
+        check_yaml_mapping(yaml.compose(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)), path)
         conf = OmegaConf.load(path)
     except yaml.YAMLError as error:  # malformed YAML: say where
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(error, "problem", None) or error.__class__.__name__
+        if "expansion exceeds" in str(problem):  # OmegaConf stopped expanding aliases: not its advice to raise it
+            limit = str(problem).split("limit of ")[-1].split(".")[0]
+            raise InputError(f"{path}: its YAML aliases (*name) expand past {limit} nodes, more than a config has "
+                             "(a YAML bomb?); refused unexpanded: write the values out") from None
         raise InputError(f"{path}: not valid YAML{where} ({problem})") from None
+    except InputError:
+        raise
     except (OSError, OmegaConfBaseException, ValueError) as error:
         raise InputError(f"{path}: not a readable YAML config ({error.__class__.__name__}: {error})".split("\n")[0]) from None
     if not isinstance(conf, DictConfig):

@@ -50,7 +50,8 @@ def input_folder(path: str | Path, what: str = "input") -> Path:
     folder not found``, or ``<path>: is a file, expected a folder (<what>)``."""
     path = Path(path)
     if path.exists() and not path.is_dir():
-        raise InputError(f"{path}: is a file, expected a folder ({what})")
+        kind = "a file" if path.is_file() else "not a regular file nor a folder (a device or a pipe?)"
+        raise InputError(f"{path}: is {kind}, expected a folder ({what})")
     if not path.is_dir():
         raise InputError(f"{path}: {what} folder not found")
     return path
@@ -83,6 +84,47 @@ def read_npy(path: str | Path, mmap_mode: str | None = None) -> np.ndarray:
         raise InputError(f"{path}: not a readable .npy array ({error})") from None
     except (OSError, EOFError) as error:  # EOFError: a truncated file
         raise InputError(f"{path}: not a readable .npy array ({error or 'truncated file'})") from None
+
+
+def cv_max_image_pixels() -> int:
+    """The most pixels OpenCV decodes of one image (``CV_IO_MAX_IMAGE_PIXELS``, 2**30 unless the environment
+    sets it): it refuses a larger header before it decodes anything."""
+    try:
+        return int(os.environ.get("CV_IO_MAX_IMAGE_PIXELS", 2**30))
+    except ValueError:
+        return 2**30
+
+
+def read_image(path: str | Path, flags: int, what: str = "image") -> np.ndarray:
+    """``cv2.imread(path, flags)`` of input file `path` (:func:`input_file`, `what`: what the file is to the
+    user); InputError naming it when OpenCV cannot read it, or when its header claims more pixels than OpenCV
+    decodes (:func:`cv_max_image_pixels`: a PNG whose header says 100,000 px a side, refused before any
+    pixel is decoded)."""
+    import cv2
+
+    path = input_file(path, what)
+    try:
+        image = cv2.imread(str(path), flags)
+    except cv2.error as error:
+        if "CV_IO_MAX_IMAGE_PIXELS" in str(error):
+            raise InputError(f"{path}: its header claims more than {cv_max_image_pixels():,} pixels, the most "
+                             f"OpenCV decodes (CV_IO_MAX_IMAGE_PIXELS); refused before decoding ({what})") from None
+        raise InputError(f"{path}: not a readable {what} (OpenCV: {str(error).strip().splitlines()[-1]})") from None
+    if image is None:
+        raise InputError(f"{path}: not a readable {what}")
+    return image
+
+
+def check_yaml_mapping(root, path: str | Path) -> None:
+    """InputError naming YAML file `path` unless its top node `root` (``yaml.compose``'s: nothing built, no
+    alias expanded) is a mapping, or there is none (an empty file): a config of a bare value or a list is
+    refused so (a bare ``hello`` read as a key named hello, a bare ``42`` failed inside OmegaConf)."""
+    import yaml
+
+    if root is None or isinstance(root, yaml.MappingNode) or root.tag == "tag:yaml.org,2002:null":
+        return
+    got = "a list" if isinstance(root, yaml.SequenceNode) else f"the bare value {root.value!r}"
+    raise InputError(f"{path}: a config must be a YAML mapping (key: value lines), got {got}")
 
 
 FORCE = "--force"
@@ -118,17 +160,30 @@ def _check_regular(path: Path) -> None:
         raise InputError(f"{path}: not a regular file (a device or a pipe?); outputs are files: choose another path")
 
 
-def check_output_file(path: str | Path, force: bool = True) -> Path:
+def check_not_dangling(path: str | Path) -> None:
+    """InputError when output `path` is a symbolic link to nothing: no folder can be made there, and a file
+    written there would replace the link (say so before the work, not "cannot create ... (File exists)")."""
+    path = Path(path)
+    if path.is_symlink() and not path.exists():
+        raise InputError(f"{path}: a symbolic link to {os.readlink(path)}, which does not exist; make its target "
+                         "first, or remove the link, or choose another output")
+
+
+def check_output_file(path: str | Path, force: bool = True, *, writable: str | None = None) -> Path:
     """Before the work: InputError when output file `path` is a folder or not a regular file, or
     exists and `force` is off (nothing written before is replaced unless asked: :data:`FORCE`), or
-    has a name too long."""
+    has a name too long; with `writable` (the option, ``--json``), also when no file can be made in its
+    folder (missing, no permission: :func:`check_writable_folder`): an output written after the work."""
     path = Path(path)
     _check_name_lengths(path)
+    check_not_dangling(path)
     if path.is_dir():
         raise InputError(f"{path}: is a folder; give the output's file name")
     _check_regular(path)
     if path.exists() and not force:
         raise InputError(f"{path}: exists; pass {FORCE} to replace it, or choose another output")
+    if writable:
+        check_writable_folder(path.resolve().parent, f"{writable} {path}")
     return path
 
 
@@ -139,6 +194,7 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
     asked: :data:`FORCE`; the lock of :func:`claim_output_folder` is no output), or has a name too long."""
     path = Path(path)
     _check_name_lengths(path)
+    check_not_dangling(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: output path exists and is not a folder")
     blocking = next((parent for parent in path.parents if parent.exists() and not parent.is_dir()), None)
@@ -150,6 +206,17 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
         raise InputError(f"{path}: folder already holds files (earlier outputs?); pass {FORCE} to write over "
                          f"them, or choose another --out")
     return path
+
+
+def check_output_files(folder: str | Path, names) -> None:
+    """Before the work: InputError when something other than a regular file stands where one of the files
+    `names` that a run writes in output folder `folder` goes (a folder named ``metrics.json``: the run was
+    refused after its work, when it wrote its results)."""
+    for name in names:
+        path = Path(folder) / name
+        if path.is_dir():
+            raise InputError(f"{path}: a folder is where the run writes its {name}; remove it, or choose another --out")
+        _check_regular(path)
 
 
 LOCK_NAME = ".frontiernet.lock"

@@ -74,6 +74,19 @@ def sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def keep_sigterm_handler():
+    """Around the import of a native library that installs its own SIGTERM handler (pycolmap: glog's,
+    which prints a native stack trace): Python's handler from before (:func:`sigterm_as_interrupt`'s,
+    or the default) is installed again after the block. Only in the main thread."""
+    previous = signal.getsignal(signal.SIGTERM)
+    try:
+        yield
+    finally:
+        if previous is not None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, previous)
+
+
 def terminate_workers(pool: ProcessPoolExecutor) -> None:
     """End `pool`'s worker processes now (SIGTERM) and shut it down, dropping queued tasks."""
     for process in list((getattr(pool, "_processes", None) or {}).values()):  # no public way before 3.14
@@ -143,8 +156,9 @@ def run_parallel(function: Callable, tasks: Sequence[tuple], *, backend: str = "
     if backend == "ray":
         _run_ray(function, tasks, workers, retries, cpus_per_task, deliver, died)
     elif workers == 1:
-        for index, task in enumerate(tasks):
-            deliver(index, function(*task))
+        with sigterm_as_interrupt():
+            for index, task in enumerate(tasks):
+                deliver(index, function(*task))
     else:
         _run_processes(function, tasks, workers, retries, initializer, initargs, deliver, died, poll)
     return results
@@ -223,5 +237,5 @@ def _run_ray(function, tasks, workers, retries, cpus_per_task, deliver, died) ->
             ray.shutdown()
 
 
-__all__ = ["BACKENDS", "check_backend", "import_ray", "process_pool", "run_parallel", "sigterm_as_interrupt",
-           "terminate_workers"]
+__all__ = ["BACKENDS", "check_backend", "import_ray", "keep_sigterm_handler", "process_pool", "run_parallel",
+           "sigterm_as_interrupt", "terminate_workers"]

@@ -245,7 +245,7 @@ def two_scenes(tmp_path_factory):
 
 @pytest.mark.parametrize("overrides, message", [
     (["data.batch_size=100"], "data.batch_size: 100 is more than the 2 training views"),
-    (["trainer.precision=bogus"], "trainer: "),
+    (["trainer.strategy=bogus"], "trainer: "),  # (a precision is checked before the data: probe6's)
 ])
 def test_loop_and_trainer_settings_are_refused_before_the_training_cache(two_scenes, overrides, message, tmp_path,
                                                                          one_line_error):

@@ -97,7 +97,7 @@ def test_shop_of_the_issue_is_explorable_and_explore_can_start():
     assert new.is_explorable(middle[None]).all()
     check_pose(scene, new, middle, load_config("sim").poses)  # render's check: not "outside the building"
     conf = load_run_config()
-    with pytest.raises(InputError, match="no free space at camera height"):  # the issue's explore
+    with pytest.raises(InputError, match="no spot of the robot's region at camera height"):  # the issue's explore
         start_sampler(scene, old, conf)[1](np.random.default_rng(0))
     region, draw = start_sampler(scene, new, conf)
     assert region.sum() * new.voxel_size ** 2 > 0.6 * 15 * 14  # most of the floor at camera height

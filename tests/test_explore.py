@@ -361,7 +361,7 @@ def test_sim_and_depth_keys_reach_the_run_and_its_config_file_repeats_it(plan_sp
 
     args = explore_args(plan_spec, tmp_path / "a", 4, "--no-video", "--depth", "emulated", "--seed", "3",
                         "depth.emulated.fill_depth=20", "depth.emulated.scale_per_frame=false",
-                        "sim.camera.max_depth=3.0")
+                        "sim.camera.max_depth=3.0", "map.max_range_m=3.0")  # (the map's rays no farther)
     code, _, stderr = run_cli(args)
     assert code == 0, stderr
     used = yaml.safe_load((tmp_path / "a" / "config.yaml").read_text())

@@ -93,7 +93,8 @@ def test_the_bound_and_nbvp_columns_are_ratios_of_paired_means(tmp_path):
     for scene in ("procedural:1", "procedural:2"):
         for start in range(3):
             for method in methods:
-                runs.append({"scene": scene, "method": method, "start": start, "repeat": 0})
+                runs.append({"scene": scene, "method": method, "start": start, "repeat": 0,
+                             "key": f"{scene}/{method}/start{start}_repeat0"})
                 if method == "frontiernet" and start == 2:
                     continue  # not finished: its pair is left out of every ratio
                 base = 0.2 + 0.1 * start

@@ -9,8 +9,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import json
 
 from frontiernet.cli import options
@@ -69,8 +67,9 @@ def run_train(args) -> int:
 
 
 def run_evaluate(args) -> int:
+    from frontiernet.depth import check_depth_files, known_source
     from frontiernet.errors import InputError, cpu_count_option, whole_number
-    from frontiernet.io import check_output_file, check_writable_folder, write_json
+    from frontiernet.io import check_output_file, write_json
     from frontiernet.model.files import torch_model_file
     from frontiernet.model.predictor import input_size
 
@@ -82,8 +81,8 @@ def run_evaluate(args) -> int:
     if args.all and args.scenes:
         raise InputError("--all and --scenes exclude each other: give one")
     if args.json:
-        check_output_file(args.json)  # a folder given as --json fails now, not after the evaluation
-        check_writable_folder(Path(args.json).resolve().parent, f"--json {args.json}")
+        check_output_file(args.json, writable="--json")  # a folder given as --json fails now, not after the evaluation
+    check_depth_files(known_source(args.depth, "--depth"))  # (an unknown one was refused after the data load)
     torch_model_file(args.model)  # before the data load
     from rich.progress import Progress
 

@@ -37,6 +37,7 @@ from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.io import input_file, write_json
 from frontiernet.model import load_model, save_model
 from frontiernet.model.files import check_finite, model_base
+from frontiernet.model.network import resolve_pretrained
 
 from .config import plain
 from .cache import check_cache_folder
@@ -178,6 +179,40 @@ def check_settings(conf) -> None:
     for key in ("num_workers", "cache_workers"):  # (read when the loaders start: after the trainer's setup)
         worker_count(data[key], f"data.{key}")
     check_cache_folder(data.cache)  # where nothing can be made, or under a folder that is not there
+    check_trainer(trainer)
+    pretrained = conf.model.network.get("pretrained")
+    if pretrained:  # (read when the module is made: after the trainer's setup and its lines on stderr)
+        resolve_pretrained(str(conf.model.network.encoder), pretrained)
+
+
+CLUSTER_VARIABLES = ("NODE_RANK", "GROUP_RANK", "SLURM_NTASKS", "LSB_JOBID", "OMPI_COMM_WORLD_SIZE", "PMI_SIZE")
+"""Environment variables one of which a multi-node launch sets (Lightning's own, torchrun, SLURM, LSF, MPI):
+without any, ``trainer.num_nodes`` > 1 waits for the other nodes for ever."""
+PRECISIONS = ("32-true", "32", "16-mixed", "16", "bf16-mixed", "bf16")
+"""The ``trainer.precision`` values a run takes: Lightning's, less those that cast the weights (``64-true``,
+``16-true``, ``bf16-true``: the loaders' float32 views then fail at the first step) and Transformer Engine's."""
+
+
+def check_trainer(trainer) -> None:
+    """InputError naming the ``trainer.*`` setting that Lightning takes but this run cannot: several nodes
+    outside a multi-node launch (:data:`CLUSTER_VARIABLES`: it waits for ever), a precision not in
+    :data:`PRECISIONS` (64-true failed at the first step), several devices on the CPU (the processes
+    Lightning starts there share one dataset's loaders and write no results)."""
+    nodes = trainer.num_nodes
+    if nodes != 1 and not any(name in os.environ for name in CLUSTER_VARIABLES):
+        raise InputError(f"trainer.num_nodes={nodes}: no multi-node launch here (none of "
+                         f"{', '.join(CLUSTER_VARIABLES)} is set), so the run would wait for the other nodes for ever; "
+                         "give trainer.num_nodes=1, or start it on every node (torchrun, srun)")
+    if str(trainer.precision) not in PRECISIONS:
+        raise InputError(f"trainer.precision={trainer.precision}: not one this training takes; valid: "
+                         f"{', '.join(PRECISIONS)} (the views are float32: a precision that casts the weights "
+                         "fails at the first step)")
+    accelerator = str(trainer.accelerator)
+    on_cpu = accelerator == "cpu" or (accelerator == "auto" and not torch.cuda.is_available())
+    if on_cpu and str(trainer.devices) not in ("auto", "1"):
+        raise InputError(f"trainer.devices={trainer.devices}: training runs on the CPU here (trainer.accelerator="
+                         f"{accelerator}{', no CUDA GPU' if accelerator == 'auto' else ''}), in one process; give "
+                         "trainer.devices=1 (or auto), or train on GPUs (trainer.accelerator=gpu)")
 
 
 MAX_TIME = re.compile(r"(\d+):(\d\d):(\d\d):(\d\d)")

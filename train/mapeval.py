@@ -184,7 +184,7 @@ def run_mapeval(args) -> int:
     if positive_number(args.radius_m, "--radius-m", "metres") > 100:
         raise InputError(f"--radius-m must be at most 100 metres, got {args.radius_m}")
     if args.json:
-        check_output_file(args.json)
+        check_output_file(args.json, writable="--json")  # (a missing folder was found after the scoring)
     if args.threads:
         import torch
 

@@ -13,7 +13,7 @@ from ..config import dotted_parent, load_config
 from ..depth import check_depth_files
 from ..errors import InputError, check_seed, whole_number
 from ..exploration.methods import check_method, method_names
-from ..exploration.run import MAX_STEPS, RUN_SECTIONS, load_run_config
+from ..exploration.run import MAX_STEPS, RUN_SECTIONS, check_sections, load_run_config
 from ..io import LOCK_NAME, check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
@@ -76,6 +76,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     whole_number(starts, "--starts", 1, MAX_STARTS)
     whole_number(repeats, "--repeats", 1, MAX_STARTS)
     seed = check_seed(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)", repeats)
+    check_sections(conf)  # (a run's settings refused by every run, each after its scene loaded)
     out = check_output_folder(out, force=True)  # (a benchmark folder resumes)
     if out.is_dir() and plan_file(out) is None and any(path.name != LOCK_NAME for path in out.iterdir()):
         raise InputError(f"{out} holds files but no benchmark (no plan.json): give an empty or new --out "
@@ -173,7 +174,7 @@ def resumable_plan(out: Path, settings: dict, redo_changed: bool = False) -> dic
     :data:`~frontiernet.benchmark.changes.KEYS_IDLE_WHEN` existed, whose runs that key does not change
     (ground-truth depth, map mode), takes this run's value.
     Anything else that differs is a change of settings."""
-    previous = read_plan(out)
+    previous = read_plan(out, resume=True)
     shipped = OmegaConf.to_container(load_run_config(), resolve=True)
     for section in RUN_SECTIONS:  # a plan made before runs had these sections used the shipped files
         if section not in previous["settings"]["conf"]:

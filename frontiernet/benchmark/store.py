@@ -102,12 +102,13 @@ def plan_file(out: str | Path) -> Path | None:
     return None
 
 
-def read_plan(out: str | Path) -> dict:
+def read_plan(out: str | Path, resume: bool = False) -> dict:
     """The plan of benchmark folder `out` (settings, start poses, runs with their keys), from
-    ``plan.json`` or ``plan.json.gz`` (:func:`plan_file`).
+    ``plan.json`` or ``plan.json.gz`` (:func:`plan_file`); with `resume`, one a benchmark resumes (its
+    settings hold the ``conf`` and the ``budget`` it ran with).
 
     Raises:
-        InputError: `out` holds no benchmark, or its plan is not JSON (or not gzip).
+        InputError: `out` holds no benchmark, or its plan is not JSON (or not gzip) or not of a plan's shape.
     """
     path = plan_file(out)
     if path is None and Path(out).exists() and not Path(out).is_dir():
@@ -116,9 +117,31 @@ def read_plan(out: str | Path) -> dict:
         raise InputError(f"{out}: no benchmark here (no plan.json); run frontiernet bench --scenes ... --out {out}")
     try:
         data = path.read_bytes()
-        return json.loads(gzip.decompress(data) if path.name == PACKED_PLAN else data)
+        plan = json.loads(gzip.decompress(data) if path.name == PACKED_PLAN else data)
     except (ValueError, UnicodeDecodeError, OSError, EOFError, zlib.error) as error:
         raise InputError(f"{path}: not a benchmark plan ({error})") from None
+    wrong = _plan_shape_error(plan, resume)
+    if wrong:
+        raise InputError(f"{path}: not a benchmark plan ({wrong}); frontiernet bench writes it: restore it, or "
+                         "give another --out")
+    return plan
+
+
+def _plan_shape_error(plan, resume: bool) -> str | None:
+    """What is wrong with the shape of `plan` as JSON read it, or None: a mapping of ``settings`` (with
+    `resume`, holding ``conf`` and ``budget``), ``start_poses`` and ``runs`` (each a mapping with its ``key``,
+    ``scene`` and ``method``), as :func:`~frontiernet.benchmark.main.main` writes it."""
+    if not isinstance(plan, dict):
+        return f"a JSON {type(plan).__name__}, not an object"
+    for key, kind in (("settings", dict), ("start_poses", dict), ("runs", list)):
+        if not isinstance(plan.get(key), kind):
+            return f"no '{key}' {'list' if kind is list else 'object'}"
+    if resume and (not isinstance(plan["settings"].get("conf"), dict) or "budget" not in plan["settings"]):
+        return "its 'settings' lack 'conf' or 'budget'"
+    for index, run in enumerate(plan["runs"]):
+        if not isinstance(run, dict) or not all(isinstance(run.get(key), str) for key in ("key", "scene", "method")):
+            return f"run {index} is not an object with a 'key', 'scene' and 'method'"
+    return None
 
 
 def _plan_bytes(plan: dict) -> bytes:

@@ -80,7 +80,8 @@ def _exploration_options(parser) -> None:
     group.add_argument("--max-steps", type=int,
                        help="one fixed step budget for every scene (default: scene-sized budgets, the paper's "
                             "protocol: configs/bench.yaml budget, from each scene's explorable floor area)")
-    group.add_argument("--out", help="output folder (resumable: finished runs are not redone)")
+    group.add_argument("--out", type=options.output_path,
+                       help="output folder (resumable: finished runs are not redone)")
     group.add_argument("--report", action="store_true",
                        help="with --out only: rebuild results.csv, table.md, table_readme.md (the README's results "
                             "table) and the plots from the runs finished so far, running nothing (safe while the "
@@ -117,6 +118,22 @@ def _refuse_run_options(args, what: str) -> None:
                          "be ignored; leave it out (the folder's plan.json holds the run's settings)")
 
 
+def _refuse_bench_yaml_keys(overrides) -> None:
+    """InputError naming a ``--set`` key of configs/bench.yaml (``budget.*``, ``report.*``...): the benchmark
+    reads that file itself, and ``--set`` changes the runs' config (was "unknown config key 'budget'")."""
+    from ..config import load_config
+    from ..errors import InputError
+
+    own = set(load_config("bench"))
+    for item in overrides:
+        key = item.split("=", 1)[0].strip()
+        if key.split(".")[0] in own:
+            raise InputError(f"--set {item}: {key} is a setting of configs/bench.yaml, which the benchmark reads "
+                             "itself (--set and --config set the runs' config: configs/explore.yaml and its sections); "
+                             "edit that file" + (", or fix one budget for every scene with --max-steps N"
+                                                 if key.startswith("budget") else ""))
+
+
 def run_exploration_benchmark(args) -> int:
     from ..benchmark import main, pack, report
     from ..benchmark.readme_table import write_readme_table
@@ -148,6 +165,7 @@ def run_exploration_benchmark(args) -> int:
         raise InputError("give a benchmark (render, map, explore, ...) or --scenes for the exploration benchmark")
     if not args.out:
         raise InputError("the exploration benchmark needs --out DIR")
+    _refuse_bench_yaml_keys(args.set)
     conf = load_run_config(args.config, args.set)
     if conf.run.max_steps != load_run_config().run.max_steps:  # (set by --config or --set: read by no run here)
         raise InputError(f"run.max_steps={conf.run.max_steps}: the benchmark gives each scene its budget "

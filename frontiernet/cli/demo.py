@@ -25,13 +25,22 @@ def add_parser(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ..exploration.run import check_run, load_run_config, main
-    from ..io import check_output_folder, claim_output_folder
+    from ..exploration.run import RUN_OUTPUTS, check_run, load_run_config, main
+    from ..io import check_output_files, check_output_folder, claim_output_folder
     from .explore import summary_line
 
     check_output_folder(args.out, force=True)  # the demo writes over its own outputs (make demo)
+    check_output_files(args.out, RUN_OUTPUTS)
     conf = load_run_config(args.config, args.overrides, names=("explore", "demo"))
-    scene = str(conf.pop("scene")) if args.scene is None else args.scene  # (an empty --scene is refused, not the default)
+    scene = conf.pop("scene") if args.scene is None else args.scene  # (an empty --scene is refused, not the default)
+    if not isinstance(scene, str):  # (a list was read as the scene named "['procedural:3']")
+        from omegaconf import OmegaConf
+
+        from ..errors import InputError
+
+        given = OmegaConf.to_container(scene) if OmegaConf.is_config(scene) else scene
+        raise InputError(f"{args.config or 'configs/demo.yaml'}: config key 'scene' takes one scene spec (text, e.g. "
+                         f"procedural:3), got {given!r}")
     check_run(conf, model=args.model, max_steps=args.max_steps)  # before the folder is made
     with claim_output_folder(args.out, force=True) as out:
         record = main(conf, scene, out, model=args.model, max_steps=args.max_steps)

@@ -61,10 +61,11 @@ def summary_line(record: dict, out) -> str:
 
 def run(args) -> int:
     from ..errors import InputError
-    from ..exploration.run import check_run, load_run_config, main
-    from ..io import check_output_folder, claim_output_folder
+    from ..exploration.run import RUN_OUTPUTS, check_run, load_run_config, main
+    from ..io import check_output_files, check_output_folder, claim_output_folder
 
     check_output_folder(args.out, args.force)
+    check_output_files(args.out, RUN_OUTPUTS)
     contrary = [item for item in args.overrides if item.replace(" ", "").startswith("planner.mode=")
                 and item.split("=", 1)[1].strip() != "map_free"]
     if args.map_free and contrary:

@@ -17,6 +17,7 @@ import sys
 from .. import __version__
 from ..errors import InputError
 from ..registry import Registry
+from ..workers import sigterm_as_interrupt
 from . import bench, demo, explore, render, scene, sequence
 from .parser import Parser
 
@@ -44,7 +45,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with sigterm_as_interrupt():  # `kill PID` stops every command as Ctrl-C does: exit 130, "interrupted"
+            return int(args.func(args) or 0)
     except InputError as error:
         print(f"frontiernet {args.command}: error: {error}", file=sys.stderr)
         return 2

@@ -101,10 +101,19 @@ def config_overrides(parser, example: str, *, option: bool = False) -> None:
         parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help=text)
 
 
+def output_path(text: str) -> str:
+    """The argparse type of an output path (``--out``, ``--json FILE``): a blank one is refused, as it names
+    the current folder (``Path('')`` is ``.``), which a command would write in or advise ``--force`` for."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"an empty path ({text!r}) names no output; give a folder or file name "
+                                         "(the current folder is '.')")
+    return text
+
+
 def output_folder(parser, *, force: bool = False, default: str | None = None) -> None:
     """``--out DIR``, the folder a command writes (required unless it has a `default`), and with
     `force` ``--force``, which a command checks with :func:`~frontiernet.io.check_output_folder`."""
-    parser.add_argument("--out", metavar="DIR", required=default is None, default=default,
+    parser.add_argument("--out", metavar="DIR", type=output_path, required=default is None, default=default,
                         help="output folder" + (f" (default {default})" if default else ""))
     if force:
         parser.add_argument("--force", action="store_true",
@@ -114,7 +123,7 @@ def output_folder(parser, *, force: bool = False, default: str | None = None) ->
 def output_file(parser, what: str = "output file") -> None:
     """``--out FILE`` (required; `what` is its help) and ``--force``, which a command checks with
     :func:`~frontiernet.io.check_output_file`."""
-    parser.add_argument("--out", metavar="FILE", required=True, help=what)
+    parser.add_argument("--out", metavar="FILE", type=output_path, required=True, help=what)
     parser.add_argument("--force", action="store_true", help="replace --out if it exists (refused without it)")
 
 
@@ -125,7 +134,7 @@ def json_only(parser) -> None:
 
 def json_file(parser, what: str) -> None:
     """``--json FILE``: also write the result (`what`, e.g. ``the metrics``) as JSON there."""
-    parser.add_argument("--json", metavar="FILE", help=f"also write {what} as JSON")
+    parser.add_argument("--json", metavar="FILE", type=output_path, help=f"also write {what} as JSON")
 
 
 def no_progress(parser) -> None:

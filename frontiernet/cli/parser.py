@@ -41,6 +41,8 @@ class Parser(argparse.ArgumentParser):
         subcommands = next((action for action in self._actions if isinstance(action, argparse._SubParsersAction)),
                            None)
         commands = set(subcommands.choices) if subcommands is not None else set()
+        for child in (subcommands.choices.values() if subcommands is not None else ()):
+            child.siblings = subcommands.choices  # (an option of another subcommand is named so: _option_hint)
         values = 0  # the values the option before still takes (-1: any number, nargs + or *)
         for token in tokens:
             name = token.split("=", 1)[0]
@@ -50,9 +52,7 @@ class Parser(argparse.ArgumentParser):
                 action = self._option_string_actions.get(name)
                 values = 0 if action is None or "=" in token else self._values_taken(action)
                 if name.startswith("--") and len(name) > 2 and name not in known:
-                    close = [option for option in sorted(known) if option.startswith(name)][:1] \
-                        or difflib.get_close_matches(name, sorted(known), n=1, cutoff=0.6)
-                    self.error(f"unrecognized option {name}" + (f" (did you mean {close[0]}?)" if close else ""))
+                    self.error(f"unrecognized option {name}{self._option_hint(name, sorted(known))}")
                 continue
             if values:
                 values -= values > 0
@@ -60,6 +60,19 @@ class Parser(argparse.ArgumentParser):
             if subcommands is not None:
                 self._unknown_subcommand(token, subcommands)
         return super().parse_known_args(tokens, namespace)
+
+    def _option_hint(self, name: str, known: list[str]) -> str:
+        """What to say of an option `name` this parser does not have: the one of `known` it starts (``--scen``:
+        ``--scene``), else the other subcommands of this parser's command that have it (``bench render
+        --no-baseline``: bench train's, not the far spelling --scene), else the closest spelling of `known`."""
+        close = [option for option in known if option.startswith(name)][:1]
+        owners = [command for command, parser in getattr(self, "siblings", {}).items()
+                  if parser is not self and name in parser._option_string_actions]
+        if not close and owners:
+            command = self.prog.rsplit(" ", 1)[0]
+            return f" ({name} is an option of {', '.join(f'`{command} {owner}`' for owner in owners)})"
+        close = close or difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+        return f" (did you mean {close[0]}?)" if close else ""
 
     @staticmethod
     def _values_taken(action: argparse.Action) -> int:

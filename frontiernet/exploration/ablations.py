@@ -67,13 +67,20 @@ class UniformGain(Perception):
         if isinstance(gain_class, bool) or not float(gain_class).is_integer() or int(gain_class) < 1:
             raise InputError(f"ablations.uniform_gain_class must be an integer gain class >= 1, got {gain_class!r}")
         self.base, self.gain_class = base, int(gain_class)
+        # the model's (or the discontinuities' own) labels, known before the first frame: checked now
+        labels = getattr(getattr(base, "runtime", None), "labels", None) or getattr(base, "labels", None)
+        if labels is not None:
+            self._check(labels)
 
-    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
-        seen = self.base(frame, depth)
-        classes = len(seen.labels["bin_edges"])
+    def _check(self, labels) -> None:
+        classes = len(labels["bin_edges"])
         if self.gain_class >= classes:
             raise InputError(f"ablations.uniform_gain_class {self.gain_class} is not a gain class of this model "
                              f"(0 to {classes - 1})")
+
+    def __call__(self, frame, depth: np.ndarray) -> PerceptionResult:
+        seen = self.base(frame, depth)
+        self._check(seen.labels)
         # (h, w) of the base's dtype (uint8), the same class everywhere
         uniform = np.full(seen.gain_class.shape, self.gain_class, seen.gain_class.dtype)
         return replace(seen, gain_class=uniform, gain_logits=None)

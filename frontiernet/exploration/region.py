@@ -58,9 +58,14 @@ def start_sampler(scene, voxels, conf):
     cells = np.argwhere((clearance >= float(conf.run.start_clearance_m)) & region)
 
     def draw(rng: np.random.Generator) -> np.ndarray:
-        if not len(cells):
-            raise InputError(f"{scene.metadata.spec}: no free space at camera height {conf.motion.camera_height_m} m "
-                             f"with {conf.run.start_clearance_m} m clearance to start from")
+        if not len(cells):  # named by the clearance that left none: the robot's own, or the start's within it
+            key, value = (("planner.clearance_m", conf.planner.clearance_m) if not region.any()
+                          else ("run.start_clearance_m", conf.run.start_clearance_m))
+            most = float(clearance[region].max()) if region.any() else float(clearance.max(initial=0.0))
+            where = "free space" if key.startswith("planner") else "spot of the robot's region"
+            raise InputError(f"{scene.metadata.spec}: no {where} at camera height {conf.motion.camera_height_m} m "
+                             f"keeps {key} = {value} m from obstacles (the most there: {most:.2f} m)"
+                             + (", so the robot has nowhere to be" if key.startswith("planner") else " to start from"))
         i, j = cells[rng.integers(len(cells))]
         x, y = voxels.origin[:2] + (np.array([i, j]) + 0.5) * voxels.voxel_size
         return pose_from_heading(x, y, z, float(rng.uniform(-np.pi, np.pi)),

@@ -25,6 +25,11 @@ RUN_SECTIONS = {"sim": ("sim", None), "depth": ("depth", None), "ground_truth": 
 ``depth.emulated.fill_depth=20``, ``ground_truth.gain.volume=occluded``: the ground truth of the
 ``oracle`` methods, datagen's labels; ``scenes.floorplan.wall_height=2.4``: the scene sources' options)."""
 
+RUN_OUTPUTS = ("metrics.json", "trajectory.json", "frontiers.json", "coverage.png", "config.yaml", "exploration.mp4",
+               "recording.rrd", "exploration.mcap")
+"""The files a run writes in its folder (:func:`main`, :func:`~.outputs.write_run`, ``explore --mcap``): a
+command checks that none is a folder before the run (:func:`~frontiernet.io.check_output_files`)."""
+
 MAX_STEPS = 100_000
 """The largest step budget a run takes: 33x the paper's largest (3,000 steps, scene 807), about a day of
 the slowest method; more is a typo, which would otherwise run until killed."""
@@ -114,6 +119,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
                           "the step budget (--max-steps, run.max_steps)", 1, MAX_STEPS)
     seed = check_seed(conf.run.seed if seed is None else seed, "the seed (--seed, run.seed)")
     check_ranges(conf, run_layout())  # (a library caller's own config too: run.video_fps is the video's clock)
+    check_sections(conf)
     depth_name = run_depth_source(depth, conf)
     check_depth_files(depth_name, conf.get("depth"))
     check_method(method, model, conf)  # a method's own file checks (seer, mapex: the predictor)
@@ -133,6 +139,21 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
         if not shows_own_prediction(method, show_prediction):  # (its own: check_method's)
             shown_predictor(conf, show_prediction)
     return budget, seed, depth_name
+
+
+def check_sections(conf) -> None:
+    """InputError naming the key of a run section that its settings refuse where its declared range lets
+    it through (an even ``anchoring.gradient_kernel_px``, every ``anchoring.feature_weights`` 0): before the
+    setup, not when the section is first read (the first frame, after the scene and the model loaded)."""
+    from ..frontiers.settings import AnchoringSettings
+    from ..mapping.checks import MapSettings
+    from .nbvp_tree import NbvpSettings
+    from .steps import AccountSettings
+    from .surface import SurfaceSettings
+
+    for settings, section in ((AnchoringSettings, "anchoring"), (MapSettings, "map"), (SurfaceSettings, "surface"),
+                              (AccountSettings, "steps"), (NbvpSettings, "nbvp")):
+        settings.from_config(conf[section])
 
 
 def shows_own_prediction(method: str, show_prediction) -> bool:

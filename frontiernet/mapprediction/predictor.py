@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from ..errors import InputError
-from ..io import write_bytes
+from ..io import input_file, write_bytes
 from ..mapping.occupancy import FREE, OCCUPIED, UNKNOWN
 from .encodings import crop_input, crop_states, map_topdown_states, topdown_input, topdown_probability
 from .networks import Ensemble, PredictorSpec
@@ -218,9 +218,7 @@ def load_predictor(path: str | Path | None = None, kind: str | None = None) -> M
         if not path.is_file():
             raise InputError(f"{path}: no {kind} predictor is shipped yet; train one (docs/mapprediction.md) "
                              f"and give its predictor.safetensors")
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: predictor file not found")
+    path = input_file(path, "predictor file")
     state, spec_dict, info = _read(path)
     try:
         spec = PredictorSpec.from_dict(spec_dict)

@@ -39,6 +39,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from ..errors import InputError
+from ..io import input_file
 from .files import (CONFIG_KEY, DEFAULT_MODEL, INFO_KEY, default_model_path,  # noqa: F401 (re-exported)
                     read_model_file, save_model, shipped_weights_folder, torch_model_file)
 
@@ -230,7 +231,7 @@ def load_imagenet_encoder(model: FrontierNet, source: str | Path) -> list[str]:
     The first convolution's RGB filters are copied to the RGB channels; a depth channel gets
     their mean (the usual way to extend an RGB encoder).
     """
-    path = _resolve_pretrained(model.config.encoder, source)
+    path = resolve_pretrained(model.config.encoder, source)
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:  # noqa: BLE001  a corrupt file or a pickle with code in it
@@ -279,12 +280,11 @@ def _feature_encoder_mapping(encoder: str, state: dict) -> dict:
     return mapping
 
 
-def _resolve_pretrained(encoder: str, source: str | Path) -> Path:
+def resolve_pretrained(encoder: str, source: str | Path) -> Path:
+    """The ImageNet weights file of ``network.pretrained`` `source` (a path, or ``hub``: the torch hub
+    cache's file for `encoder`); InputError naming it when there is none (``train`` asks before its setup)."""
     if str(source) != "hub":
-        path = Path(source).expanduser()
-        if not path.is_file():
-            raise InputError(f"{path}: ImageNet weights file not found (network.pretrained)")
-        return path
+        return input_file(Path(source).expanduser(), "ImageNet weights file, network.pretrained")
     checkpoints = Path(torch.hub.get_dir()) / "checkpoints"
     found = sorted(checkpoints.glob(f"{encoder}[-_]*.pth"))  # efficientnet_b0_rwightman-7f5810bc.pth
     if not found:

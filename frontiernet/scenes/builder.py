@@ -34,17 +34,20 @@ ALL_FACES = tuple(_CUBE_FACES)
 _UV_AXES = {0: (1, 2), 1: (0, 2), 2: (0, 1)}
 
 
-def mask_rectangles(mask: np.ndarray) -> np.ndarray:
+def mask_rectangles(mask: np.ndarray, origin: tuple[int, int] = (0, 0)) -> np.ndarray:
     """Cover a boolean (H, W) mask exactly with axis-aligned rectangles.
 
     Horizontal runs of each row are merged with identical runs of the rows below.
-    Returns (N, 4) int64 ``[row0, col0, row1, col1)`` (half-open).
+    Returns (N, 4) int64 ``[row0, col0, row1, col1)`` (half-open), shifted by `origin` (row, col):
+    the mask a crop of a larger plan at `origin` gives the rectangles, in the same order, that the
+    whole plan (zero outside the crop) gives.
     """
     mask = np.asarray(mask, bool)
     padded = np.pad(mask, ((0, 0), (1, 1))).astype(np.int8)
     changes = np.diff(padded, axis=1)
     run_rows, run_starts = np.nonzero(changes == 1)  # row-major order
     _, run_ends = np.nonzero(changes == -1)
+    run_rows, run_starts, run_ends = run_rows + origin[0], run_starts + origin[1], run_ends + origin[1]
     rectangles = []
     open_runs: dict[tuple[int, int], int] = {}  # (col0, col1) -> first row
     previous_row = -2

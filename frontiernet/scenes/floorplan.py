@@ -19,7 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
-from ..io import input_file, read_npy
+from ..io import input_file, read_image, read_npy
 from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
@@ -159,10 +159,7 @@ def _load_image(path: Path) -> np.ndarray:
     if path.suffix.lower() not in IMAGE_SUFFIXES:
         raise InputError(f"{path}: unsupported floor-plan format '{path.suffix}' "
                          f"(use .npy or one of {', '.join(IMAGE_SUFFIXES)})")
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH)
-    if image is None:
-        raise InputError(f"{path}: cannot read image")
-    return image.astype(np.float64)
+    return read_image(path, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH, "floor-plan image").astype(np.float64)
 
 
 def plan_materials(builder: MeshBuilder, rng: np.random.Generator) -> dict[str, int]:

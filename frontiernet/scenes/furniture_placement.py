@@ -69,8 +69,16 @@ def _grow(r, k):
     return np.array([r[0] - k, r[1] - k, r[2] + k, r[3] + k])
 
 
-def _any(mask, r) -> bool:
-    return bool(mask[max(r[0], 0):max(r[2], 0), max(r[1], 0):max(r[3], 0)].any())
+def _window(r) -> tuple[slice, slice]:
+    """The part of plan rect `r` (its negative starts clipped) as slices: a check looks at the
+    pixels it covers, never at the whole plan (a 200 m building's plan has millions)."""
+    return slice(max(r[0], 0), max(r[2], 0)), slice(max(r[1], 0), max(r[3], 0))
+
+
+def _any(r, *masks) -> bool:
+    """Whether any of `masks` is set in plan rect `r`."""
+    window = _window(r)
+    return any(bool(mask[window].any()) for mask in masks)
 
 
 def _inside(r, box) -> bool:
@@ -90,29 +98,34 @@ class FloorFurnisher:
         yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
         self.disk = yy ** 2 + xx ** 2 <= r * r
         self.gap_px = px(p.furniture_gap, self.s)
+        self._anchors: dict[int, list] = {}
 
     def world_interior(self, room):
         I, s, H = room.interior, self.s, self.H
         return I[1] * s, (H - I[2]) * s, I[3] * s, (H - I[0]) * s  # x0, y0, x1, y1
 
     def anchors(self, index: int) -> list:
-        """Pixels (row, col) that must stay mutually reachable in room `index`."""
-        out = []
+        """Pixels (row, col) that must stay mutually reachable in room `index` (fixed once the
+        floor's openings and stairs are: kept, as every item placed in the room asks again)."""
+        if index in self._anchors:
+            return self._anchors[index]
+        out = self._anchors[index] = []
         for o in self.floor.openings:
             for side, room in enumerate((o.a, o.b)):
                 if room == index:
                     z = o.clearance[side]
                     out.append(((z[0] + z[2]) // 2, (z[1] + z[3]) // 2))
-        landing = self.floor.reserved & ~self.floor.solid
         I = self.floor.rooms[index].interior
-        rows, cols = np.nonzero(landing[I[0]:I[2], I[1]:I[3]])
+        window = _window(I)
+        rows, cols = np.nonzero(self.floor.reserved[window] & ~self.floor.solid[window])
         if len(rows):
             out.append((I[0] + int(rows.mean()), I[1] + int(cols.mean())))
         return out
 
     def passable(self, index: int, extra=None) -> bool:
         I = self.floor.rooms[index].interior
-        blocked = (self.floor.furniture | self.floor.solid)[I[0]:I[2], I[1]:I[3]].copy()
+        window = _window(I)
+        blocked = self.floor.furniture[window] | self.floor.solid[window]
         if extra is not None:
             blocked[max(extra[0] - I[0], 0):max(extra[2] - I[0], 0), max(extra[1] - I[1], 0):max(extra[3] - I[1], 0)] = True
         free = ndimage.binary_erosion(~blocked, self.disk, border_value=0)
@@ -133,10 +146,10 @@ class FloorFurnisher:
         if not _inside(rect, room.interior):
             return False
         if mount:
-            if _any(f.furniture | f.clearance | self.decor, rect):
+            if _any(rect, f.furniture, f.clearance, self.decor):
                 return False
         elif item.blocking:
-            if _any(f.clearance | f.reserved, rect) or _any(f.furniture, _grow(rect, self.gap_px)):
+            if _any(rect, f.clearance, f.reserved) or _any(_grow(rect, self.gap_px), f.furniture):
                 return False
             if not self.passable(index, rect):
                 return False
@@ -216,9 +229,12 @@ class FloorFurnisher:
                 a0 = across[0] - width if side == 0 else across[0]
                 al = (z[1] if hinge == 0 else z[3] - 1) if o.axis == 0 else (z[0] if hinge == 0 else z[2] - 1)
                 rect = np.array([a0, al, a0 + width, al + 1] if o.axis == 0 else [al, a0, al + 1, a0 + width])
-                others = f.clearance.copy()
-                others[z[0]:z[2], z[1]:z[3]] = False
-                if not _inside(rect, I) or _any(f.furniture | f.reserved | others, _grow(rect, 1)):
+                near = _grow(rect, 1)
+                rows, cols = _window(near)
+                others = f.clearance[rows, cols].copy()  # the other openings' zones: this one's is cleared
+                others[max(z[0] - rows.start, 0):max(z[2] - rows.start, 0),
+                       max(z[1] - cols.start, 0):max(z[3] - cols.start, 0)] = False
+                if not _inside(rect, I) or _any(near, f.furniture, f.reserved) or others.any():
                     continue
                 lo = np.array([rect[1] * s, (self.H - rect[2]) * s])
                 hi = np.array([rect[3] * s, (self.H - rect[0]) * s])
@@ -260,7 +276,7 @@ class FloorFurnisher:
                               y0 + (y1 - y0) * ((k + 0.5) / count if x1 - x0 < y1 - y0 else 0.5)])
                 size = 0.5 if room.kind != "corridor" else 0.3
                 rect = _px_rect(c - size / 2, c + size / 2, self.H, self.s)
-                if _any(self.floor.solid | self.floor.reserved, _grow(rect, 4)):
+                if _any(_grow(rect, 4), self.floor.solid, self.floor.reserved):
                     continue
                 light = make_item("light", [(0, 0, wall_height - 0.04, size, size, wall_height, "light")], blocking=False)
                 self.boxes.add(light, c - size / 2, (1.0, 0.0), (0.0, 1.0), self.floor.z0)

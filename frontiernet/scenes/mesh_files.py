@@ -167,6 +167,8 @@ def find_hm3d_glb(path: str | Path) -> Path:
     path = Path(path)
     if path.is_file():
         return path
+    if path.exists() and not path.is_dir():  # a device or a pipe
+        input_file(path, "HM3D scene file")
     if not path.is_dir():
         raise InputError(f"{path}: no such HM3D scene folder or file")
     scene_id = path.name.split("-", 1)[-1]

@@ -189,13 +189,20 @@ def expand_specs(texts) -> list[str]:
     malformed or a pattern or folder yields no scene.
     """
     out: list[str] = []
-    for text in texts:
+    texts = list(texts)
+    for index, text in enumerate(texts):
         text = str(text).strip()
+        if not text:  # ('' was "empty scene spec", naming no option; a,,b a seed that is no integer)
+            raise InputError(f"an empty scene spec (item {index + 1} of the {len(texts)} given); give scene specs as "
+                             "separate words, e.g. --scenes procedural:3 procedural:4")
         body, mark, query = text.partition("?")
         suffix = mark + query
         source, colon, argument = body.partition(":")
         prefix = source + colon if colon and source in SOURCES else ""
         argument = argument if prefix else body
+        if prefix == "procedural:" and "," in argument:
+            raise InputError(f"scene spec '{text}': scenes are separate words (--scenes procedural:3 procedural:4), "
+                             "not joined by commas")
         if prefix == "procedural:" and "-" in argument.lstrip("-"):
             first, _, last = argument.partition("-")
             try:

@@ -17,6 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError
+from ..io import input_folder
 from .colmap import find_model, read_colmap, sequence_from_reconstruction
 from .frames import Camera, Sequence, SequenceFrame
 from .images import DEPTH_ENCODINGS, read_depth, read_rgb
@@ -50,8 +51,7 @@ def detect_format(path: str | Path) -> str:
         return "rosbag"
     if path.is_file():
         raise InputError(f"{path}: a file; a sequence is a folder, or a recording (.bag, .mcap, .db3)")
-    if not path.is_dir():
-        raise InputError(f"{path}: sequence folder not found")
+    input_folder(path, "sequence")  # missing, or a device or a pipe
     if (path / "rgb.txt").is_file():
         return "tum"
     if any(path.glob("*.log")) and any((path / name).is_dir() for name in REDWOOD_COLOUR_FOLDERS):

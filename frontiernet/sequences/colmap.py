@@ -23,10 +23,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pycolmap
 
 from ..errors import InputError
 from ..geometry import intrinsics_matrix
+from ..io import input_folder
+from ..workers import keep_sigterm_handler
+
+with keep_sigterm_handler():  # its import installs glog's handler: SIGTERM printed a native stack trace
+    import pycolmap
 from .frames import Camera, Sequence, SequenceFrame
 from .readers import IMAGE_SUFFIXES, image_size
 
@@ -179,16 +183,12 @@ def read_colmap(model_dir: str | Path, image_dir: str | Path | None = None,
     `image_dir` defaults to the project's ``images/`` (or the model folder's sibling ``images``);
     `depth_dir` (see :func:`sequence_from_reconstruction`) to a ``depth/`` folder beside it, if any.
     """
-    path = Path(model_dir)
-    if not path.is_dir():
-        raise InputError(f"{path}: COLMAP model folder not found")
+    path = input_folder(model_dir, "COLMAP model")
     model = find_model(path)
     if model is None:
         raise InputError(f"{path}: no COLMAP model (looked for {' or '.join(MODEL_FILES)} in "
                          f"{', '.join(MODEL_SUBFOLDERS)})")
-    image_dir = Path(image_dir) if image_dir is not None else _default_image_dir(path, model)
-    if not image_dir.is_dir():
-        raise InputError(f"{image_dir}: image folder not found")
+    image_dir = input_folder(image_dir if image_dir is not None else _default_image_dir(path, model), "image")
     if depth_dir is None and (image_dir.parent / "depth").is_dir():
         depth_dir = image_dir.parent / "depth"
     try:

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..io import input_file, read_npy
+from ..io import input_file, read_image, read_npy
 
 DEPTH_ENCODINGS = ("scale", "sun", "nyu")
 PLAUSIBLE_DEPTH_M = (0.05, 100.0)  # median depths outside this mean a wrong unit (indoor and outdoor sensors)
@@ -30,10 +30,7 @@ _NYU_BASELINE, _NYU_OFFSET = 351.3, 1092.5  # Open3D RGBDImageFactory.cpp (NYU r
 
 def read_rgb(path: str | Path) -> np.ndarray:
     """(H, W, 3) uint8 RGB from an image file; InputError for a missing file or another channel count."""
-    path = input_file(path, "image")
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise InputError(f"{path}: not a readable image")
+    image = read_image(path, cv2.IMREAD_UNCHANGED)
     channels = 1 if image.ndim == 2 else image.shape[2]
     if channels == 4:  # RGBA (e.g. habitat renders): drop alpha
         image = image[..., :3]
@@ -91,26 +88,25 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     if path.suffix.lower() == ".npy":
         depth = read_npy(path)
     else:
-        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
-        if depth is None:
-            raise InputError(f"{path}: not a readable depth image")
+        depth = read_image(path, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH, "depth image")
         if depth.dtype in (np.uint8, np.int8):  # a picture of depth (0-255), not a depth map
             raise InputError(f"{path}: an 8-bit image; depth images must be 16-bit (integer units, millimetres unless "
                              "a depth scale says otherwise) or float (metres), e.g. a uint16 PNG of millimetres")
     if not (np.issubdtype(depth.dtype, np.integer) or np.issubdtype(depth.dtype, np.floating)):
         raise InputError(f"{path}: holds {depth.dtype} values, not depth (integer units or float metres)")
+    if depth.ndim != 2:
+        raise InputError(f"{path}: depth must be a single-channel (H, W) map, got shape {tuple(depth.shape)}")
     floating = encoding == "scale" and np.issubdtype(depth.dtype, np.floating)  # metres, no scale
     if encoding == "sun":
         if depth.dtype != np.uint16:
             raise InputError(f"{path}: SUN depth must be a 16-bit image, got {depth.dtype}")
         depth = ((depth >> 3) | (depth << 13)).astype(np.float32) / 1000.0
-    elif np.issubdtype(depth.dtype, np.integer):
-        depth = depth.astype(np.float32) / float(depth_scale)
+    elif np.issubdtype(depth.dtype, np.integer):  # judged in float64: a scale of 1e-300 (1e300) made float32
+        depth = depth.astype(np.float64) / float(depth_scale)  # depths infinite (zero), blamed on the file
+        check_depth_unit(depth, path, f"read with depth scale {depth_scale:g} units per metre")
     elif floating and scale_given:
         raise InputError(f"{path}: holds {depth.dtype} depth, read as metres; the depth scale "
                          f"({depth_scale:g}, --depth-scale) applies to integer depth only: leave it out")
-    if depth.ndim != 2:
-        raise InputError(f"{path}: depth must be a single-channel (H, W) map, got shape {tuple(depth.shape)}")
     depth = depth.astype(np.float32)
     if np.isinf(depth).any():
         raise InputError(f"{path}: depth has {int(np.isinf(depth).sum())} infinite pixels; mark invalid pixels "
@@ -119,9 +115,8 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     if floating:
         check_depth_unit(depth, path, "float depth is read as metres", "convert it to metres (divide by 1000 for "
                          "millimetres) or save it as integer millimetres (uint16)")
-    else:
-        check_depth_unit(depth, path, f"read with depth scale {depth_scale:g} units per metre" if encoding == "scale"
-                         else f"read with the {encoding} encoding")
+    elif encoding != "scale":  # (integer depth of the scale encoding: judged above)
+        check_depth_unit(depth, path, f"read with the {encoding} encoding")
     return depth
 
 

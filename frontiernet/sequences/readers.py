@@ -66,6 +66,8 @@ def image_size(path: Path) -> tuple[int, int]:
             return image.size
     except (UnidentifiedImageError, OSError):
         raise InputError(f"{path}: not a readable image") from None
+    except Image.DecompressionBombError as error:  # a header claiming billions of pixels
+        raise InputError(f"{path}: not an image this reads ({error})") from None
 
 
 def common_image_size(paths: list[Path], expected: tuple[int, int] | None = None, what: str = "image") -> tuple[int, int]:

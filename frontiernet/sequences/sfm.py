@@ -22,10 +22,13 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-import pycolmap
 
 from ..config import option_section
 from ..errors import InputError
+from ..workers import keep_sigterm_handler
+
+with keep_sigterm_handler():  # its import installs glog's handler: SIGTERM printed a native stack trace
+    import pycolmap
 from .colmap import COLMAP_PIXEL_CENTRE, sequence_from_reconstruction
 from .frames import Camera, Sequence
 from .readers import check_camera_size, common_image_size, list_images, require_folder
@@ -85,22 +88,23 @@ def _stage(bar, task, text: str):
 def _cancellable(function, *args, **kwargs):
     """``function(*args, cancellation_token=..., **kwargs)`` in a worker thread (pycolmap releases
     the GIL), so that Ctrl-C cancels COLMAP and raises KeyboardInterrupt here."""
-    token, result = pycolmap.CancellationToken(), {}
+    token, result, done = pycolmap.CancellationToken(), {}, threading.Event()
 
     def work():
         try:
             result["value"] = function(*args, cancellation_token=token, **kwargs)
         except BaseException as error:  # noqa: BLE001 - handed to the caller's thread, re-raised there
             result["error"] = error
+        finally:
+            done.set()
 
-    thread = threading.Thread(target=work, daemon=True)
-    thread.start()
-    try:
-        while thread.is_alive():
-            thread.join(0.1)
+    threading.Thread(target=work, daemon=True).start()
+    try:  # (an Event, not Thread.join: Python 3.11's join interrupted by Ctrl-C marks a running thread ended,
+        while not done.wait(0.1):  # and the exit then killed COLMAP's thread mid-call: "terminate called")
+            pass
     except KeyboardInterrupt:
         token.cancel()
-        thread.join()
+        done.wait()
         raise
     if "error" in result:
         raise result["error"]
