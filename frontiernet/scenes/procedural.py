@@ -25,6 +25,7 @@ from types import SimpleNamespace
 import numpy as np
 from scipy import ndimage
 
+from ..config import check_ranges
 from ..errors import InputError
 from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .furniture import furniture_materials
@@ -32,15 +33,6 @@ from .furniture_placement import Boxes, FloorFurnisher, Placed
 from .procedural_doors import FloorLayout, Stair, make_floor, make_stair, wall_split
 from .procedural_layout import Room, Skeleton, assign_kinds, make_skeleton, split_rooms
 from .scene import Material, Scene, SceneMetadata
-
-_PROBABILITIES = ("second_floor_probability", "l_shape_probability", "u_shape_probability", "corridor_probability",
-                  "open_plan_probability", "extra_door_probability", "closet_probability", "door_leaf_probability")
-_RANGES = (("footprint_min", "footprint_max"), ("corridor_width_min", "corridor_width_max"),
-           ("door_width_min", "door_width_max"), ("door_height_min", "door_height_max"),
-           ("wall_height_min", "wall_height_max"), ("rooms_min", "rooms_max"), ("room_min", "room_max"),
-           ("room_area_min", "room_area_max"),
-           ("wing_fraction_min", "wing_fraction_max"))
-_NON_NUMERIC = ("floors", "ceiling")
 
 
 @dataclass
@@ -68,33 +60,14 @@ class ProceduralLayout:
 
 
 def validate_options(conf, spec_text: str = "procedural") -> SimpleNamespace:
-    """Check the ``procedural`` options; returns them as attributes. Raises InputError naming the option."""
+    """Check the ``procedural`` options against their declared ranges and relations
+    (``configs/ranges/scenes.yaml``: a min at most its max, a lintel above every door, ...); returns them as
+    attributes. Raises InputError naming the option (`spec_text` first)."""
     values = {str(k): conf[k] for k in conf.keys()}
-    for key, value in values.items():
-        if key in _NON_NUMERIC:
-            continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-            raise InputError(f"{spec_text}: option {key} must be a number, got {value!r}")
-        if key in _PROBABILITIES:
-            if not 0.0 <= value <= 1.0:
-                raise InputError(f"{spec_text}: option {key} must be a probability in [0, 1], got {value!r}")
-        elif value <= 0:
-            raise InputError(f"{spec_text}: option {key} must be positive, got {value!r}")
-    if values["floors"] not in (None, 1, 2) or isinstance(values["floors"], bool):
-        raise InputError(f"{spec_text}: option floors must be 1, 2 or null (random), got {values['floors']!r}")
-    if not isinstance(values["ceiling"], bool):
-        raise InputError(f"{spec_text}: option ceiling must be true or false, got {values['ceiling']!r}")
-    for low, high in _RANGES:
-        if values[low] > values[high]:
-            raise InputError(f"{spec_text}: option {low} ({values[low]}) must not exceed {high} ({values[high]})")
-    if values["door_height_max"] >= values["wall_height_min"]:
-        raise InputError(f"{spec_text}: option door_height_max must be below wall_height_min")
-    if values["footprint_short_min"] < 2 * values["room_min"] + 0.5:
-        raise InputError(f"{spec_text}: option footprint_short_min must be at least 2 x room_min + 0.5 m")
-    if values["footprint_min"] < 3 * values["room_min"]:
-        raise InputError(f"{spec_text}: option footprint_min must be at least 3 x room_min")
-    if values["resolution"] > 0.1:
-        raise InputError(f"{spec_text}: option resolution must be at most 0.1 m/pixel, got {values['resolution']}")
+    try:
+        check_ranges(values, {"": "scenes.procedural"})
+    except InputError as error:
+        raise InputError(f"{spec_text}: option {error}") from None
     for key in ("texture_pixels", "rooms_min", "rooms_max", "max_attempts"):
         values[key] = int(values[key])
     if values["texture_pixels"] % 4:  # the brick and tile patterns divide it in quarters
