@@ -160,7 +160,6 @@ def test_an_interrupted_colmap_call_is_waited_for():
     # Python 3.11's Thread.join interrupted by Ctrl-C marks a running thread ended: the command exited while
     # COLMAP still ran in it ("terminate called without an active exception", a native stack trace)
     import _thread
-    import threading
     import time
 
     from frontiernet.sequences.sfm import _cancellable
@@ -168,10 +167,11 @@ def test_an_interrupted_colmap_call_is_waited_for():
     finished = []
 
     def colmap_call(cancellation_token):
-        time.sleep(0.6)
+        time.sleep(0.2)  # (Thread.start has returned: the caller waits on the call)
+        _thread.interrupt_main()  # Ctrl-C while the call runs (from here: not a timer racing the call)
+        time.sleep(2.0)
         finished.append(True)
 
-    threading.Timer(0.25, _thread.interrupt_main).start()
     with pytest.raises(KeyboardInterrupt):
         _cancellable(colmap_call)
     assert finished
