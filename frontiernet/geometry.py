@@ -143,6 +143,22 @@ def image_corner_rays(K: np.ndarray, image_shape: tuple[int, int]) -> np.ndarray
     return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(4)], axis=1)
 
 
+def quaternion_rotations(quaternions, what: str):
+    """scipy ``Rotation`` of (N, 4) or (4,) quaternions (x, y, z, w) of any length; InputError naming `what` for
+    one that is not finite or has zero length. Each is scaled by its largest component first: a quaternion of
+    1e200 squared overflows to inf, and scipy then finds it of zero length."""
+    from scipy.spatial.transform import Rotation
+
+    q = np.asarray(quaternions, np.float64)
+    if not np.all(np.isfinite(q)):
+        raise InputError(f"{what}: a quaternion is not finite")
+    scale = np.abs(q).max(axis=-1, keepdims=True)
+    unit = np.divide(q, scale, out=np.zeros_like(q), where=scale > 0)
+    if not np.all(np.linalg.norm(unit, axis=-1) * scale[..., 0] > 1e-6):
+        raise InputError(f"{what}: a quaternion has zero length")
+    return Rotation.from_quat(unit)
+
+
 def parse_intrinsics_text(text: str) -> tuple[float, float, float, float]:
     """``"fx,fy,cx,cy"`` as typed after ``--intrinsics`` -> four finite floats, pixels (focal
     lengths positive), or :class:`InputError` quoting `text`."""

@@ -243,7 +243,7 @@ def test_bad_options_are_one_line_before_any_work(argv, message, tmp_path, one_l
 def test_a_nonsense_motion_step_is_refused(plan_spec, tmp_path, one_line_error):
     assert main(["explore", "--scene", plan_spec, "--method", "classic", "--max-steps", "1", "--no-video",
                  "--out", str(tmp_path / "e"), "motion.translation_m=-0.11"]) == 2
-    assert "motion.translation_m must be a number > 0, got -0.11" in one_line_error()
+    assert "motion.translation_m must be a number >= 0.01, got -0.11" in one_line_error()
 
 
 def test_predict_reads_nan_as_invalid_depth_as_render_writes_it(tmp_path, capsys):
@@ -468,7 +468,7 @@ def test_a_refused_exploration_leaves_no_out_folder(plan_spec, tmp_path, argv, m
     (["--method", "nbvp", "--map-free"], "--map-free (planner.mode=map_free): method nbvp grows its tree"),
     (["--method", "vacuum", "--map-free"], "method vacuum plans no route"),
     # issue 55's fourth probe: a ZeroDivisionError after the run (the video's clock), exit 1
-    (["run.video_fps=0"], "run.video_fps must be a number > 0, got 0"),
+    (["run.video_fps=0"], "run.video_fps must be a number in [0.01, 1000], got 0"),
 ])
 def test_explore_refuses_bad_settings_before_its_setup(plan_spec, tmp_path, no_setup, argv, message,
                                                        one_line_error, monkeypatch):

@@ -88,3 +88,29 @@ def test_datagen_warns_of_a_dataset_without_a_frontier_pixel(tmp_path, capsys):
     assert "has a frontier pixel: nothing to learn frontiers from" in capsys.readouterr().err
     print_summary({**summary, "frontier_pixel_ratio": 0.01, "frontier_view_fraction": 0.5}, tmp_path)
     assert capsys.readouterr().err == ""
+
+
+# ----------------------------------------------------------------------------- the seventh probe's first finds
+
+@pytest.mark.parametrize("override, message", [
+    ("motion.translation_m=1e-300", "motion.translation_m must be a number >= 0.01"),  # was numpy's size limit
+    ("run.video_fps=1e-300", "run.video_fps must be a number in [0.01, 1000]"),  # ffmpeg's lines, then exit 1
+    ("run.video_fps=1e300", "run.video_fps must be a number in [0.01, 1000]"),
+])
+def test_motion_and_video_rates_past_what_runs_are_refused(override, message, tmp_path, one_line_error):
+    out = tmp_path / "o"
+    assert main(["explore", "--scene", "procedural:3", "--max-steps", "4", "--method", "classic", "--out", str(out),
+                 override]) == 2
+    assert message in one_line_error()
+    assert not out.exists()
+
+
+def test_a_tum_quaternion_of_huge_components_is_a_rotation(tmp_path):
+    from frontiernet.geometry import quaternion_rotations
+
+    # 1e200 squared overflowed to inf and scipy found the quaternion of zero length (an internal error)
+    assert np.allclose(quaternion_rotations([[0, 0, 0, 1e200], [0, 0, 2e-3, 0]], "q").as_quat(),
+                       [[0, 0, 0, 1], [0, 0, 1, 0]])
+    for bad, words in (([0, 0, 0, 0], "zero length"), ([0, 0, 0, np.inf], "not finite")):
+        with pytest.raises(InputError, match=f"q: a quaternion .*{words}"):
+            quaternion_rotations(bad, "q")

@@ -21,6 +21,7 @@ from PIL import Image, UnidentifiedImageError
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
+from ..geometry import quaternion_rotations
 from ..io import input_file, input_folder, read_npy
 from .frames import Camera, Sequence, SequenceFrame
 
@@ -143,9 +144,7 @@ def _read_tum_groundtruth(path: Path) -> tuple[np.ndarray, np.ndarray, Rotation]
     values = np.array([_floats(path, number, fields[:8]) for number, fields in rows])
     times, unique = np.unique(values[:, 0], return_index=True)
     values = values[unique]
-    if not np.all(np.linalg.norm(values[:, 4:8], axis=1) > 1e-6):
-        raise InputError(f"{path}: a quaternion has zero length")
-    return times, values[:, 1:4], Rotation.from_quat(values[:, 4:8])  # scipy quaternions are (x, y, z, w) too
+    return times, values[:, 1:4], quaternion_rotations(values[:, 4:8], str(path))  # scipy's are (x, y, z, w) too
 
 
 def _nearest(sorted_times: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -43,13 +43,10 @@ def frame_id(header) -> str:
 
 def transform_matrix(translation, rotation) -> np.ndarray:
     """(4, 4) float64 from a ROS translation (``x, y, z``, metres) and unit quaternion (``x, y, z, w``)."""
-    from scipy.spatial.transform import Rotation
+    from ..geometry import quaternion_rotations
 
-    quaternion = np.array([rotation.x, rotation.y, rotation.z, rotation.w], np.float64)
-    if not np.linalg.norm(quaternion) > 1e-6:
-        raise ValueError("a quaternion has zero length")
     T = np.eye(4)
-    T[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+    T[:3, :3] = quaternion_rotations([rotation.x, rotation.y, rotation.z, rotation.w], "the message").as_matrix()
     T[:3, 3] = [translation.x, translation.y, translation.z]
     return T
 
