@@ -174,19 +174,27 @@ def parse_intrinsics_text(text: str) -> tuple[float, float, float, float]:
 MAX_FOCAL_PER_IMAGE_SIDE = 100.0
 """Focal lengths above this many times an image's larger side are refused: a field of view under 0.6 degrees
 is a telescope's, not a robot's camera (the paper's: 77 degrees, f = 0.62 x 480 px)."""
+MIN_FOCAL_PER_IMAGE_SIDE = 0.04
+"""Focal lengths below this many times an image's larger side are refused: a field of view over 170 degrees
+is no pinhole camera (its rays' frustum, and the map sized to it, grow without bound)."""
 
 
 def check_intrinsics_fit(fx: float, fy: float, cx: float, cy: float, width: int, height: int,
                          what: str = "--intrinsics") -> None:
     """InputError naming `what` when pixels intrinsics do not fit a `width` x `height` image, as given before any
     scaling: a principal point (`cx`, `cy`) outside it (the intrinsics of another image size, or typed wrong), or a
-    focal length above :data:`MAX_FOCAL_PER_IMAGE_SIDE` times its larger side."""
+    focal length above :data:`MAX_FOCAL_PER_IMAGE_SIDE` or below :data:`MIN_FOCAL_PER_IMAGE_SIDE` times its larger
+    side."""
     if not (-0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5):
         raise InputError(f"{what}: the principal point ({cx:g}, {cy:g}) lies outside the {width} x {height} image "
                          f"(intrinsics of another image size?)")
     if max(fx, fy) > MAX_FOCAL_PER_IMAGE_SIDE * max(width, height):
         raise InputError(f"{what}: a focal length of {max(fx, fy):g} px is over {MAX_FOCAL_PER_IMAGE_SIDE:g} x the "
                          f"{width} x {height} image's side (a field of view under 0.6 degrees); focal lengths are pixels")
+    if min(fx, fy) < MIN_FOCAL_PER_IMAGE_SIDE * max(width, height):
+        raise InputError(f"{what}: a focal length of {min(fx, fy):g} px is under {MIN_FOCAL_PER_IMAGE_SIDE:g} x the "
+                         f"{width} x {height} image's side (a field of view over 170 degrees: no pinhole camera); "
+                         "focal lengths are pixels")
 
 
 def back_projected_points(depth: np.ndarray, rgb: np.ndarray | None, K: np.ndarray, T_world_cam: np.ndarray,

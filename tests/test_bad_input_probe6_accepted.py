@@ -47,15 +47,20 @@ def test_a_max_time_with_fields_past_their_clock_is_refused(value):
         check_max_time(value)  # 99:99:99:99 was read as 103 days
 
 
-def test_intrinsics_of_a_telescope_are_refused_for_a_photo(tmp_path, one_line_error):
+@pytest.mark.parametrize("intrinsics, message", [
+    ("1e9,1e9,32,24", "--intrinsics: a focal length of 1e+09 px is over 100 x the 64 x 48 image's side"),
+    # seventh probe: a focal of 0.001 px (a field of view of ~180 degrees) sized a map of 40 PiB (MemoryError)
+    ("0.001,0.001,32,24", "--intrinsics: a focal length of 0.001 px is under 0.04 x the 64 x 48 image's side"),
+])
+def test_intrinsics_of_no_pinhole_camera_are_refused_for_a_photo(intrinsics, message, tmp_path, one_line_error):
     import cv2
 
     cv2.imwrite(str(tmp_path / "rgb.png"), np.zeros((48, 64, 3), np.uint8))
     np.save(tmp_path / "depth.npy", np.ones((48, 64), np.float32))
     out = tmp_path / "o"
     assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(tmp_path / "depth.npy"),
-                 "--intrinsics", "1e9,1e9,32,24", "--out", str(out)]) == 2
-    assert "--intrinsics: a focal length of 1e+09 px is over 100 x the 64 x 48 image's side" in one_line_error()
+                 "--intrinsics", intrinsics, "--out", str(out)]) == 2
+    assert message in one_line_error()
     assert not out.exists()
 
 
