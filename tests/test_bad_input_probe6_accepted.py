@@ -119,3 +119,26 @@ def test_a_tum_quaternion_of_huge_components_is_a_rotation(tmp_path):
     for bad, words in (([0, 0, 0, 0], "zero length"), ([0, 0, 0, np.inf], "not finite")):
         with pytest.raises(InputError, match=f"q: a quaternion .*{words}"):
             quaternion_rotations(bad, "q")
+
+
+def test_set_given_twice_keeps_both_lists():
+    from frontiernet.cli.main import build_parser
+
+    # seventh probe: `datagen --set a=1 --set b=2` dropped a=1 in silence (a bad value in it then ran)
+    args = build_parser().parse_args(["datagen", "--scenes", "procedural:0", "--set", "a=1", "--set", "b=2", "c=3"])
+    assert args.set == ["a=1", "b=2", "c=3"]
+    assert build_parser().parse_args(["datagen", "--scenes", "procedural:0"]).set == []
+
+
+@pytest.mark.parametrize("argv", [["bench", "map", "--scene", ""], ["bench", "explore", "--scene", ""],
+                                  ["datagen", "bench", "--scene", ""]])
+def test_an_empty_benchmark_scene_is_not_the_default(argv, one_line_error):
+    assert main(argv) == 2  # seventh probe: ran the default scene
+    assert "--scene '': an empty scene spec" in one_line_error()
+
+
+def test_a_ray_stride_past_any_image_is_refused(tmp_path, one_line_error):
+    out = tmp_path / "o"  # seventh probe: 1e9 kept one ray a frame and ended at 0.0 % coverage
+    assert main(["explore", "--scene", "procedural:3", "--out", str(out), "map.ray_stride_px=1000000000"]) == 2
+    assert "map.ray_stride_px must be an integer in [1, 64]" in one_line_error()
+    assert not out.exists()

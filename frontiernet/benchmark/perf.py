@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import load_config
+from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -34,8 +35,11 @@ CHECKOUT = Path(__file__).resolve().parents[2]
 
 def default_bench_scene(spec: str | None) -> str:
     """`spec`, else ``perf.scene`` of configs/bench.yaml when that file is there, else (with a
-    warning naming the missing file) ``perf.fallback_scene``."""
-    if spec:
+    warning naming the missing file) ``perf.fallback_scene``. An empty `spec` is refused (``--scene ''``: not
+    the default)."""
+    if spec is not None:
+        if not str(spec).strip():
+            raise InputError("--scene '': an empty scene spec (leave --scene out for the default scene)")
         return spec
     conf = load_config("bench").perf
     path = Path(os.path.normpath(CHECKOUT / Path(conf.scene).expanduser()))  # an absolute one stays

@@ -96,7 +96,8 @@ def config_overrides(parser, example: str, *, option: bool = False) -> None:
     positional list would take the subcommand's name."""
     text = f"config overrides, e.g. {example}"
     if option:
-        parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help=text)
+        parser.add_argument("--set", nargs="*", action="extend", default=[], metavar="KEY=VALUE",
+                            help=text + " (--set given twice: both lists)")
     else:
         parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help=text)
 
