@@ -164,8 +164,9 @@ def test_an_interrupted_colmap_call_is_waited_for():
     import sys
 
     script = """
-import _thread, time
+import _thread, signal, time
 from frontiernet.sequences.sfm import _cancellable
+signal.signal(signal.SIGINT, signal.default_int_handler)  # (a background job starts with Ctrl-C ignored)
 finished = []
 def colmap_call(cancellation_token):
     time.sleep(0.2)  # (Thread.start has returned: the caller waits on the call)
