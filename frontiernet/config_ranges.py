@@ -297,13 +297,19 @@ def _sources(layout: Layout):
             yield prefix, name, f"{section}." if section else ""
 
 
+def _composite_key(prefix: str, start: str, key: str) -> str | None:
+    """Where `key` of a file whose section `start` (``"map."``, or ``""`` for the whole file) sits at `prefix`
+    lands in the composite config; None when the key lies outside that section."""
+    if not key.startswith(start):
+        return None
+    rest = key[len(start):]
+    return f"{prefix}.{rest}" if prefix else rest
+
+
 def _placed(layout: Layout, name: str, key: str) -> str | None:
     """Where key `key` of shipped file `name` sits in a composite config of `layout`; None if nowhere."""
-    for prefix, source, start in _sources(layout):
-        if source == name and key.startswith(start):
-            rest = key[len(start):]
-            return f"{prefix}.{rest}" if prefix else rest
-    return None
+    return next((placed for prefix, source, start in _sources(layout)
+                 if source == name and (placed := _composite_key(prefix, start, key)) is not None), None)
 
 
 def layout_ranges(layout: Layout) -> dict[str, Range]:
@@ -312,9 +318,8 @@ def layout_ranges(layout: Layout) -> dict[str, Range]:
     out: dict[str, Range] = {}
     for prefix, name, start in _sources(layout):
         for key, spec in declared(name).items():
-            if key.startswith(start):
-                rest = key[len(start):]
-                out[f"{prefix}.{rest}" if prefix else rest] = spec
+            if (placed := _composite_key(prefix, start, key)) is not None:
+                out[placed] = spec
     return out
 
 
@@ -327,9 +332,7 @@ def layout_relations(layout: Layout) -> list[Relation]:
             names = {}
             for key in relation.keys():
                 other, colon, other_key = key.partition(":")
-                placed = _placed(layout, other, other_key) if colon else (
-                    (f"{prefix}.{key[len(start):]}" if prefix else key[len(start):]) if key.startswith(start) else None)
-                names[key] = placed
+                names[key] = _placed(layout, other, other_key) if colon else _composite_key(prefix, start, key)
             if all(names.values()) and (renamed := relation.renamed(names)) not in out:
                 out.append(renamed)
     return out
