@@ -87,6 +87,32 @@ def test_benchmark_runs_shares_starts_resumes_and_reports(plan_spec, tmp_path):
 
 
 @pytest.mark.slow
+def test_a_benchmark_grows_by_a_command_that_names_only_what_it_adds(plan_spec, tmp_path):
+    """More starts of one method (issue 54's second pass of two methods): the runs of the plan that
+    the command does not name stay in the plan, the report and the table; only the new run is run."""
+    out = tmp_path / "bench"
+    common = ["--scenes", plan_spec, "--repeats", "1", "--max-steps", "30", "--out", out]
+    code, stdout, stderr = bench("--methods", "classic,random-frontier", "--starts", "1", *common)
+    assert code == 0, stderr
+    first = json.loads((out / "plan.json").read_text())
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "runs").rglob("metrics.json")}
+
+    code, stdout, stderr = bench("--methods", "classic", "--starts", "2", *common)
+    assert code == 0, stderr
+    assert "bench 1/1: " in stderr and "classic/start1_repeat0 classic done" in stderr  # only the added run
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
+    plan = json.loads((out / "plan.json").read_text())
+    assert {(r["method"], r["start"]) for r in plan["runs"]} == \
+        {("classic", 0), ("random-frontier", 0), ("classic", 1)}
+    assert plan["start_poses"][plan_spec][0] == first["start_poses"][plan_spec][0]  # the same first start
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert {(r["method"], r["start"]) for r in rows} == {("classic", "0"), ("random-frontier", "0"), ("classic", "1")}
+    assert "| random-frontier |" in (out / "table.md").read_text() and "3 runs (0 failed)" in stdout
+    code, stdout, stderr = bench("--report", "--out", out)
+    assert code == 0 and "report of 3 finished runs (0 not yet)" in stdout
+
+
+@pytest.mark.slow
 def test_model_goes_to_the_methods_that_run_it_and_every_other_runs_without(plan_spec, tmp_path):
     """`--model` beside methods that run none (the published protocol's command): each run of those
     gets no model, where the per-run check would refuse one (every classic run failed so)."""

@@ -112,7 +112,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     if rule is not None:
         settings["vox_steps"] = "coverage"
     with claim_output_folder(out, force=True):  # one benchmark at a time in a folder (--pack and --report read it)
-        poses, budgets = None, None
+        poses, budgets, previous = None, None, None
         if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
             previous = resumable_plan(out, settings, redo_changed)
             poses, budgets = previous["start_poses"], previous.get("budgets")
@@ -124,15 +124,41 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         clock = time.perf_counter()
         runs, start_poses, budgets = plan_runs(list(scenes), list(methods), starts, repeats, seed, conf, poses,
                                                scene_starts, depths, budgets, rule)
+        planned = [{**run.as_dict(), "key": run.key} for run in runs]
+        if previous is not None:  # a resumed plan grows: its runs this command does not name stay in it
+            planned, start_poses, budgets = grown_plan(previous, planned, start_poses, budgets)
         write_plan(out, {"settings": settings, "start_poses": start_poses,
-                         **({"budgets": budgets} if budgets else {}),
-                         "runs": [{**run.as_dict(), "key": run.key} for run in runs]})
-        rows = run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget,
-                              "model": settings["model"], "depth": depth}, workers, backend, progress)
-        report = write_report(out, rows, list(scenes), list(methods), depths=depths if len(depths) > 1 else None,
-                              interval=load_config("bench").report.interval,
-                              vox_steps=settings.get("vox_steps", "budget"))
-        return {"rows": rows, **report, "wall_s": round(time.perf_counter() - clock, 1)}
+                         **({"budgets": budgets} if budgets else {}), "runs": planned})
+        run_all(runs, {"out": str(out), "conf": settings["conf"], "max_steps": budget,
+                       "model": settings["model"], "depth": depth}, workers, backend, progress)
+        written = report(out)  # every run of the plan, this command's and those it kept
+        return {**written, "wall_s": round(time.perf_counter() - clock, 1)}
+
+
+def grown_plan(previous: dict, planned: list[dict], start_poses: dict, budgets: dict | None):
+    """The plan of a resumed benchmark: this command's runs (`planned`, as plan.json stores them) and
+    those of the `previous` plan it does not name (other methods, scenes, starts or repeats: a
+    benchmark grows by a command that names only what it adds, and ``--report`` keeps covering the
+    rest), with the start poses and budgets of both (a scene's longer pose list wins: its first poses
+    are the same, :func:`~frontiernet.benchmark.plan.plan_runs`).
+
+    Returns:
+        (runs, start_poses, budgets): runs in the previous plan's order, then the new ones.
+    """
+    named = {run["key"] for run in planned}
+    kept = [run for run in previous["runs"] if run["key"] not in named]
+    if kept:
+        log.info("%d runs of the plan that this command does not name are kept in it (bench --report covers them)",
+                 len(kept))
+    poses = {scene: list(value) for scene, value in previous["start_poses"].items()}
+    for scene, value in start_poses.items():
+        if len(value) >= len(poses.get(scene, [])):
+            poses[scene] = value
+    if budgets is not None:
+        budgets = {**(previous.get("budgets") or {}), **budgets}
+    order = {run["key"]: index for index, run in enumerate(previous["runs"])}
+    runs = sorted(kept + planned, key=lambda run: order.get(run["key"], len(order)))
+    return runs, poses, budgets
 
 
 SHIPPED_DEFAULTS_BEFORE_SECTIONS = {
@@ -226,4 +252,4 @@ def report(out: str | Path) -> dict:
     return {"rows": reported, **written, "pending": pending}
 
 
-__all__ = ["main", "report", "resumable_plan"]
+__all__ = ["grown_plan", "main", "report", "resumable_plan"]
