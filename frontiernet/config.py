@@ -16,7 +16,7 @@ from typing import ClassVar, Iterable, Mapping, Sequence
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from .config_ranges import Layout, layout_ranges, layout_relations
+from .config_ranges import Layout, float32_note, layout_ranges, layout_relations
 from .errors import InputError, check_keys
 
 
@@ -151,6 +151,13 @@ def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides:
     return conf
 
 
+def _shown(value) -> str:
+    """`value` as a message shows it: repr, a long list by its ends and length (a message stays one short line)."""
+    if isinstance(value, (list, tuple)) and len(value) > 8:
+        return f"[{', '.join(map(repr, value[:3]))}, ..., {value[-1]!r}] ({len(value)} items)"
+    return repr(value)
+
+
 def check_ranges(conf, layout: Layout) -> None:
     """InputError naming the first key of `conf` (a DictConfig or plain dict) whose value is outside
     its range declared in ``configs/ranges/`` (:mod:`frontiernet.config_ranges`), e.g.
@@ -161,14 +168,15 @@ def check_ranges(conf, layout: Layout) -> None:
     for key, spec in layout_ranges(layout).items():
         parent, leaf = dotted_parent(tree, key)
         if parent is not None and leaf in parent and not spec.admits(parent[leaf]):
-            raise InputError(f"{key} must be {spec.describe()}, got {parent[leaf]!r}")
+            note = float32_note(parent[leaf], spec.integer)
+            raise InputError(f"{key} must be {spec.describe()}, got {_shown(parent[leaf])}{note}")
     for relation in layout_relations(layout):
         values = {}
         for key in relation.keys():
             parent, leaf = dotted_parent(tree, key)
             values[key] = parent.get(leaf) if parent is not None else None
         if relation.holds(values) is False:
-            got = ", ".join(f"{key}={value!r}" for key, value in values.items())
+            got = ", ".join(f"{key}={_shown(value)}" for key, value in values.items())
             raise InputError(f"{relation.text()} must hold ({relation.reason}), got {got}")
 
 

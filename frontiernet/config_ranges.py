@@ -134,11 +134,52 @@ class Range:
             return False
         if self.integer and not isinstance(value, numbers.Integral):
             return False
-        if not math.isfinite(value):
+        if beyond_int64(value):
+            return False  # (a float of it would overflow; numpy's int64 does too)
+        if not math.isfinite(value) or (not self.integer and beyond_float32(value)):
             return False
         above = value >= self.low if self.low_closed else value > self.low
         below = value <= self.high if self.high_closed else value < self.high
         return above and below
+
+
+FLOAT32_MAX = 3.4028234663852886e38
+FLOAT32_TINY = 1.1754943508222875e-38
+"""The largest finite and the smallest normal magnitude of a 32-bit float (``np.finfo(np.float32)``):
+a number key's values are computed in float32 (depth, poses, rays, network inputs), where a larger one
+overflows to inf and a smaller nonzero one is lost to 0, so such a value is refused up front."""
+
+
+INT64_LIMIT = 2 ** 63
+"""Integers are computed in int64 (numpy's): one of this magnitude or more is refused up front."""
+
+
+def beyond_float32(value) -> bool:
+    """Whether number `value` (a plain int or float) overflows float32 or is a nonzero below its
+    smallest normal magnitude (:data:`FLOAT32_MAX`, :data:`FLOAT32_TINY`)."""
+    magnitude = abs(value)
+    return magnitude > FLOAT32_MAX or 0.0 < magnitude < FLOAT32_TINY
+
+
+def beyond_int64(value) -> bool:
+    """Whether plain integer `value` is outside numpy's int64 (:data:`INT64_LIMIT`)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool) and abs(value) >= INT64_LIMIT
+
+
+def float32_note(value, integer: bool = False) -> str:
+    """What a range message adds where `value` (a number or a nested list of them) is refused for its
+    size alone, as it may lie inside the declared interval (``1e300`` for ``(0, inf)``): ``: beyond the
+    32-bit floats ...`` for a number key (:func:`beyond_float32`), ``: beyond the 64-bit integers ...``
+    for an integer key (`integer`, :func:`beyond_int64`); else ``""``."""
+    items = value if isinstance(value, (list, tuple)) else [value]
+    flat = [v for item in items for v in (item if isinstance(item, (list, tuple)) else [item])
+            if isinstance(v, numbers.Real) and not isinstance(v, bool)]
+    if integer:
+        return ": beyond the 64-bit integers it is computed in (magnitudes below 2**63)" \
+            if any(beyond_int64(v) for v in flat) else ""
+    if any((isinstance(v, numbers.Integral) or math.isfinite(v)) and beyond_float32(v) for v in flat):
+        return ": beyond the 32-bit floats it is computed in (magnitudes up to 3.4e38, and at least 1.2e-38 unless 0)"
+    return ""
 
 
 def _number(value: float) -> str:

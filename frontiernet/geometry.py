@@ -78,14 +78,20 @@ def poses_from_headings(positions: np.ndarray, yaws: np.ndarray, pitches: np.nda
     return T
 
 
+MAX_COORDINATE_M = 1e5
+"""The farthest a typed position may be from the world origin, per axis (metres): the camera's rays are
+float32, whose spacing is ~8 mm at 1e5 m (a tenth of a 0.1 m voxel) and grows with the distance; 1e300
+overflowed to inf (RuntimeWarnings, a view with no depth). A building is far smaller."""
+
+
 def parse_pose_text(text: str, option: str = "--pose", pitch: bool = True) -> tuple[float, ...]:
     """``"x,y,z,yaw[,pitch]"`` as typed on a command line -> (x, y, z, yaw, pitch) floats, with
     angles in radians (pitch 0 when not given), or (x, y, z, yaw) when `pitch` is False.
 
     Positions are metres in the world frame (Z up). Angles are degrees (``90``, ``90deg``) or
     radians with a ``rad`` suffix (``1.5708rad``); yaw 0 looks along +x and lies within -360 and
-    360 degrees, pitch > 0 looks up and must lie strictly between -90 and 90 degrees. Raises :class:`InputError` naming `option`
-    and the bad part.
+    360 degrees, pitch > 0 looks up and must lie strictly between -90 and 90 degrees; a position within
+    :data:`MAX_COORDINATE_M` of the origin. Raises :class:`InputError` naming `option` and the bad part.
     """
     form = "x,y,z,yaw[,pitch]" if pitch else "x,y,z,yaw"
     parts = [part.strip() for part in str(text).split(",")]
@@ -100,6 +106,10 @@ def parse_pose_text(text: str, option: str = "--pose", pitch: bool = True) -> tu
             raise InputError(f"{option} '{text}': '{part}' is not a number") from None
         if not np.isfinite(value):
             raise InputError(f"{option} '{text}': '{part}' is not finite")
+        if index < 3 and abs(value) > MAX_COORDINATE_M:
+            raise InputError(f"{option} '{text}': '{part}' m is farther from the world origin than any scene "
+                             f"({MAX_COORDINATE_M:.0e} m at most: rays are computed in float32, which keeps about a "
+                             "centimetre there)")
         values.append(value if index < 3 or unit == "rad" else float(np.radians(value)))
     if abs(values[3]) > 2 * np.pi + 1e-9:  # (1e30 degrees is a number, but no heading: cos loses every digit)
         raise InputError(f"{option} '{text}': yaw must lie between -360 and 360 degrees")

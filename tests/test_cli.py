@@ -59,6 +59,9 @@ def test_poses_read_the_same_on_every_command():
     (["render", "{plan}", "--pose", "0.6,2.5,1.2,0", "--out", "{out}"], "obstacle"),
     (["render", "{plan}", "--pose", "2,2.5,abc,0", "--out", "{out}"], "not a number"),
     (["render", "{plan}", "--pose", "2,2.5,1.2", "--out", "{out}"], "expected x,y,z,yaw"),
+    # overflowed float32 rays: RuntimeWarnings and a view with no depth, exit 0 (the seventh probe's D8)
+    (["render", "{plan}", "--pose", "1e300,2.5,1.2,0", "--no-check", "--out", "{out}"],
+     "'1e300' m is farther from the world origin than any scene (1e+05 m at most"),
     (["scene", "info", "no/such/scene.glb"], "not found"),
     (["scene", "info", "floorplan:x.png?resolution=-1"], "resolution must be a number > 0 (or null), got -1"),
     (["scene", "topdown", "{plan}", "--out", "{out}/top.txt"], "top.txt: not an image file name"),

@@ -59,8 +59,10 @@ def test_the_user_file_configs_hold_only_values_in_range():
 
 
 @pytest.mark.parametrize("spec, good, bad, words", [
-    ("(0, inf)", [0.1, 3], [0, -1, math.inf, True, "1"], "a number > 0"),
-    ("int [1, inf)", [1, 40], [0, 1.0, 2.5], "an integer >= 1"),
+    # numbers are computed in float32 and int64: past them a value overflowed (1e300: an internal error in
+    # train, RuntimeWarnings in render) or vanished to 0 (an rgb_std of 1e-300 divided by 0); 10**400 crashed
+    ("(0, inf)", [0.1, 3, 3e38, 1.2e-38], [0, -1, math.inf, True, "1", 1e300, 1e-300, 10 ** 400], "a number > 0"),
+    ("int [1, inf)", [1, 40, 2 ** 63 - 1], [0, 1.0, 2.5, 2 ** 63, 10 ** 400], "an integer >= 1"),
     ("[0, 1] or null", [0, 1, None, 0.5], [1.5, -0.1], "a number in [0, 1] (or null)"),
     ("pair [-inf, inf]", [[-1, 2], [3, 3]], [[2, 1], [1], [1, 2, 3], 4],
      "a [min, max] pair of numbers with min <= max"),
@@ -101,6 +103,13 @@ def test_a_malformed_declaration_names_itself(spec):
     (["train", "data.path=x", "trainer.gradient_clip_val=-1"], "trainer.gradient_clip_val must be"),
     (["train", "data.path=x", "trainer.log_every_n_steps=0"], "trainer.log_every_n_steps must be an integer >= 1"),
     (["train", "data.path=x", "optim.warmup_steps=-1"], "optim.warmup_steps must be an integer >= 0"),
+    # numpy's "Maximum allowed size exceeded", reported as the scene's failure (the seventh probe's D16)
+    (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--set", "sampling.mode=trajectory",
+      "sampling.trajectory.spacing_m=1e-9"], "sampling.trajectory.spacing_m must be a number >= 0.01, got 1e-09"),
+    (["explore", "--scene", "procedural:0", "sim.camera.max_depth=1e300"],
+     "sim.camera.max_depth must be a number > 0, got 1e+300: beyond the 32-bit floats it is computed in"),
+    (["explore", "--scene", "procedural:0", "anchoring.max_pixels=" + "9" * 30],
+     "anchoring.max_pixels must be an integer >= 2, got 999999999999999999999999999999: beyond the 64-bit integers"),
 ])
 def test_a_value_outside_its_range_is_one_line_before_any_work(argv, message, tmp_path, one_line_error):
     out = tmp_path / "out"
@@ -181,6 +190,11 @@ def test_the_shipped_run_config_keeps_its_cross_file_relations():
     (["train", "data.path=x", "model.labels.num_classes=5"], "model.labels.num_classes == len(model.labels.bin_edges)"),
     (["train", "data.path=x", "model.labels.frontier_threshold_px=20"],
      "model.labels.frontier_threshold_px < model.labels.truncation_px"),
+    # refused only after a scene was labelled, as a failure of the scene (the seventh probe's D15)
+    (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--set",
+      f"ground_truth.gain.bin_edges=[{','.join(map(str, range(300)))}]"],
+     "len(ground_truth.gain.bin_edges) <= 256 must hold (a gain class an edge, stored as an 8-bit class index "
+     "(0-255), as model.labels.num_classes), got ground_truth.gain.bin_edges=[0, 1, 2, ..., 299] (300 items)"),
 ])
 def test_a_broken_relation_is_one_line_before_any_work(argv, message, tmp_path, one_line_error):
     test_a_value_outside_its_range_is_one_line_before_any_work(argv, message, tmp_path, one_line_error)
