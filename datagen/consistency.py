@@ -261,6 +261,9 @@ def format_consistency(result: dict) -> str:
             "view's frontier pixels; exact / 1 off: gain class in the band D < r)"]
 
     def row(name: str, kind: str, summary: dict) -> str:
+        if not summary["pairs"]:  # (its figures would be 0 / 0)
+            return (f"{name[-44:]:<44} {kind:<10} {0:>5}  no pair: no {kind} view was found (a nearby one clear of the "
+                    f"mesh within consistency.max_tries tries, {s['translation_m']:g} m away)")
         return (f"{name[-44:]:<44} {kind:<10} {summary['pairs']:>5} {summary['gain_dice_with_class_0']:>6.3f} "
                 f"{summary['gain_dice']:>6.3f} {summary['gain_dice_frontier']:>6.3f} {summary['gain_band_exact']:>6.3f} "
                 f"{summary['gain_band_one_off']:>6.3f} {summary['df_error_px']:>6.3f}")

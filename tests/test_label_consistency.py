@@ -75,3 +75,16 @@ def test_bad_consistency_input_is_one_line_exit_2(one_line_error):
     assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set",
                  "consistency.translation_m=-1"]) == 2
     assert "consistency.translation_m" in one_line_error()
+    # a nearby view past the camera's range shares no pixel: rows of NaN (the seventh probe's D14)
+    assert main(["datagen", "consistency", "--scenes", "procedural:12", "--set", "consistency.translation_m=1e30"]) == 2
+    assert "consistency.translation_m < camera.max_depth must hold" in one_line_error()
+
+
+def test_a_check_that_found_no_pair_says_so_instead_of_nan():
+    from datagen.consistency import KINDS, Agreement, format_consistency
+
+    empty = Agreement(11).summary()
+    result = {"settings": {"views_per_scene": 1, "translation_m": 3.0, "rotation_deg": 5.0, "sample_fraction": 0.1},
+              "scenes": {"procedural:12": {kind: empty for kind in KINDS}}, "total": {kind: empty for kind in KINDS}}
+    text = format_consistency(result)
+    assert "nan" not in text and "no pair: no nearby view was found" in text
