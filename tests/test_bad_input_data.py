@@ -186,5 +186,5 @@ def test_implausible_float_depth_says_it_is_read_as_metres(rgb_and_depth, tmp_pa
 def test_a_file_given_to_map_training_as_its_dataset_says_it_is_a_file(tmp_path, one_line_error):
     (tmp_path / "maps.zip").write_bytes(b"not a folder")
     config = Path(__file__).resolve().parents[1] / "configs" / "train_seer.yaml"
-    assert main(["train", "--config", str(config), f"data.path={tmp_path / 'maps.zip'}"]) == 2
+    assert main(["train", "--config", str(config), f"data.path={tmp_path / 'maps.zip'}", f"out={tmp_path / 'runs'}"]) == 2
     assert "maps.zip: is a file, expected a folder (map dataset)" in one_line_error()

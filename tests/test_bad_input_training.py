@@ -69,6 +69,14 @@ def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Pa
     (["data.val_scenes=procedural:3"], "data.val_scenes: takes a list of scene specs (or null), got "
                                        "'procedural:3'; write one scene as a one-element list, e.g. "
                                        "'data.val_scenes=[procedural:3]'"),
+    # numbers float32 cannot hold: an internal error (torch's overflow) or a whole run trained on NaN
+    (["optim.lr=1e300"], "optim.lr must be a number > 0, got 1e+300: beyond the 32-bit floats it is computed in"),
+    (["model.input.rgb_std=[0.1,0.1,1e-300]"], "model.input.rgb_std must be a list of 3 numbers > 0, got "
+                                              "[0.1, 0.1, 1e-300]: beyond the 32-bit floats"),
+    (["model.labels.truncation_px=1e300"], "model.labels.truncation_px must be a number > 0, got 1e+300: beyond"),
+    # Lightning refused it only after its INFO lines on stderr
+    (["trainer.limit_val_batches=1.5"], "trainer.limit_val_batches: a fraction of the validation batches is in "
+                                        "[0, 1] (or give a whole number of batches, e.g. 1), got 1.5"),
 ])
 def test_training_settings_judged_without_data_are_refused_before_anything(tmp_path, overrides, message,
                                                                             one_line_error):
@@ -150,6 +158,39 @@ def test_a_run_that_fails_before_its_first_step_leaves_no_folder_it_made(two_sce
             train(conf, progress=False)
     assert not (tmp_path / "runs").exists()
     assert list((tmp_path / "kept").iterdir()) == []  # a folder that was there stays
+
+
+@pytest.mark.parametrize("overrides", [["optim.lr=1e30"], ["model.input.rgb_std=[1e-30,1e-30,1e-30]"]],
+                         ids=["the loss", "a BatchNorm variance"])
+def test_a_run_that_stops_being_finite_ends_at_once_in_one_line_and_saves_no_diverged_weights(two_scenes, tmp_path,
+                                                                                              overrides, capsys):
+    # it trained to its end on NaN and failed only when writing the weights, in 19 lines, leaving runs/tiny
+    import logging
+    import sys
+
+    loggers = [logging.getLogger(), *(logger for logger in logging.Logger.manager.loggerDict.values()
+                                      if isinstance(logger, logging.Logger))]
+    for handler in (handler for logger in loggers for handler in logger.handlers):  # made on an earlier test's
+        if type(handler) is logging.StreamHandler:  # captured stderr (Lightning's, at import), since closed
+            handler.stream = sys.stderr  # (setStream would flush the closed one)
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", f"data.path={two_scenes}", f"out={runs}", "name=tiny",
+                 *[item for item in TINY if item != "trainer.max_steps=1"], "trainer.max_steps=6",
+                 "trainer.checkpoint_every_n_epochs=100", "model.network.pretrained=false", *overrides]) == 2
+    err = capsys.readouterr().err  # Lightning's INFO lines as the run started, then the run's end in one line
+    message = err.strip().splitlines()[-1]
+    assert "Traceback" not in err and message.startswith("frontiernet train: error: ")
+    assert sum(not line.startswith("INFO: ") for line in err.strip().splitlines()) == 1
+    assert " became " in message and "the settings make training diverge" in message  # (the loss or a weight)
+    assert overrides[0].split("=")[0] in message  # the key that usually causes it, with its value
+    step = int(message.split(" at step ")[1].split()[0])
+    kept = sorted(runs.rglob("*.ckpt"))
+    if not kept:
+        assert not runs.exists()  # no checkpoint to resume from: nothing left behind
+    for path in kept:  # the checkpoints of before (its first epoch's best), never the diverged weights
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        assert state["global_step"] < step and path.name != "last.ckpt"
+        assert all(torch.isfinite(value).all() for value in state["state_dict"].values() if value.is_floating_point())
 
 
 def test_bench_train_refuses_a_worker_count_given_twice(tmp_path, one_line_error):

@@ -22,6 +22,7 @@ import platform
 import re
 import time
 import warnings
+from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
 
@@ -43,7 +44,7 @@ from .config import plain
 from .cache import check_cache_folder
 from .data import FrontierDataModule, open_training_data, view_size, worker_count
 from .finetune import freeze, init_file, initial_weights, shared_base
-from .module import FrontierNetModule, check_schedule
+from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_schedule
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +61,7 @@ class LastCheckpoint(Callback):
             trainer.save_checkpoint(self.path)
 
     def on_exception(self, trainer, module, exception) -> None:
-        if trainer.global_step > 0:
+        if trainer.global_step > 0 and not isinstance(exception, TrainingDiverged):  # (NaN weights: not saved)
             trainer.save_checkpoint(self.path)
             log.warning("saved %s (resume with --resume)", self.path)
 
@@ -194,10 +195,15 @@ PRECISIONS = ("32-true", "32", "16-mixed", "16", "bf16-mixed", "bf16")
 
 
 def check_trainer(trainer) -> None:
-    """InputError naming the ``trainer.*`` setting that Lightning takes but this run cannot: several nodes
+    """InputError naming the ``trainer.*`` setting that Lightning takes but this run cannot, or refuses only after
+    its first lines on stderr (a ``limit_val_batches`` fraction above 1): several nodes
     outside a multi-node launch (:data:`CLUSTER_VARIABLES`: it waits for ever), a precision not in
     :data:`PRECISIONS` (64-true failed at the first step), several devices on the CPU (the processes
     Lightning starts there share one dataset's loaders and write no results)."""
+    limit = trainer.limit_val_batches
+    if isinstance(limit, float) and not 0.0 <= limit <= 1.0:  # (Lightning refuses it after its INFO lines)
+        raise InputError(f"trainer.limit_val_batches: a fraction of the validation batches is in [0, 1] (or give a "
+                         f"whole number of batches, e.g. {int(limit)}), got {limit}")
     nodes = trainer.num_nodes
     if nodes != 1 and not any(name in os.environ for name in CLUSTER_VARIABLES):
         raise InputError(f"trainer.num_nodes={nodes}: no multi-node launch here (none of "
@@ -341,7 +347,8 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     epoch_end = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
                                 every_n_epochs=int(conf.trainer.checkpoint_every_n_epochs),
                                 save_on_train_epoch_end=True)
-    callbacks = [best, periodic, epoch_end, LastCheckpoint(last), LearningRateMonitor("step")]
+    callbacks = [best, periodic, epoch_end, LastCheckpoint(last), LearningRateMonitor("step"), FiniteTraining(
+        {"optim.lr": conf.optim.lr, "model.input.rgb_std": list(conf.model.input.rgb_std)})]
     try:  # (also before the cache: a trainer setting Lightning refuses leaves no cache either)
         trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
                             logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
@@ -371,24 +378,10 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
         part = 1 + len(list(out.glob("metrics-part*.csv")))
         (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
-    made = next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
     started = time.time()
-    try:
+    with run_folder(out, trainer):
+        (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
         trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code
-    except SystemExit:
-        if trainer.interrupted:  # Lightning turns Ctrl-C into sys.exit(1) after its on_exception hooks
-            raise KeyboardInterrupt from None
-        raise
-    except BaseException:
-        if made is not None and trainer.global_step == 0:  # a run that never stepped leaves no folder
-            import shutil  # behind, nor the folders above it that it made (out=runs/a/b)
-
-            shutil.rmtree(made, ignore_errors=True)
-        raise
-    if trainer.interrupted:
-        raise KeyboardInterrupt
     checkpoint = best.best_model_path or str(last)
     if trainer.global_step > module.validated_at_step:
         # Lightning skips the validation due at the last step when max_steps ends the run, so the
@@ -400,6 +393,31 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     if trainer.is_global_zero:
         _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
     return out
+
+
+@contextmanager
+def run_folder(out: Path, trainer):
+    """Run folder `out` made (with the folders above it that are missing) for the training in the body, which
+    Lightning's `trainer` runs: where the body fails before any checkpoint was saved (it never stepped, or it
+    diverged first: :class:`~train.module.TrainingDiverged`), the folders made here are removed, as nothing
+    could resume from them; Ctrl-C (Lightning turns it into ``sys.exit(1)`` after its ``on_exception``
+    hooks, or only marks the trainer interrupted) ends as KeyboardInterrupt."""
+    made = next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        yield out
+    except SystemExit:
+        if trainer.interrupted:
+            raise KeyboardInterrupt from None
+        raise
+    except BaseException:
+        if made is not None and not any((out / "checkpoints").glob("*.ckpt")):
+            import shutil
+
+            shutil.rmtree(made, ignore_errors=True)
+        raise
+    if trainer.interrupted:
+        raise KeyboardInterrupt
 
 
 def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapsed: float, resume) -> None:

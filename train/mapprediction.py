@@ -32,7 +32,7 @@ from frontiernet.mapprediction.predictor import save_predictor
 from frontiernet.mapprediction.quality import scores
 
 from .main import check_max_time
-from .module import FrontierNetModule, check_schedule
+from .module import FiniteTraining, FrontierNetModule, check_schedule
 
 
 def is_map_config(path) -> bool:
@@ -195,9 +195,10 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     from lightning.pytorch.loggers import CSVLogger
     from torch.utils.data import DataLoader
 
-    from .main import LastCheckpoint, _trainer_args, resume_checkpoint, run_dir
+    from .main import LastCheckpoint, _trainer_args, check_trainer, resume_checkpoint, run_dir, run_folder
     from .mapdata import make_samples
 
+    check_trainer(conf.trainer)
     out = run_dir(conf)
     resume = resume_checkpoint(out, resume)[0]
     last = out / "checkpoints" / "last.ckpt"
@@ -219,7 +220,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
 
     periodic = ModelCheckpoint(dirpath=checkpoints, filename="last", save_top_k=1, enable_version_counter=False,
                                train_time_interval=timedelta(minutes=float(conf.trainer.checkpoint_every_minutes)))
-    callbacks = [best, periodic, LastCheckpoint(last), LearningRateMonitor("step")]
+    callbacks = [best, periodic, LastCheckpoint(last), LearningRateMonitor("step"), FiniteTraining({"optim.lr": conf.optim.lr})]
     try:
         trainer = L.Trainer(**_trainer_args(conf.trainer), default_root_dir=out, callbacks=callbacks,
                             logger=CSVLogger(out, name="", version=""), enable_progress_bar=progress,
@@ -229,15 +230,13 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     if resume is not None and (out / "metrics.csv").is_file():
         part = 1 + len(list(out.glob("metrics-part*.csv")))
         (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
     workers = int(conf.data.num_workers)
     loaders = [DataLoader(samples, batch_size=batch, shuffle=shuffle, drop_last=shuffle, num_workers=workers,
                           persistent_workers=workers > 0) for samples, shuffle in ((train_set, True), (val_set, False))]
     started = time.time()
-    trainer.fit(module, *loaders, ckpt_path=resume, weights_only=True)
-    if trainer.interrupted:
-        raise KeyboardInterrupt
+    with run_folder(out, trainer):
+        (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
+        trainer.fit(module, *loaders, ckpt_path=resume, weights_only=True)
     checkpoint = best.best_model_path or str(last)
     if trainer.global_step > module.validated_at_step:
         final = trainer.validate(module, loaders[1], verbose=False)[0]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import lightning as L
-from lightning.pytorch.callbacks import Timer
+from lightning.pytorch.callbacks import Callback, Timer
 import torch
 
 from frontiernet.errors import InputError
@@ -24,6 +24,37 @@ def check_schedule(optim: dict, has_max_time: bool) -> None:
             raise InputError(f"optim.{key}: must be one of {', '.join(allowed)}, got {optim[key]!r}")
     if optim.get("horizon") == "time" and not has_max_time:
         raise InputError("optim.horizon: 'time' ends the schedule at trainer.max_time, which is not set")
+
+
+class TrainingDiverged(InputError):
+    """Training stopped being finite: the settings make it diverge (a too large ``optim.lr``, a near-zero
+    ``model.input`` std); a user error, reported in one line (exit 2)."""
+
+
+class FiniteTraining(Callback):
+    """Stops training where it stops being finite, with :class:`TrainingDiverged` naming the step and the
+    keys that usually cause it (`keys`: key -> value): at a training loss that is not finite (before its
+    backward pass), and at a checkpoint whose weights or buffers are not (a BatchNorm variance overflows
+    while the loss stays finite); so no diverged weights are saved. Without it a diverged run trained to its
+    end on NaN and failed only when its weights were read back."""
+
+    def __init__(self, keys: dict):
+        self.keys = dict(keys)
+
+    def _diverged(self, trainer, what: str) -> TrainingDiverged:
+        settings = ", ".join(f"{key}={value}" for key, value in self.keys.items())
+        return TrainingDiverged(f"{what} at step {trainer.global_step + 1} (epoch {trainer.current_epoch + 1}): the "
+                                f"settings make training diverge ({settings}); lower optim.lr or correct them. The "
+                                "diverged weights were not saved (earlier checkpoints are kept)")
+
+    def on_before_backward(self, trainer, module, loss: torch.Tensor) -> None:
+        if not bool(torch.isfinite(loss.detach()).all()):
+            raise self._diverged(trainer, f"the training loss became {float(loss.detach().float().mean())}")
+
+    def on_save_checkpoint(self, trainer, module, checkpoint: dict) -> None:
+        for name, value in checkpoint["state_dict"].items():
+            if torch.is_tensor(value) and value.is_floating_point() and not bool(torch.isfinite(value).all()):
+                raise self._diverged(trainer, f"the network's {name} became NaN or infinite")
 
 
 class FrontierNetModule(L.LightningModule):
