@@ -189,8 +189,9 @@ def plan_runs(scenes: list[str], methods: list[str], starts: int, repeats: int, 
         need_poses = scene not in poses or len(poses[scene]) < int(starts)
         need_budget = budgets is not None and scene not in budgets
         world = planning_world(scene, conf) if need_poses or need_budget else None
-        if need_poses:
-            poses[scene] = start_poses(scene, int(starts), seed, conf, scene_starts, world)
+        if need_poses:  # a resumed plan's poses stay as they are (its finished runs started there); more added
+            drawn = start_poses(scene, int(starts), seed, conf, scene_starts, world)
+            poses[scene] = list(poses.get(scene, []))[:int(starts)] + list(drawn[len(poses.get(scene, [])):])
             shipping += [scene] if world.scene.metadata.extra.get("start_xy") else []
         if need_budget:
             budgets[scene] = scene_budget(scene, conf, rule, world)[0]
