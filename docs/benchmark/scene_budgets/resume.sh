@@ -6,7 +6,9 @@
 #   STARTS=1 (the default) is pass 1: every scene from its first start, one repeat (15 scenes x
 #   6 methods x 2 regimes = 180 runs, 24,600 steps a method and regime; about 15 worker-hours on
 #   2 cores). STARTS=3 is pass 2 (the same first poses, two more each); REPEATS=3 pass 3, the full
-#   protocol (runs that would repeat exactly are copied, not run).
+#   protocol (runs that would repeat exactly are copied, not run). METHODS=classic,random-frontier STARTS=3
+#   runs pass 2 of those two methods alone (a benchmark grows by a command that names only what it adds:
+#   the other methods' runs stay in the plan and the report).
 # FRONTIERNET: the command (default: the code this folder's runs were made with, pinned with
 # scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
 # sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
@@ -20,7 +22,7 @@
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 9711f05 ../pinned_scene_budgets_9711f05}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 59c28d5 ../pinned_scene_budgets_59c28d5}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
