@@ -125,6 +125,14 @@ def test_model_goes_to_the_methods_that_run_it_and_every_other_runs_without(plan
     assert "2 runs (0 failed)" in stdout
     rows = {r["method"]: r for r in csv.DictReader(open(tmp_path / "b" / "results.csv"))}
     assert {r["status"] for r in rows.values()} == {"done"}
+    # the benchmark grows by classic alone under its --model (a setting of its plan, whose frontiernet runs
+    # read it); a new benchmark of classic alone has no use for one
+    code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "classic", "--starts", "2", "--repeats", "1",
+                                 "--max-steps", "12", "--model", model, "--out", tmp_path / "b")
+    assert code == 0 and "3 runs (0 failed)" in stdout, stderr
+    code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "1",
+                                 "--max-steps", "12", "--model", model, "--out", tmp_path / "c")
+    assert code == 2 and "none of the methods classic runs a FrontierNet model" in stderr
 
 
 @pytest.mark.slow

@@ -101,7 +101,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         from ..exploration.methods import runs_frontiernet_model
         from ..model import open_runtime
 
-        if not any(runs_frontiernet_model(method) for method in methods):
+        planned = {run["method"] for run in read_plan(out)["runs"]} if plan_file(out) is not None else set()
+        if not any(runs_frontiernet_model(method) for method in (*methods, *planned)):  # (a plan it grows: its own)
             raise InputError(f"--model {model}: none of the methods {', '.join(methods)} runs a FrontierNet model, "
                              "so --model would be ignored; leave it out (seer and mapex take their predictor "
                              "from --set seer.predictor=FILE / mapex.predictor=FILE)")
