@@ -22,7 +22,7 @@
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 59c28d5 ../pinned_scene_budgets_59c28d5}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh cfba5e4 ../pinned_scene_budgets_cfba5e4}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
