@@ -24,6 +24,15 @@ from frontiernet.errors import InputError
     # --map-free won over the planner.mode=map given beside it
     (["explore", "--scene", "procedural:0", "--map-free", "planner.mode=map", "--out", "{out}"],
      "--map-free contradicts planner.mode=map: give one of them"),
+    # an option and the key it sets, given different values: one ran in silence (the seventh probe's D12)
+    (["explore", "--scene", "procedural:0", "--seed", "1", "run.seed=2", "--out", "{out}"],
+     "--seed 1 contradicts run.seed=2: give one of them"),
+    (["explore", "--scene", "procedural:0", "--max-steps", "4", "run.max_steps=5", "--out", "{out}"],
+     "--max-steps 4 contradicts run.max_steps=5: give one of them"),
+    (["demo", "--max-steps", "4", "run.max_steps=5", "--out", "{out}"],
+     "--max-steps 4 contradicts run.max_steps=5: give one of them"),
+    (["bench", "--scenes", "procedural:0", "--methods", "classic", "--seed", "3", "--out", "{out}", "--set",
+      "run.seed=4"], "--seed 3 contradicts run.seed=4: give one of them"),
     # a focal length of 1e30 px (a field of view of 0 degrees) rendered blank frames
     (["explore", "--scene", "procedural:0", "sim.camera.focal_px=1e30", "--out", "{out}"],
      "sim.camera.focal_px <= 100 * sim.camera.width must hold"),

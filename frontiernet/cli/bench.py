@@ -166,6 +166,8 @@ def run_exploration_benchmark(args) -> int:
     if not args.out:
         raise InputError("the exploration benchmark needs --out DIR")
     _refuse_bench_yaml_keys(args.set)
+    options.refuse_contradictions(args.set, {"run.seed": (f"--seed {args.seed}", args.seed),
+                                             "run.depth": (f"--depth {args.depth}", args.depth)})
     conf = load_run_config(args.config, args.set)
     if conf.run.max_steps != load_run_config().run.max_steps:  # (set by --config or --set: read by no run here)
         raise InputError(f"run.max_steps={conf.run.max_steps}: the benchmark gives each scene its budget "

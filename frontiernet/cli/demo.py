@@ -31,6 +31,8 @@ def run(args) -> int:
 
     check_output_folder(args.out, force=True)  # the demo writes over its own outputs (make demo)
     check_output_files(args.out, RUN_OUTPUTS)
+    options.refuse_contradictions(args.overrides, {"run.max_steps": (f"--max-steps {args.max_steps}", args.max_steps),
+                                                   "scene": (f"--scene {args.scene}", args.scene)})
     conf = load_run_config(args.config, args.overrides, names=("explore", "demo"))
     scene = conf.pop("scene") if args.scene is None else args.scene  # (an empty --scene is refused, not the default)
     if not isinstance(scene, str):  # (a list was read as the scene named "['procedural:3']")

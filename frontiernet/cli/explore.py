@@ -60,16 +60,15 @@ def summary_line(record: dict, out) -> str:
 
 
 def run(args) -> int:
-    from ..errors import InputError
     from ..exploration.run import RUN_OUTPUTS, check_run, load_run_config, main
     from ..io import check_output_files, check_output_folder, claim_output_folder
 
     check_output_folder(args.out, args.force)
     check_output_files(args.out, RUN_OUTPUTS)
-    contrary = [item for item in args.overrides if item.replace(" ", "").startswith("planner.mode=")
-                and item.split("=", 1)[1].strip() != "map_free"]
-    if args.map_free and contrary:
-        raise InputError(f"--map-free contradicts {contrary[-1]}: give one of them")
+    options.refuse_contradictions(args.overrides, {
+        "planner.mode": ("--map-free", "map_free" if args.map_free else None),
+        "run.seed": (f"--seed {args.seed}", args.seed), "run.max_steps": (f"--max-steps {args.max_steps}", args.max_steps),
+        "run.depth": (f"--depth {args.depth}", args.depth)})
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # over a --config file's
     conf = load_run_config(args.config, overrides)
     settings = {"method": args.method, "model": args.model, "depth": args.depth, "max_steps": args.max_steps,

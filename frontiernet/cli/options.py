@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..errors import InputError
+
 SCENE_HELP = "scene spec (see `frontiernet scene --help`)"
 """Help of a command's one scene (``render SPEC``, ``explore --scene SPEC``)."""
 MODEL_FILE_HELP = "model file (.safetensors) or checkpoint (.ckpt)"
@@ -100,6 +102,26 @@ def config_overrides(parser, example: str, *, option: bool = False) -> None:
                             help=text + " (--set given twice: both lists)")
     else:
         parser.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help=text)
+
+
+def refuse_contradictions(overrides, options: dict) -> None:
+    """InputError where an option and the config key it sets are both given, with other values: `options`
+    maps a dotted key to (the option as typed, e.g. ``--seed 1``, and its value; None where not given), and
+    a ``KEY=VALUE`` of `overrides` setting that key to another value (read as YAML) contradicts it. Without
+    it one of the two was ignored without a word (``--seed 1 run.seed=2`` ran seed 1)."""
+    import yaml
+
+    for item in overrides or ():
+        key, _, text = str(item).partition("=")
+        flag, value = options.get(key.strip(), (None, None))
+        if value is None:
+            continue
+        try:
+            given = yaml.safe_load(text)
+        except yaml.YAMLError:
+            given = text.strip()
+        if str(given) != str(value):
+            raise InputError(f"{flag} contradicts {str(item).strip()}: give one of them")
 
 
 def output_path(text: str) -> str:
