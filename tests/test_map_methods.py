@@ -333,6 +333,38 @@ def test_seer_proposes_one_view_per_cluster_on_its_circles_away_from_the_robot()
     assert [(v.position.tolist(), v.gain_m3) for v in again] == [(v.position.tolist(), v.gain_m3) for v in fresh]
 
 
+def test_seer_scores_at_most_its_budget_of_clusters_a_step_and_keeps_the_others_last_views():
+    """``seer.max_scored_clusters_per_step``: a step's views cost at most that many clusters' rings (issue 55:
+    the step cost of a large floor), nearest first; a cluster beyond the budget keeps its last view."""
+    occupancy = empty_map()
+    K = np.array([[40.0, 0, 31.5], [0, 40.0, 31.5], [0, 0, 1]])
+    T = np.eye(4)
+    T[:3, :3] = [[0, 0, 1], [-1, 0, 0], [0, -1, 0]]  # level, looking along +x
+    T[:3, 3] = [0.5, 2.0, 1.2]
+    occupancy.integrate(np.full((64, 64), np.nan, np.float32), K, T)
+    T_robot = poses_from_headings(np.array([[0.5, 2.0, 1.2]]), np.array([0.0]), 0.0)[0]
+    every = seer_source(occupancy)
+    clusters = every.clusters(1.2)
+    assert len(clusters) >= 3
+    unlimited = every.views(clusters, [None] * len(clusters), T_robot)
+
+    source = seer_source(occupancy, max_scored_clusters_per_step=1)
+    scored = []
+    source.best_view = lambda cells, *args, best=source.best_view: scored.append(len(cells)) or best(cells, *args)
+    for frame in range(len(clusters)):  # one cluster more a frame, nearest first, until every one has a view
+        views = source.views(clusters, [None] * len(clusters), T_robot)
+        assert len(views) == min(frame + 1, len(unlimited))
+    distances = [np.hypot(*(c.mean(axis=0) - [0.5, 2.0])) for c in clusters]
+    assert scored[0] == len(clusters[int(np.argmin(distances))])
+    assert sorted((tuple(v.position), v.gain_m3) for v in views) == \
+        sorted((tuple(v.position), v.gain_m3) for v in unlimited)  # the same views once all are scored
+    T[:3, 3] = [1.0, 2.0, 1.2]
+    occupancy.integrate(np.full((64, 64), 2.0, np.float32), K, T)  # a wall mapped: every ring's gains are stale
+    scored.clear()
+    again = source.views(source.clusters(1.2), [None] * len(source.clusters(1.2)), T_robot)
+    assert len(scored) == 1 and len(again) > 1  # one scored anew, the others proposed from their last views
+
+
 @pytest.mark.parametrize("method", ["seer", "mapex"])
 def test_an_exploration_never_calls_back_into_a_library_file_it_came_from(plan_spec, predictors, tmp_path, method):
     from test_walks import returns_during  # docs/design.md, "Walk (a)" and "Walk (b)"

@@ -64,7 +64,8 @@ KEYS_ADDED_AFTER_PLANS = {
              "candidate_dphi_deg": 15.0, "yaw_offsets_deg": [-50.0, -30.0, -10.0, 10.0, 30.0, 50.0],
              "min_view_distance_m": 0.75, "max_velocity_mps": 1.0, "w_dir": 1.5, "cluster_min_cells": 5,
              "cluster_max_extent_m": 2.4, "view_width_px": 16, "repredict_new_voxels": 5000,
-             "max_predictions_per_step": 2, "reuse_distance_m": 1.0},
+             "max_predictions_per_step": 2, "reuse_distance_m": 1.0, "max_scored_clusters_per_step": None},
+    "seer.max_scored_clusters_per_step": None,  # issue 55: every cluster scored every step, as before the key
     "mapex": {"predictor": None, "min_cells": 11, "max_extent_m": 1000.0, "visibility_range_m": 3.5, "num_rays": 256,
               "hit_probability": 0.8, "repredict_new_cells": 300, "value_floor": 1e-06},
     # issue 56: frontiernet-mapex's settings (they change no run of any other method)

@@ -135,8 +135,11 @@ class SeerSource(FrontierSource):
         self.band = float(conf.planner.height_band_m)
         self.threshold = predictor.occupied_threshold
         self.min_gain = float(conf.tracking.min_gain_m3)
+        budget = s.get("max_scored_clusters_per_step")
+        self.score_budget = None if budget is None else _setting(s, "max_scored_clusters_per_step", True)
         self.crops: list[Crop] = []
         self.predictions = 0  # crops predicted so far
+        self._last: dict[bytes, tuple[np.ndarray, tuple]] = {}  # cluster key -> (its average xy, its last view)
         # a view's gain changes only when a voxel within its rays' reach changes state (unknown, free,
         # occupied): the gains of each cluster's ring of views are kept (per cluster cells and crop)
         # until a voxel near it does (a frame that sees again what the map knows flips little)
@@ -278,10 +281,36 @@ class SeerSource(FrontierSource):
         cell = index[keep[best[0]]]
         return xy[keep[best[0]]], float(wrap(yaws[best])), float(gains[best]), float(length[cell[0], cell[1]])
 
+    def _key(self, cells: np.ndarray, z: float) -> bytes:
+        """A cluster's identity between frames: its (N, 2) world xy `cells` and the camera height `z`."""
+        return np.round(cells / float(self.map.voxel_size)).astype(np.int64).tobytes() + np.float64(z).tobytes()
+
+    def _scored(self, cells: np.ndarray, crop: Crop | None, z: float) -> bool:
+        """Whether the cluster's ring of views has gains kept with `crop` (only views newly reachable to score)."""
+        kept = self._view_gains.get(self._key(cells, z))
+        return kept is not None and kept.crop is crop
+
+    def _stale_view(self, key: bytes, centre: np.ndarray, grid, length: np.ndarray, previous: dict):
+        """The last view of this cluster (by `key`, else of the last frame's cluster whose average lies
+        within ``reuse_distance_m`` of `centre`), its path length measured again on this frame's grid; None
+        when there is none or it is out of reach now."""
+        record = previous.get(key)
+        if record is None and previous:
+            near = min(previous.values(), key=lambda item: float(np.hypot(*(item[0] - centre))))
+            record = near if np.hypot(*(near[0] - centre)) <= self.reuse_m else None
+        if record is None:
+            return None
+        xy, yaw, gain, _ = record[1]
+        cell = grid.cells(np.asarray(xy)[None])[0]
+        if not (0 <= cell[0] < length.shape[0] and 0 <= cell[1] < length.shape[1]) \
+                or not np.isfinite(length[cell[0], cell[1]]):
+            return None
+        return xy, yaw, gain, float(length[cell[0], cell[1]])
+
     def _kept_gains(self, cells: np.ndarray, crop: Crop | None, centre: np.ndarray, z: float) -> ViewGains:
         """The :class:`ViewGains` of the cluster of (N, 2) world xy `cells` with `crop` (a new, empty one
         when none is kept for them, or it was integrated with another crop)."""
-        key = np.round(cells / float(self.map.voxel_size)).astype(np.int64).tobytes() + np.float64(z).tobytes()
+        key = self._key(cells, z)
         kept = self._view_gains.get(key)
         if kept is None or kept.crop is not crop:
             reach = self.radii[-1] + self.reach
@@ -310,22 +339,48 @@ class SeerSource(FrontierSource):
         grid, length = self._open_cells(T, z)
         self._forget_changed()
         self._used = set()
+        previous, self._last = self._last, {}
+        budget = self.score_budget
         found = []
-        for cells, crop in zip(clusters, crops):
+        # nearest clusters first: with seer.max_scored_clusters_per_step, those beyond the budget whose views
+        # must be scored anew keep their last view (its gain from then) this frame
+        order = range(len(clusters)) if budget is None else \
+            sorted(range(len(clusters)), key=lambda k: float(np.hypot(*(clusters[k].mean(axis=0) - robot))))
+        for index in order:
+            cells, crop = clusters[index], crops[index]
+            if budget is not None and not self._scored(cells, crop, z):
+                if budget == 0:
+                    key = self._key(cells, z)
+                    view = self._stale_view(key, cells.mean(axis=0), grid, length, previous)
+                    if view is not None:
+                        self._last[key] = (cells.mean(axis=0), view)
+                    if view is None or view[2] < self.min_gain:
+                        continue
+                    found.append(self._observation(view, cells, robot, heading, z, T))
+                    continue
+                budget -= 1
             view = self.best_view(cells, crop, grid, length, robot, z)
+            if view is not None:
+                self._last[self._key(cells, z)] = (cells.mean(axis=0), view)
             if view is None or view[2] < self.min_gain:
                 continue
-            xy, yaw, gain, path = view
-            theta = abs(float(wrap(np.arctan2(xy[1] - robot[1], xy[0] - robot[0]) - heading)))
-            path = max(path, float(self.conf.planner.min_distance_m))
-            weighted = gain * path / (path + self.vm * self.time_per_rad * theta)
-            found.append(FrontierObservation(np.array([xy[0], xy[1], z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]),
-                                             weighted, len(cells), np.full(2, np.nan), np.array(T, np.float64)))
+            found.append(self._observation(view, cells, robot, heading, z, T))
         self._view_gains = {key: kept for key, kept in self._view_gains.items() if key in self._used}  # this frame's
         if not found:
             return []
         scale = max(1.0, self.min_gain / min(o.gain_m3 for o in found))  # no proposal below g_min; order kept
         return [replace(o, gain_m3=o.gain_m3 * scale) for o in found]
+
+    def _observation(self, view: tuple, cells: np.ndarray, robot: np.ndarray, heading: float, z: float,
+                     T: np.ndarray) -> FrontierObservation:
+        """The proposal of a cluster's view (xy, yaw, gain, path length): its gain weighted by SEER's heading
+        cost (module docstring, 5.)."""
+        xy, yaw, gain, path = view
+        theta = abs(float(wrap(np.arctan2(xy[1] - robot[1], xy[0] - robot[0]) - heading)))
+        path = max(path, float(self.conf.planner.min_distance_m))
+        weighted = gain * path / (path + self.vm * self.time_per_rad * theta)
+        return FrontierObservation(np.array([xy[0], xy[1], z]), np.array([np.cos(yaw), np.sin(yaw), 0.0]),
+                                   weighted, len(cells), np.full(2, np.nan), np.array(T, np.float64))
 
 
 def make_seer(context) -> Method:
