@@ -363,6 +363,21 @@ def _bad_recording(case: str, tmp_path: Path) -> tuple[Path, list[str]]:
         bag = recording(frames, K, info=False)
     elif case == "depth encoding":
         bag = recording(frames, K, depth="16SC1")
+    elif case in ("nan tf", "nan odometry"):  # seventh probe (D17's class): a NaN pose failed late, unnamed
+        bag = recording(frames, K, poses="tf" if case == "nan tf" else "odom")
+        T = np.eye(4)
+        T[0, 3] = np.nan
+        if case == "nan tf":
+            bag.tf("/tf", T0 + PERIOD // 2, "world", "base_link", T)
+        else:
+            bag.odometry("/odom", T0 + PERIOD // 2, "odom", "base_link", T)
+    elif case == "CameraInfo focal":  # seventh probe: a file's intrinsics got none of --intrinsics' bounds
+        bag = recording(frames, K, info=False)
+        huge = K.copy()
+        huge[0, 0] = huge[1, 1] = 1e6
+        bag.camera_info("/camera/color/camera_info", T0, huge, 40, 30)
+    elif case == "one unposed frame":  # seventh probe (D21): pycolmap's "0 of 1 registered ... closer together"
+        bag = recording(frames[:1], K, poses="none")
     elif case == "tf chain":  # /tf moves base_link, but nothing links it to the camera's frame
         bag = recording(frames, K)
         bag.messages = [m for m in bag.messages if m[0] != "/tf_static"]
@@ -374,23 +389,37 @@ def _bad_recording(case: str, tmp_path: Path) -> tuple[Path, list[str]]:
     path = bag.write(tmp_path / "rec", kind)
     if case.startswith("truncated"):
         _truncated(path if path.is_file() else next(path.glob("*.db3")))
-    extra = ["--topics", "rgb=/camera/color/camera_info"] if case == "wrong type" else []
+    extra = {"wrong type": ["--topics", "rgb=/camera/color/camera_info"],
+             "one topic twice": ["--topics", "rgb=/camera/color/image_raw,depth=/camera/color/image_raw"],
+             "intrinsics focal": ["--intrinsics", "1e6,1e6,19.5,14.5"]}.get(case, [])
     return path, extra
 
 
 BAD = {
     "no image topic": r"rec: no colour image topic \(sensor_msgs/Image or CompressedImage\); the recording has "
                       r"/camera/color/camera_info",
-    "no depth topic": r"rec: the recording has no depth image topic \(set one with --topics depth=TOPIC\): or "
-                      r"choose a depth model with --depth",
+    # seventh probe (D25): "... (set one with --topics depth=TOPIC): or choose a depth model with --depth ..."
+    "no depth topic": r"rec: the recording has no depth image topic; name one with --topics depth=TOPIC, or estimate "
+                      r"depth with --depth depth_anything_v2 or --depth metric3d_v2$",
     "wrong type": r"rec: topic /camera/color/camera_info is sensor_msgs/msg/CameraInfo; rgb needs "
                   r"sensor_msgs/msg/Image or sensor_msgs/msg/CompressedImage",
+    # seventh probe (D19): "the recording has no depth image topic (set one with --topics depth=TOPIC)"
+    "one topic twice": r"error: --topics: rgb=/camera/color/image_raw and depth=/camera/color/image_raw give one "
+                       r"topic for two roles; each role needs its own topic",
     "depth encoding": r"rec: topic /camera/aligned_depth_to_color/image_raw: depth encoding '16SC1' is not read",
     "no CameraInfo": r"rec: there is no CameraInfo topic for the colour topic /camera/color/image_raw: give the "
                      r"intrinsics with --intrinsics",
     "tf chain": r"rec: tf: the camera frame 'camera_color_optical_frame' \(topic /camera/color/image_raw\) does not "
                 r"reach a fixed frame: its chain camera_color_optical_frame has no moving transform \(moving frames "
                 r"in /tf: base_link, world\)",
+    "nan tf": r"rec: topic /tf: transform world -> base_link: the translation is not finite, got \[nan, 0.0, 0.0\]",
+    "nan odometry": r"rec: topic /odom: the pose at 1700000000.050 s: the translation is not finite, got \[nan, 0.0, "
+                    r"0.0\]",
+    "CameraInfo focal": r"rec: topic /camera/color/camera_info: CameraInfo: a focal length of 1e\+06 px is over 100 x "
+                        r"the 40 x 30 image's side",
+    "intrinsics focal": r"error: --intrinsics: a focal length of 1e\+06 px is over 100 x the 40 x 30 image's side",
+    "one unposed frame": r"rec: a reconstruction needs at least two overlapping images, the recording has no poses "
+                         r"and holds 1",
     "truncated bag": r"rec.bag: not a readable recording, truncated or corrupt",
     "truncated mcap": r"rec.mcap: not a readable recording, truncated or corrupt",
     "truncated db3": r"rec: not a readable recording, truncated or corrupt",
@@ -420,6 +449,8 @@ def test_topics_are_for_recordings_only(tmp_path, capsys):
     assert "--topics applies to recordings" in capsys.readouterr().err
     assert main(["sequence", "--input", str(folder), "--out", str(tmp_path / "out"), "--topics", "colour=/x"]) == 2
     assert "--topics: 'colour=/x' is not ROLE=TOPIC with ROLE one of rgb, depth, info, pose" in capsys.readouterr().err
+    assert main(["sequence", "--input", str(folder), "--out", str(tmp_path / "out"), "--topics", "rgb=/a,rgb=/b"]) == 2
+    assert "--topics: rgb is given twice (/a, /b); give each role once" in capsys.readouterr().err  # took /b
 
 
 # ----------------------------------------------------------------------------- whole runs and what they write

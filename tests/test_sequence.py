@@ -142,7 +142,9 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys,
         ([str(tmp_path / "empty")], "empty"),
         ([str(tmp_path / "zero_depth")], "no depth pixel of any frame is valid"),  # was an internal error
         ([str(tmp_path / "missing")], "missing"),
-        ([str(tmp_path / "no_depth")], "has no depth file"),
+        ([str(tmp_path / "no_depth")], "no_depth: frame 00000.png has no depth image; give the sequence a depth/ "
+                                       "folder of 16-bit millimetre PNGs, one per colour image, or estimate depth "
+                                       "with --depth depth_anything_v2 or --depth metric3d_v2"),
         ([str(tmp_path / "no_depth"), "--depth", "depth_anything_v2"], "depth_anything_v2"),
         ([str(tmp_path / "no_depth"), "--intrinsics", "1,2,3"], "--intrinsics must be fx,fy,cx,cy"),
         ([str(tmp_path / "no_depth"), "frames.stride=0"], "frames.stride must be an integer >= 1, got 0"),

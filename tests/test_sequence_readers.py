@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import pycolmap
 import pytest
 from scipy.spatial.transform import Rotation
 
+from frontiernet.config import load_config
 from frontiernet.errors import InputError
 from frontiernet.sequences import FORMATS, Camera, detect_format, open_sequence, read_colmap, read_redwood, read_tum
 
@@ -133,6 +135,46 @@ def test_redwood_errors(tmp_path):
     (malformed / "trajectory.log").write_text("\n".join(lines))
     with pytest.raises(InputError, match=r"trajectory.log:3: expected finite numbers, got '0 1 nan 0'"):
         read_redwood(malformed)
+
+
+@pytest.mark.parametrize("layout", ["redwood", "images"])
+def test_a_folder_named_like_a_frame_is_named(layout, tmp_path):
+    # seventh probe (D18): a folder color/00001.jpg was skipped, and the message counted the images instead
+    # ("depth: 3 depth images for 2 colour images"); in a plain image folder it was "unknown sequence format"
+    root = write_redwood(tmp_path / "rw") if layout == "redwood" else tmp_path / "rw"
+    folder = root / "color" / "00001.jpg" if layout == "redwood" else root / "b.jpg"
+    write_image(root / "a.jpg", 32, 24)
+    if folder.exists():
+        folder.unlink()
+    folder.mkdir(parents=True)
+    options = {} if layout == "redwood" else {"conf": dict(load_config("sequence").sfm)}
+    with pytest.raises(InputError, match=rf"^{re.escape(str(folder))}: is a folder, expected a file \(image\)$"):
+        open_sequence(root, **options)
+
+
+@pytest.mark.parametrize("matrix, message", [
+    # seventh probe: a file's intrinsics got none of the bounds typed --intrinsics get
+    ([1e6, 0, 0, 0, 1e6, 0, 15.5, 11.5, 1], "a focal length of 1e+06 px is over 100 x the 32 x 24 image's side"),
+    ([0.5, 0, 0, 0, 0.5, 0, 15.5, 11.5, 1], "a focal length of 0.5 px is under 0.04 x the 32 x 24 image's side"),
+    ([30, 0, 0, 0, 30, 0, 320, 240, 1], "the principal point (320, 240) lies outside the 32 x 24 image"),
+])
+def test_redwood_intrinsics_out_of_bounds_name_the_file(matrix, message, tmp_path):
+    root = write_redwood(tmp_path / "rw")
+    (root / "camera_intrinsic.json").write_text(json.dumps({"width": 32, "height": 24, "intrinsic_matrix": matrix}))
+    with pytest.raises(InputError, match=rf"^{re.escape(str(root / 'camera_intrinsic.json'))}: {re.escape(message)}"):
+        read_redwood(root)
+
+
+def test_a_redwood_matrix_that_is_no_rigid_transform_names_its_line_and_frame(tmp_path):
+    # seventh probe (D17): a scaled first matrix ran ~13 s, then "T_world_cam must be a rigid transform"
+    # named neither the file nor the frame
+    scaled = write_redwood(tmp_path / "scaled")
+    lines = (scaled / "trajectory.log").read_text().splitlines()
+    lines[6] = "2.0 0 0 1"  # frame 1's first row (line 7): its rotation part scales x by 2
+    (scaled / "trajectory.log").write_text("\n".join(lines))
+    with pytest.raises(InputError, match=r"scaled/trajectory.log:7: the pose of frame 1 must be a rigid transform "
+                                         r"\(rotation \+ translation\), got \[\[2.0, 0.0, 0.0, 1.0\], "):
+        read_redwood(scaled)
 
 
 # ----------------------------------------------------------------------------- TUM
@@ -286,6 +328,48 @@ def test_colmap_errors(colmap_project):
         read_colmap(colmap_project)
     with pytest.raises(InputError, match="own cameras"):
         open_sequence(colmap_project, camera=Camera.pinhole(1, 1, 1, 1, 2, 2))
+
+
+def test_colmap_intrinsics_out_of_bounds_name_the_camera(colmap_project):
+    # seventh probe: cameras.txt's intrinsics got none of the bounds typed --intrinsics get
+    model = pycolmap.Reconstruction(colmap_project / "sparse" / "0")
+    model.cameras[1].params = [1e6, 1e6, 80, 60]
+    model.write(colmap_project / "sparse" / "0")
+    with pytest.raises(InputError, match=r"project: COLMAP camera 1: a focal length of 1e\+06 px is over 100 x the "
+                                         r"160 x 120 image's side"):
+        read_colmap(colmap_project)
+
+
+def test_a_colmap_pose_that_is_no_rigid_transform_names_the_image(colmap_project):
+    # seventh probe (D17's class): a quaternion not of unit length in frames.txt / images.txt made a scaled
+    # rotation, refused only by the map ("T_world_cam must be a rigid transform", no file, no frame)
+    model = pycolmap.Reconstruction(colmap_project / "sparse" / "0")
+    text = colmap_project / "sparse" / "0"
+    for name in ("cameras", "images", "points3D", "frames", "rigs"):
+        (text / f"{name}.bin").unlink(missing_ok=True)
+    model.write_text(text)
+    frames = text / "frames.txt" if (text / "frames.txt").is_file() else text / "images.txt"
+    lines = frames.read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    fields = lines[first].split()
+    quaternion_at = 2 if frames.name == "frames.txt" else 1  # FRAME_ID RIG_ID QW ... / IMAGE_ID QW ...
+    fields[quaternion_at] = "2"
+    lines[first] = " ".join(fields)
+    frames.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"project: the COLMAP model's pose of image a.png must be a rigid "
+                                         r"transform \(rotation \+ translation\), got \[\["):
+        read_colmap(colmap_project)
+
+
+def test_a_colmap_project_without_depth_says_where_depth_goes(colmap_project, tmp_path, capsys):
+    # seventh probe (D25): "col_ok: frame 0.jpg has no depth file: or choose a depth model with --depth ..."
+    from frontiernet.cli.main import main
+
+    assert main(["sequence", "--input", str(colmap_project), "--out", str(tmp_path / "out"), "--no-video"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"frontiernet sequence: error: {colmap_project}: frame a.png has no depth image; give the sequence a depth/ "
+        "folder beside images/ (the images' names, 16-bit millimetre .png or .npy metres), or estimate depth with "
+        "--depth depth_anything_v2 or --depth metric3d_v2")
 
 
 def test_colmap_depth(colmap_project, tmp_path):

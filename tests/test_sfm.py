@@ -136,7 +136,8 @@ def test_a_second_run_reuses_the_saved_model(rendered, reconstructed, monkeypatc
     assert any("reused" in note for note in again.notes)
     fewer = tmp_path / "fewer"
     fewer.mkdir()
-    shutil.copy(rendered[0] / "000.png", fewer)
+    for name in ("000.png", "002.png"):  # (one image alone is refused before the saved model is read)
+        shutil.copy(rendered[0] / name, fewer)
     with pytest.raises(InputError, match="not in the folder.*001.png"):
         read_image_folder(fewer, work_dir=work, conf=SFM, progress=False)
 
@@ -172,6 +173,17 @@ def test_empty_folder_is_refused(tmp_path):
         read_image_folder(tmp_path, conf=SFM, progress=False)
 
 
+def test_one_image_is_refused_before_pycolmap(tmp_path, monkeypatch):
+    # seventh probe (D21): one image ran pycolmap, whose "0 of 1 registered" advised taking frames closer together
+    import frontiernet.sequences.sfm as sfm
+
+    monkeypatch.setattr(sfm, "_extract_and_match", lambda *args: pytest.fail("pycolmap ran"))
+    Image.new("RGB", (64, 48)).save(tmp_path / "a.png")
+    with pytest.raises(InputError, match=rf"^{tmp_path}: a reconstruction needs at least two overlapping images, "
+                                         r"the folder holds 1$"):
+        read_image_folder(tmp_path, conf=SFM, progress=False)
+
+
 def test_mixed_image_sizes_are_refused_naming_the_file(tmp_path):
     Image.new("RGB", (64, 48)).save(tmp_path / "a.png")
     Image.new("RGB", (64, 48)).save(tmp_path / "b.jpg")
@@ -182,6 +194,7 @@ def test_mixed_image_sizes_are_refused_naming_the_file(tmp_path):
 
 def test_camera_must_fit_the_images_and_options_are_checked(tmp_path):
     Image.new("RGB", (64, 48)).save(tmp_path / "a.png")
+    Image.new("RGB", (64, 48)).save(tmp_path / "b.png")  # (one image is refused first: it cannot be posed)
     with pytest.raises(InputError, match="64 x 48"):
         read_image_folder(tmp_path, Camera.pinhole(50, 50, 31.5, 23.5, 32, 48), conf=SFM, progress=False)
     with pytest.raises(InputError, match="matchng"):

@@ -20,7 +20,7 @@ from . import options
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("sequence", help="3D frontier proposals on your own posed images or video frames",
                                    description=__doc__.split("\n\n")[0])
-    parser.add_argument("--input", required=True, metavar="PATH",
+    parser.add_argument("--input", required=True, metavar="PATH", type=options.input_path("sequence or recording"),
                         help="sequence folder: TUM (rgb.txt), Redwood (color/ + *.log), COLMAP (cameras.bin, "
                              "sparse/0) or a folder of images; or a recording: .bag, .mcap, .db3, a rosbag2 folder")
     parser.add_argument("--format", default="auto", choices=("auto", "tum", "redwood", "colmap", "images", "rosbag"),

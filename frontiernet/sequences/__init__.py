@@ -34,9 +34,10 @@ __all__ = ["DEPTH_ENCODINGS", "FORMATS", "READERS", "Camera", "Sequence", "Seque
 
 
 def _only_images(folder: Path) -> bool:
-    """Whether `folder` holds image files and nothing else (hidden files aside)."""
+    """Whether `folder` holds images and nothing else (hidden files aside; an entry named like an image
+    that is a folder counts, for the reader to name it)."""
     entries = [entry for entry in folder.iterdir() if not entry.name.startswith(".")]
-    return bool(entries) and all(entry.is_file() and entry.suffix.lower() in IMAGE_SUFFIXES for entry in entries)
+    return bool(entries) and all(entry.suffix.lower() in IMAGE_SUFFIXES for entry in entries)
 
 
 def detect_format(path: str | Path) -> str:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import intrinsics_matrix
+from ..geometry import intrinsics_matrix, rigid_pose
 from ..io import input_folder
 from ..workers import keep_sigterm_handler
 
@@ -149,7 +149,7 @@ def sequence_from_reconstruction(reconstruction: pycolmap.Reconstruction, image_
 
     `depth_dir`: optional depth files with the images' stems (16-bit millimetre ``.png`` or
     ``.npy`` metres). Not metric (COLMAP's scale is arbitrary). InputError for missing image or
-    depth files and for images whose size is not their camera's.
+    depth files, for images whose size is not their camera's and for a pose that is no rigid transform.
     """
     image_dir = Path(image_dir)
     images = sorted((image for image in reconstruction.images.values() if image.has_pose), key=lambda im: im.name)
@@ -162,13 +162,15 @@ def sequence_from_reconstruction(reconstruction: pycolmap.Reconstruction, image_
     frames = []
     for index, (image, path) in enumerate(zip(images, paths)):
         if image.camera_id not in cameras:
-            cameras[image.camera_id] = colmap_camera(reconstruction.cameras[image.camera_id])
+            cameras[image.camera_id] = colmap_camera(reconstruction.cameras[image.camera_id]).checked(
+                f"{root}: COLMAP camera {image.camera_id}")
         camera = cameras[image.camera_id]
         for file, what in ((path, "image"), (depth[index], "depth")):
             if file is not None:
                 _check_size(file, what, camera, image.camera_id)
-        frames.append(SequenceFrame(index=index, name=image.name, rgb_path=path, camera=camera,
-                                    T_world_cam=world_from_cam(image), depth_path=depth[index], depth_scale=1000.0))
+        pose = rigid_pose(world_from_cam(image), f"{root}: the COLMAP model's pose of image {image.name}")
+        frames.append(SequenceFrame(index=index, name=image.name, rgb_path=path, camera=camera, T_world_cam=pose,
+                                    depth_path=depth[index], depth_scale=1000.0))
     registered = (f"{len(images)} of {reconstruction.num_images()} images in the model registered; "
                   f"{_count_image_files(image_dir)} image files in {image_dir}")
     notes = [registered, "poses are up to an unknown scale (COLMAP)"]

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import intrinsics_matrix
+from ..geometry import check_intrinsics_fit, intrinsics_matrix
 from .images import read_depth, read_rgb
 
 
@@ -45,6 +45,15 @@ class Camera:
     @classmethod
     def pinhole(cls, fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> Camera:
         return cls(int(width), int(height), intrinsics_matrix(fx, fy, cx, cy))
+
+    def checked(self, what: str) -> Camera:
+        """This camera if its intrinsics fit its image as typed ``--intrinsics`` must
+        (:func:`~frontiernet.geometry.check_intrinsics_fit`: finite, the principal point inside, a focal
+        length within 0.04 to 100 x the larger side); InputError naming `what` (the file it was read from)
+        otherwise."""
+        K = self.K
+        check_intrinsics_fit(K[0, 0], K[1, 1], K[0, 2], K[1, 2], self.width, self.height, what)
+        return self
 
     def undistort(self, image: np.ndarray, nearest: bool = False) -> np.ndarray:
         """The raw `image` (any dtype, (H, W) or (H, W, C)) as seen by the pinhole camera ``K``."""

@@ -75,6 +75,27 @@ def check_depth(depth, conf=None) -> None:
         check_depth_files(depth, conf.get("depth") if conf is not None else None)
 
 
+DEPTH_FILES = {"tum": "a depth.txt listing its depth images (5000 units per metre)",
+               "redwood": "a depth/ folder of 16-bit millimetre PNGs, one per colour image",
+               "colmap": "a depth/ folder beside images/ (the images' names, 16-bit millimetre .png or .npy metres)"}
+"""Where each sequence format keeps its depth images, as a run without them says."""
+ESTIMATE_DEPTH = "estimate depth with --depth depth_anything_v2 or --depth metric3d_v2"
+
+
+def no_depth_message(sequence, format: str, input_path) -> str:
+    """The refusal of a sensor-depth run on `sequence` (read as `format` from `input_path`) whose frames lack
+    depth, as one sentence: what is missing, then the two ways on (its depth where the format keeps it,
+    :data:`DEPTH_FILES`; or a depth model)."""
+    if format == "rosbag":
+        return (f"{input_path}: the recording has no depth image topic; name one with --topics depth=TOPIC, or "
+                f"{ESTIMATE_DEPTH}")
+    if format not in DEPTH_FILES:  # a folder of images (posed by pycolmap): depth can only be estimated
+        return f"{input_path}: the images have no depth; {ESTIMATE_DEPTH}"
+    missing = next(frame.name for frame in sequence if frame.depth_path is None)
+    return (f"{input_path}: frame {missing} has no depth image; give the sequence {DEPTH_FILES[format]}, or "
+            f"{ESTIMATE_DEPTH}")
+
+
 def select_frames(sequence, stride: int, max_frames: int | None):
     """Every `stride`-th frame, at most `max_frames` of them (None: all)."""
     stride, max_frames = check_frames(stride, max_frames)
@@ -222,11 +243,7 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
     if not sequence.has_poses:
         raise InputError(f"{input_path}: the frames have no poses (use --format images to reconstruct them)")
     if depth == "sensor" and not sequence.has_depth:
-        missing = next(frame.name for frame in sequence if frame.depth_path is None)
-        what = ("the recording has no depth image topic (set one with --topics depth=TOPIC)"
-                if format == "rosbag" else f"frame {missing} has no depth file")
-        raise InputError(f"{input_path}: {what}: or choose a depth model with --depth (depth_anything_v2 or "
-                         f"metric3d_v2)")
+        raise InputError(no_depth_message(sequence, format, input_path))
     stream = FrontierStream(conf=conf, model=model, depth=depth)
     cache_paths = perceive_frames(sequence, stream, out / "cache", model_identity(model), progress)
     perceived = time.perf_counter()

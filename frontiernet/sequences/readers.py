@@ -21,7 +21,7 @@ from PIL import Image, UnidentifiedImageError
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
-from ..geometry import quaternion_rotations
+from ..geometry import quaternion_rotations, rigid_pose
 from ..io import input_file, input_folder, read_npy
 from .frames import Camera, Sequence, SequenceFrame
 
@@ -46,9 +46,12 @@ def require_folder(path: str | Path, what: str) -> Path:
 
 def list_images(folder: Path) -> list[Path]:
     """The image files directly in `folder` (by suffix, hidden files skipped), sorted by name;
-    InputError if there are none."""
+    InputError if there are none, or naming an entry named like an image that is no file (a folder
+    ``00001.jpg`` where a frame is expected: :func:`~frontiernet.io.input_file`)."""
     images = sorted(path for path in folder.iterdir()
-                    if path.is_file() and not path.name.startswith(".") and path.suffix.lower() in IMAGE_SUFFIXES)
+                    if not path.name.startswith(".") and path.suffix.lower() in IMAGE_SUFFIXES)
+    for path in images:
+        input_file(path, "image")
     if not images:
         raise InputError(f"{folder}: no images in the folder (looked for {', '.join(IMAGE_SUFFIXES)})")
     return images
@@ -229,7 +232,8 @@ def read_tum(root: str | Path, camera: Camera | None = None, max_time_difference
 
 def read_redwood_log(path: Path) -> np.ndarray:
     """(N, 4, 4) float64 matrices of a Redwood ``.log`` trajectory: per frame a line ``i i i+1``
-    then the 4 x 4 camera-to-world matrix row by row (metres); InputError naming the line if malformed."""
+    then the 4 x 4 camera-to-world matrix row by row (metres); InputError naming the line if malformed
+    or not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`)."""
     lines = [(number, line.split()) for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1)
              if line.strip()]
     if len(lines) % 5:
@@ -248,6 +252,8 @@ def read_redwood_log(path: Path) -> np.ndarray:
     bad = np.flatnonzero(np.abs(matrices[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1, initial=0.0) > 1e-6)
     if len(bad):
         raise InputError(f"{path}:{lines[5 * bad[0] + 4][0]}: the matrix's last row must be 0 0 0 1")
+    for index, matrix in enumerate(matrices):  # a scaled or sheared matrix: named here, not by the map
+        rigid_pose(matrix, f"{path}:{lines[5 * index + 1][0]}: the pose of frame {index}")
     return matrices
 
 
@@ -264,7 +270,8 @@ def _redwood_trajectory(root: Path) -> Path | None:
 
 def read_open3d_intrinsic(path: Path) -> Camera:
     """The :class:`Camera` of an Open3D PinholeCameraIntrinsic JSON (``width``, ``height``,
-    ``intrinsic_matrix``: the 3 x 3 K as 9 numbers, column-major)."""
+    ``intrinsic_matrix``: the 3 x 3 K as 9 numbers, column-major); InputError naming the file for
+    intrinsics that do not fit its size (:meth:`Camera.checked`)."""
     try:
         data = json.loads(path.read_text())
         K = np.array(data["intrinsic_matrix"], np.float64).reshape(3, 3).T
@@ -272,7 +279,7 @@ def read_open3d_intrinsic(path: Path) -> Camera:
     except (ValueError, KeyError, TypeError) as error:
         raise InputError(f"{path}: not an Open3D camera intrinsic JSON (width, height and a 9-number "
                          f"intrinsic_matrix expected): {error}") from None
-    return Camera(width, height, K)
+    return Camera(width, height, K).checked(str(path))
 
 
 def _redwood_camera(root: Path, camera: Camera | None, size: tuple[int, int], notes: list) -> Camera:

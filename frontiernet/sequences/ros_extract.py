@@ -150,7 +150,7 @@ def _depth(data: Extracted, path: Path, topic: str, msgtype: str, stamp: int, me
 
 
 def _pose(data: Extracted, topic: str, msgtype: str, stamp: int, message) -> None:
-    T, body = pose_of(message, msgtype)
+    T, body = pose_of(message, msgtype, topic)
     track = data.pose_tracks.setdefault(topic, Track(frame_id(message.header), body, topic))
     track.add(stamp, T)
 

@@ -41,22 +41,27 @@ def frame_id(header) -> str:
     return str(header.frame_id).lstrip("/")
 
 
-def transform_matrix(translation, rotation) -> np.ndarray:
-    """(4, 4) float64 from a ROS translation (``x, y, z``, metres) and unit quaternion (``x, y, z, w``)."""
+def transform_matrix(translation, rotation, what: str) -> np.ndarray:
+    """(4, 4) float64 from a ROS translation (``x, y, z``, metres) and unit quaternion (``x, y, z, w``);
+    InputError naming `what` (the topic and the transform or message) for numbers that are not finite
+    or a quaternion of zero length."""
     from ..geometry import quaternion_rotations
 
     T = np.eye(4)
-    T[:3, :3] = quaternion_rotations([rotation.x, rotation.y, rotation.z, rotation.w], "the message").as_matrix()
+    T[:3, :3] = quaternion_rotations([rotation.x, rotation.y, rotation.z, rotation.w], what).as_matrix()
     T[:3, 3] = [translation.x, translation.y, translation.z]
+    if not np.all(np.isfinite(T[:3, 3])):
+        raise InputError(f"{what}: the translation is not finite, got {T[:3, 3].tolist()}")
     return T
 
 
-def pose_of(message, msgtype: str):
+def pose_of(message, msgtype: str, topic: str):
     """(``T_frame_body`` (4, 4) float64, body frame or None) of an Odometry (body: its
-    ``child_frame_id``), PoseStamped or PoseWithCovarianceStamped (body unnamed) message."""
+    ``child_frame_id``), PoseStamped or PoseWithCovarianceStamped (body unnamed) message of `topic`."""
     pose = message.pose if msgtype == "geometry_msgs/msg/PoseStamped" else message.pose.pose
     body = str(message.child_frame_id).lstrip("/") if msgtype == POSE_TYPES[0] else ""
-    return transform_matrix(pose.position, pose.orientation), body or None
+    what = f"topic {topic}: the pose at {stamp_ns(message.header) / 1e9:.3f} s"
+    return transform_matrix(pose.position, pose.orientation, what), body or None
 
 
 def _rows(message, topic: str, channels: int, itemsize: int) -> np.ndarray:
@@ -150,7 +155,7 @@ def camera_from_info(message, topic: str, size: tuple[int, int]) -> Camera:
         raise InputError(f"topic {topic}: CameraInfo has no intrinsics (K = {K.ravel().tolist()}, an uncalibrated "
                          "camera); give them with --intrinsics FX,FY,CX,CY")
     model = str(message.distortion_model) or "plumb_bob"
-    camera = Camera(width, height, K, model=f"ROS {model}")
+    camera = Camera(width, height, K, model=f"ROS {model}").checked(f"topic {topic}: CameraInfo")
     if not np.any(D):
         return camera
     if model in ("plumb_bob", "rational_polynomial"):

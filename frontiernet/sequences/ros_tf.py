@@ -76,10 +76,8 @@ class TransformBuffer:
         transform's own stamp is zero)."""
         for transform in message.transforms:
             parent, child = frame_id(transform.header), str(transform.child_frame_id).lstrip("/")
-            try:
-                T = transform_matrix(transform.transform.translation, transform.transform.rotation)
-            except ValueError as error:
-                raise InputError(f"topic {topic}: transform {parent} -> {child}: {error}") from None
+            T = transform_matrix(transform.transform.translation, transform.transform.rotation,
+                                 f"topic {topic}: transform {parent} -> {child}")
             if static:
                 self.static[child] = (parent, T)
                 continue

@@ -51,13 +51,29 @@ _WANTS = {"rgb": (IMAGE, COMPRESSED), "depth": (IMAGE, COMPRESSED), "info": (CAM
 
 def parse_topics(text: str | None) -> dict[str, str]:
     """``rgb=/cam/color,depth=/cam/depth,info=/cam/info,pose=/odom`` -> {role: topic}; InputError
-    naming ``--topics`` for an unknown role or a malformed entry."""
+    naming ``--topics`` for an unknown role, a malformed entry, a role given twice or one topic given
+    for two roles (:func:`check_distinct_topics`)."""
     topics = {}
     for entry in filter(None, (part.strip() for part in (text or "").split(","))):
         role, sep, topic = entry.partition("=")
         if not sep or not topic.strip() or role.strip() not in ROLES:
             raise InputError(f"--topics: '{entry}' is not ROLE=TOPIC with ROLE one of {', '.join(ROLES)}")
+        if role.strip() in topics:
+            raise InputError(f"--topics: {role.strip()} is given twice ({topics[role.strip()]}, {topic.strip()}); "
+                             "give each role once")
         topics[role.strip()] = topic.strip()
+    return check_distinct_topics(topics)
+
+
+def check_distinct_topics(topics: dict) -> dict:
+    """`topics` ({role: topic}) if no topic is given for two roles; InputError naming both otherwise (one
+    topic as rgb and depth read its images as both, and the depth as missing)."""
+    roles = {}
+    for role, topic in topics.items():
+        if topic in roles:
+            raise InputError(f"--topics: {roles[topic]}={topic} and {role}={topic} give one topic for two roles; "
+                             "each role needs its own topic")
+        roles[topic] = role
     return topics
 
 
@@ -109,7 +125,7 @@ def select_topics(reader, path: Path, given: dict) -> dict:
     their message types, the others found); plus ``tf`` (the TFMessage topics) and
     ``pose_candidates`` (the pose topics read when tf does not pose the camera)."""
     topics = reader.topics
-    for role, topic in given.items():
+    for role, topic in check_distinct_topics(given).items():
         if topic not in topics:
             raise InputError(f"{path}: --topics {role}={topic}: no such topic; the recording has {_listing(topics)}")
         if topics[topic].msgtype not in _WANTS[role]:
@@ -213,12 +229,16 @@ def _camera(path, chosen, data: Extracted, camera: Camera | None, intrinsics, no
     if camera is not None or intrinsics is not None:
         if data.info is not None:
             notes.append(f"intrinsics given explicitly; CameraInfo of {chosen['info']} ignored")
-        return check_camera_size(camera, size, path) if camera is not None else Camera.pinhole(*intrinsics, *size)
+        return check_camera_size(camera, size, path) if camera is not None else \
+            Camera.pinhole(*intrinsics, *size).checked("--intrinsics")
     if data.info is None:
         where = f"topic {chosen['info']} has no messages" if chosen["info"] else "there is no CameraInfo topic"
         raise InputError(f"{path}: {where} for the colour topic {chosen['rgb']}: give the intrinsics with "
                          "--intrinsics FX,FY,CX,CY")
-    return camera_from_info(data.info, chosen["info"], size)
+    try:
+        return camera_from_info(data.info, chosen["info"], size)
+    except InputError as error:  # "topic ...: CameraInfo ..." gets the file's name
+        raise InputError(f"{path}: {error}") from None
 
 
 def _matched_depth(data: Extracted, times: np.ndarray, options) -> tuple[list, np.ndarray]:
@@ -308,6 +328,9 @@ def read_rosbag(path: str | Path, camera: Camera | None = None, work_dir: str | 
         _remove_unused(data, {data.rgb[i][1] for i in kept} | {depth[i] for i in kept})
         stamps = {data.rgb[i][1].name: int(times[i]) for i in kept}
         if poses.poses is None:
+            from .sfm import check_image_count  # pycolmap: only for a recording without poses
+
+            check_image_count(len(kept), path, "the recording has no poses and holds")
             sequence = _posed_by_colmap(data, cam, depth, kept, colmap_dir, sfm, progress, notes)
             return replace(sequence, root=path, ros=RosFrames("map", data.camera_frame, stamps, posed=False))
         frames = [_frame(k, data.rgb[i][1], cam, poses.poses[i], depth[i], int(times[i])) for k, i in enumerate(kept)]

@@ -59,12 +59,22 @@ def sfm_config(conf) -> dict:
     return options
 
 
+def check_image_count(count: int, where, holds: str = "the folder holds") -> None:
+    """InputError naming `where` (an image folder, a recording without poses) when its `count` images are
+    fewer than a reconstruction poses (:data:`MIN_REGISTERED`): one image never is, and pycolmap's
+    "0 of 1 registered" advised taking frames closer together."""
+    if count < MIN_REGISTERED:
+        raise InputError(f"{where}: a reconstruction needs at least two overlapping images, {holds} {count}")
+
+
 def folder_images(root: Path) -> tuple[list[str], tuple[int, int]]:
     """Names of the jpg/png images directly in `root`, sorted, and their common (width, height);
-    InputError if there are none or their sizes differ (read from the file headers)."""
+    InputError if there are fewer than two (:func:`check_image_count`) or their sizes differ (read
+    from the file headers)."""
     paths = [path for path in list_images(root) if path.suffix.lower() in SFM_SUFFIXES]
     if not paths:
         raise InputError(f"{root}: no .jpg/.jpeg/.png images in the folder")
+    check_image_count(len(paths), root)
     return [path.name for path in paths], common_image_size(paths)
 
 
