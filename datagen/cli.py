@@ -41,7 +41,8 @@ def add_parser(subparsers) -> None:
     actions = parser.add_subparsers(dest="action", metavar="ACTION", parser_class=type(parser),
                                     action=options.Subcommands)
     preview = actions.add_parser("preview", help="contact sheets of samples (RGB, depth, F_p, F_d, F, D, gain)")
-    preview.add_argument("dataset", metavar="DIR", help="dataset folder (or one shard .zip)")
+    preview.add_argument("dataset", metavar="DIR", type=options.input_path("dataset"),
+                         help="dataset folder (or one shard .zip)")
     preview.add_argument("--n", type=int, default=16, help="number of samples (spread over the dataset)")
     preview.add_argument("--out", metavar="DIR", type=options.output_path, help="where to write (default: DIR/preview)")
     preview.set_defaults(func=run_preview)

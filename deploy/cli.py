@@ -31,15 +31,16 @@ def add_parser(subparsers) -> None:
         "predict", help="frontier pixels and gain of one image (overlay picture and arrays)",
         description="Run FrontierNet on one RGB image (and depth map) and write overlay.png, distance.png, "
                     "input.png and outputs.npz.")
-    predict.add_argument("--image", metavar="RGB", help="RGB image (8-bit, 3 channels)")
-    predict.add_argument("--depth", metavar="D", help="depth map: .npy metres, or an image (integer images "
-                                                      "are divided by --depth-scale); or a monocular depth model "
-                                                      "that estimates it from --image: depth_anything_v2, "
-                                                      "metric3d_v2 (local weights: depth.<model>.path=..., "
-                                                      "configs/depth.yaml; metric3d_v2 needs --intrinsics)")
-    predict.add_argument("--model", metavar="M", help="model file, checkpoint, .onnx or TorchScript .pt "
-                                                      "(default: the shipped model for the inputs given: RGB + depth, or RGB "
-                                                      "only for --image alone)")
+    predict.add_argument("--image", metavar="RGB", type=options.input_path("image"),
+                         help="RGB image (8-bit, 3 channels)")
+    predict.add_argument("--depth", metavar="D", type=options.input_path("depth file"),
+                         help="depth map: .npy metres, or an image (integer images are divided by --depth-scale); "
+                              "or a monocular depth model that estimates it from --image: depth_anything_v2, "
+                              "metric3d_v2 (local weights: depth.<model>.path=..., configs/depth.yaml; metric3d_v2 "
+                              "needs --intrinsics)")
+    predict.add_argument("--model", metavar="M", type=options.input_path("model file"),
+                         help="model file, checkpoint, .onnx or TorchScript .pt (default: the shipped model for "
+                              "the inputs given: RGB + depth, or RGB only for --image alone)")
     options.output_folder(predict, force=True)
     predict.add_argument("--size", type=int, metavar="PX", help="network input size: the short side is resized "
                                                                 "to PX and centre-cropped (default: the model's, "

@@ -29,11 +29,21 @@ def ensure_dir(path: str | Path) -> Path:
     return path
 
 
+def nonempty_path(path: str | Path, what: str) -> Path:
+    """`path` as a Path unless it is the empty string, which ``Path`` reads as ``.`` (the current folder):
+    InputError ``an empty path ('') names no <what>`` (an option given as ``''``; the CLI's input options
+    check it as they are parsed: :func:`~frontiernet.cli.options.input_path`)."""
+    if isinstance(path, str) and not path:
+        raise InputError(f"an empty path ('') names no {what}; give a path (the current folder is '.')")
+    return Path(path)
+
+
 def input_file(path: str | Path, what: str = "file", *, empty_ok: bool = True) -> Path:
     """`path` as a Path if it is a file; InputError naming it otherwise: ``<path>: <what> not
     found``, ``<path>: is a folder, expected a file`` (``<what>``: ``config file``, ``model
-    file``, ...), and with `empty_ok` off ``<path>: empty file (0 bytes)``."""
-    path = Path(path)
+    file``, ...), ``an empty path ('') names no <what>`` and with `empty_ok` off ``<path>: empty
+    file (0 bytes)``."""
+    path = nonempty_path(path, what)
     if path.is_dir():
         raise InputError(f"{path}: is a folder, expected a file ({what})")
     if not path.exists():
@@ -47,8 +57,9 @@ def input_file(path: str | Path, what: str = "file", *, empty_ok: bool = True) -
 
 def input_folder(path: str | Path, what: str = "input") -> Path:
     """`path` as a Path if it is a folder; InputError naming it otherwise: ``<path>: <what>
-    folder not found``, or ``<path>: is a file, expected a folder (<what>)``."""
-    path = Path(path)
+    folder not found``, ``<path>: is a file, expected a folder (<what>)``, or ``an empty path ('')
+    names no <what> folder``."""
+    path = nonempty_path(path, f"{what} folder")
     if path.exists() and not path.is_dir():
         kind = "a file" if path.is_file() else "not a regular file nor a folder (a device or a pipe?)"
         raise InputError(f"{path}: is {kind}, expected a folder ({what})")

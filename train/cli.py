@@ -21,7 +21,7 @@ def add_parser(subparsers) -> None:
                     "checkpoints/last.ckpt and best.ckpt, metrics.csv, model.safetensors, summary.json.")
     options.config_file(train, "configs/train.yaml (and model.*)")
     options.config_overrides(train, "data.path=DIR trainer.max_epochs=2 model.network.inputs=rgb")
-    train.add_argument("--resume", nargs="?", const="last", metavar="CKPT",
+    train.add_argument("--resume", nargs="?", const="last", metavar="CKPT", type=options.input_path("checkpoint"),
                        help="continue the run's last checkpoint (or the given one)")
     options.no_progress(train)
     train.set_defaults(func=run_train)
@@ -31,7 +31,8 @@ def add_parser(subparsers) -> None:
         description="Distance-field error (px), gain Dice and frontier precision/recall next to the "
                     "depth-discontinuity baseline, on the model's held-out scenes by default.")
     options.model_file(evaluate)
-    evaluate.add_argument("--data", required=True, metavar="DIR", help="a frontiernet datagen dataset")
+    evaluate.add_argument("--data", required=True, metavar="DIR", type=options.input_path("dataset folder"),
+                          help="a frontiernet datagen dataset")
     evaluate.add_argument("--scenes", nargs="+", metavar="SPEC", help="evaluate on these scenes")
     evaluate.add_argument("--all", action="store_true", help="evaluate on every scene of the dataset")
     evaluate.add_argument("--max-samples", type=int, metavar="N", help="at most N views (evenly spread)")

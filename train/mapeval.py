@@ -157,9 +157,10 @@ def add_parser(subparsers) -> None:
                     "on a frontiernet mapgen dataset of scenes it never saw: the unknown space within 3 m of a "
                     "frontier, beside 'unknown = free' and 'continue the nearest wall', per source of scenes "
                     "(docs/mapprediction.md).")
-    parser.add_argument("predictor", metavar="PREDICTOR",
+    parser.add_argument("predictor", metavar="PREDICTOR", type=options.input_path("predictor file"),
                         help="predictor file (predictor.safetensors) or checkpoint (.ckpt)")
-    parser.add_argument("--data", required=True, metavar="DIR", help="a frontiernet mapgen dataset")
+    parser.add_argument("--data", required=True, metavar="DIR", type=options.input_path("dataset folder"),
+                        help="a frontiernet mapgen dataset")
     parser.add_argument("--max-snapshots", type=int, metavar="N", help="at most N snapshots (evenly spread)")
     parser.add_argument("--crops-per-snapshot", type=int, metavar="N",
                         help="seer: crops around the N largest frontier pieces of a snapshot (default 4)")

@@ -47,8 +47,9 @@ def add_parser(subparsers) -> None:
                          help="a baseline scene explored first the same way: each stage's cost on --scene as a "
                               "ratio to it (how a step's cost grows with the building; e.g. a 60 m floor against a "
                               "10 m one, tests/bench/grid_floor.py)")
-    explore.add_argument("--model", help="the method's model file, as explore --model takes it (a FrontierNet "
-                                         "model, or seer's and mapex's predictor; default: the shipped one)")
+    explore.add_argument("--model", type=options.input_path("model file"),
+                         help="the method's model file, as explore --model takes it (a FrontierNet model, or "
+                              "seer's and mapex's predictor; default: the shipped one)")
     options.config_overrides(explore, "mapex.predictor=runs/mapex/predictor.safetensors planner.clearance_m=0.3")
     for module in BENCH_ACTIONS.load_all():  # e.g. deploy's `bench inference`
         module.add_parser(actions)

@@ -37,6 +37,7 @@ def add_parser(subparsers) -> None:
                         help="also write exploration.mcap: the frontiers, the camera overlay, the map and the "
                              "camera's tf as ROS 2 messages for Foxglove and RViz (as frontiernet sequence writes)")
     parser.add_argument("--show-prediction", nargs="?", const=True, metavar="PREDICTOR",
+                        type=options.input_path("predictor file"),
                         help="draw the map as a mapex predictor completes it beside the robot's own in "
                              "exploration.mp4 (alone: the method's own prediction for mapex and frontiernet-mapex, "
                              "else mapex.predictor, else the shipped one; docs/mapprediction.md)")

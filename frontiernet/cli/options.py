@@ -88,7 +88,8 @@ class Once(argparse.Action):
 def config_file(parser, overriding: str) -> None:
     """``--config FILE``: a YAML file whose keys replace the shipped config's; `overriding` says
     which files and sections it overrides (``configs/train.yaml (and model.*)``). One only (:class:`Once`)."""
-    parser.add_argument("--config", metavar="FILE", action=Once, help=f"YAML overriding {overriding} (one file)")
+    parser.add_argument("--config", metavar="FILE", action=Once, type=input_path("config file"),
+                        help=f"YAML overriding {overriding} (one file)")
 
 
 def config_overrides(parser, example: str, *, option: bool = False) -> None:
@@ -133,6 +134,22 @@ def output_path(text: str) -> str:
     return text
 
 
+def input_path(what: str):
+    """The argparse type of an option naming an input file or folder (`what`: ``config file``, ``dataset
+    folder``): an empty path is refused (:func:`~frontiernet.io.nonempty_path`), as ``Path('')`` is ``.``,
+    which a command would read as the current folder (``.: is a folder, expected a file``)."""
+    def check(text: str) -> str:
+        from ..io import nonempty_path
+
+        try:
+            nonempty_path(text, what)
+        except InputError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+        return text
+
+    return check
+
+
 def output_folder(parser, *, force: bool = False, default: str | None = None) -> None:
     """``--out DIR``, the folder a command writes (required unless it has a `default`), and with
     `force` ``--force``, which a command checks with :func:`~frontiernet.io.check_output_folder`."""
@@ -167,7 +184,7 @@ def no_progress(parser) -> None:
 
 def model_file(parser) -> None:
     """``MODEL``: the torch model a command reads (positional, required)."""
-    parser.add_argument("model", metavar="MODEL", help=MODEL_FILE_HELP)
+    parser.add_argument("model", metavar="MODEL", type=input_path("model file"), help=MODEL_FILE_HELP)
 
 
 def model_option(parser, *, exports: bool = True, what: str = "model file") -> None:
@@ -175,7 +192,7 @@ def model_option(parser, *, exports: bool = True, what: str = "model file") -> N
     exported files of ``frontiernet export`` too. `what` names it (``model file of the learned
     methods``)."""
     files = ".safetensors, .ckpt, .onnx, .pt" if exports else ".safetensors, .ckpt"
-    parser.add_argument("--model", help=f"{what} ({files}; default: the shipped model)")
+    parser.add_argument("--model", type=input_path(what), help=f"{what} ({files}; default: the shipped model)")
 
 
 def scene_world(parser, uses: str) -> None:
