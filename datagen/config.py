@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import json
@@ -41,12 +42,17 @@ SECTIONS_ADDED_AFTER_DATASETS = {"scenes": "scenes"}
 names other scenes."""
 
 
-def config_hash(conf: DictConfig) -> str:
-    """Short SHA-256 of the resolved config (stable across key order) without :data:`RUNTIME_SECTIONS`,
-    the keys of :data:`KEYS_ADDED_AFTER_DATASETS` at their old value and the sections of
-    :data:`SECTIONS_ADDED_AFTER_DATASETS` as shipped: names a dataset's settings."""
-    settings = {key: value for key, value in OmegaConf.to_container(conf, resolve=True).items()
-                if key not in RUNTIME_SECTIONS}
+def config_hash(conf: DictConfig | dict) -> str:
+    """Short SHA-256 of :func:`hashed_settings` (stable across key order): names a dataset's settings."""
+    return hashlib.sha256(_canonical(hashed_settings(conf)).encode()).hexdigest()[:16]
+
+
+def hashed_settings(conf: DictConfig | dict) -> dict:
+    """The settings of a config (resolved, or the plain dict dataset.json stores) that :func:`config_hash`
+    hashes: all but :data:`RUNTIME_SECTIONS`, the keys of :data:`KEYS_ADDED_AFTER_DATASETS` at their old value
+    and the sections of :data:`SECTIONS_ADDED_AFTER_DATASETS` as shipped (a resume names the first that differs)."""
+    plain = OmegaConf.to_container(conf, resolve=True) if isinstance(conf, DictConfig) else copy.deepcopy(conf)
+    settings = {key: value for key, value in plain.items() if key not in RUNTIME_SECTIONS}
     for section, name in SECTIONS_ADDED_AFTER_DATASETS.items():
         if section in settings and _canonical(settings[section]) == _shipped_canonical(name):
             settings.pop(section)
@@ -54,7 +60,7 @@ def config_hash(conf: DictConfig) -> str:
         section, key = dotted_parent(settings, dotted)
         if section is not None and section.get(key, old_value) == old_value:
             section.pop(key, None)
-    return hashlib.sha256(_canonical(settings).encode()).hexdigest()[:16]
+    return settings
 
 
 def _canonical(value) -> str:

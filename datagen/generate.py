@@ -21,6 +21,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from frontiernet import __version__
+from frontiernet.config import first_difference
 from frontiernet.errors import InputError, whole_number
 from frontiernet.io import check_not_dangling, write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
@@ -28,7 +29,7 @@ from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
 from frontiernet.workers import check_backend
 
-from .config import config_hash
+from .config import config_hash, hashed_settings
 from .shards import (CACHE_DIR, INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
                      write_dataset_info)
 
@@ -102,20 +103,29 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
 
 def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "seed", "scenes", "views_per_scene",
                                                                "generator_version"),
-                   read_info=read_dataset_info, write_info=write_dataset_info, command: str = "datagen") -> None:
+                   read_info=read_dataset_info, write_info=write_dataset_info, command: str = "datagen",
+                   settings=hashed_settings) -> None:
     """Create `out` with its dataset.json (`write_info`), or check that it matches when resuming: the
-    `keys` of the one `read_info` reads there must equal `info`'s (nothing written on a refusal).
-    Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys and files (and `command`,
-    which starts the note of a `resume` with no dataset to resume: a new one is started, and that is said
-    on stdout, ``<command>: note: --resume: ...``; an error would still be the one line on stderr)."""
+    `keys` of the one `read_info` reads there must equal `info`'s (nothing written on a refusal; for the
+    ``config_hash``, the first of the `settings` it hashes that differs is named, ``camera.width: 64 in the
+    dataset, 32 now``). Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys, files and
+    settings (and `command`, which starts the note of a `resume` with no dataset to resume: a new one is
+    started, and that is said on stdout, ``<command>: note: --resume: ...``; an error would still be the one
+    line on stderr)."""
     if (out / INFO_NAME).exists():
         if not resume:
             raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")
         previous = read_info(out)
         for key in keys:
-            if previous.get(key) != info[key]:
-                raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
-                                 f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
+            if previous.get(key) == info[key]:
+                continue
+            if key == "config_hash" and isinstance(previous.get("config"), dict):
+                setting = first_difference(settings(previous["config"]), settings(info["config"]), "the dataset")
+                if setting is not None:
+                    raise InputError(f"{out}: cannot resume, the dataset was made with other settings ({setting}); "
+                                     "use another --out")
+            raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
+                             f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
         return
     check_not_dangling(out)
     if out.exists() and not out.is_dir():

@@ -67,19 +67,26 @@ def load_mapgen_config(user_file=None, overrides=()):
 
 
 def config_hash(conf) -> str:
-    """Short SHA-256 of the resolved config without :data:`RUNTIME_KEYS` and without the method sections
-    (:data:`~frontiernet.benchmark.changes.METHOD_SECTIONS`, e.g. ``nbvp``) that no run of ``mapgen.runs``
-    reads: names a dataset's settings, so a change to another method leaves the dataset resumable."""
+    """Short SHA-256 of :func:`hashed_settings`: names a dataset's settings."""
+    return hashlib.sha256(json.dumps(hashed_settings(conf), sort_keys=True, separators=(",", ":")).encode()
+                          ).hexdigest()[:16]
+
+
+def hashed_settings(conf) -> dict:
+    """The settings of a config (resolved, or the plain dict dataset.json stores) that :func:`config_hash`
+    hashes: all but :data:`RUNTIME_KEYS` and the method sections (:data:`~frontiernet.benchmark.changes.
+    METHOD_SECTIONS`, e.g. ``nbvp``) that no run of ``mapgen.runs`` reads, so a change to another method
+    leaves the dataset resumable (a resume names the first setting that differs)."""
     from frontiernet.benchmark.changes import METHOD_SECTIONS
 
-    settings = OmegaConf.to_container(conf, resolve=True)
+    settings = OmegaConf.to_container(OmegaConf.create(conf), resolve=True)
     for section, key in RUNTIME_KEYS:
         settings.get(section, {}).pop(key, None)
     methods_run = {run.get("method") for run in settings.get("mapgen", {}).get("runs") or [] if isinstance(run, dict)}
     for section, readers in METHOD_SECTIONS.items():
         if not methods_run & set(readers):
             settings.pop(section, None)
-    return hashlib.sha256(json.dumps(settings, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:16]
+    return settings
 
 
 def _read_info_rehashed(out: Path) -> dict:
@@ -289,7 +296,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}
     created, existed = not (out / INFO_NAME).exists(), out.exists()
     prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
-                   _read_info_rehashed, write_map_dataset_info, command="mapgen")
+                   _read_info_rehashed, write_map_dataset_info, command="mapgen", settings=hashed_settings)
     remove_stale_temporaries(out / SHARDS_DIR)
     tasks = plan_map_tasks(specs, runs, seed, out)
     todo = [task for task in tasks if not map_shard_complete(task.path)]

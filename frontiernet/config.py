@@ -16,7 +16,7 @@ from typing import ClassVar, Iterable, Mapping, Sequence
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from .config_ranges import Layout, float32_note, layout_ranges, layout_relations
+from .config_ranges import Layout, layout_ranges, layout_relations, magnitude_note
 from .errors import InputError, check_keys
 
 
@@ -168,7 +168,7 @@ def check_ranges(conf, layout: Layout) -> None:
     for key, spec in layout_ranges(layout).items():
         parent, leaf = dotted_parent(tree, key)
         if parent is not None and leaf in parent and not spec.admits(parent[leaf]):
-            note = float32_note(parent[leaf], spec.integer)
+            note = magnitude_note(parent[leaf], spec.integer)
             raise InputError(f"{key} must be {spec.describe()}, got {_shown(parent[leaf])}{note}")
     for relation in layout_relations(layout):
         values = {}
@@ -213,6 +213,28 @@ def dotted_parent(tree: dict, dotted: str) -> tuple[dict | None, str]:
     for name in sections:
         tree = tree.get(name) if isinstance(tree, dict) else None
     return (tree if isinstance(tree, dict) else None), key
+
+
+def differences(old, new, prefix: str = "", before: str = "before"):
+    """Every dotted key whose value differs between two nested dicts of settings, in sorted key order, as
+    ``(key, "key: OLD in <before>, NEW now")`` (``absent`` for a missing key); `before` names where the
+    old settings are kept (``the plan`` of a benchmark, ``the dataset`` of datagen)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in sorted(set(old) | set(new), key=str):
+            name = f"{prefix}{key}"
+            if key not in old or key not in new:
+                shown = [repr(side[key]) if key in side else "absent" for side in (old, new)]
+                yield name, f"{name}: {shown[0]} in {before}, {shown[1]} now"
+            else:
+                yield from differences(old[key], new[key], f"{name}.", before)
+    elif old != new:
+        name = prefix.rstrip(".")
+        yield name, f"{name}: {old!r} in {before}, {new!r} now"
+
+
+def first_difference(old, new, before: str = "before") -> str | None:
+    """The first of :func:`differences` as its text; None when equal."""
+    return next((text for _, text in differences(old, new, before=before)), None)
 
 
 def option_section(conf, options: Sequence[str], where: str) -> dict:

@@ -166,14 +166,20 @@ def beyond_int64(value) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool) and abs(value) >= INT64_LIMIT
 
 
-def float32_note(value, integer: bool = False) -> str:
+def magnitude_note(value, integer: bool = False) -> str:
     """What a range message adds where `value` (a number or a nested list of them) is refused for its
-    size alone, as it may lie inside the declared interval (``1e300`` for ``(0, inf)``): ``: beyond the
-    32-bit floats ...`` for a number key (:func:`beyond_float32`), ``: beyond the 64-bit integers ...``
-    for an integer key (`integer`, :func:`beyond_int64`); else ``""``."""
+    size alone, as it may lie inside the declared interval (``1e300`` for ``(0, inf)``): ``: not a finite
+    number ...`` for infinity or NaN (YAML reads ``1e400`` as infinity: ``got inf`` alone read as if inf
+    were below the bound), ``: beyond the 32-bit floats ...`` for a number key (:func:`beyond_float32`),
+    ``: beyond the 64-bit integers ...`` for an integer key (`integer`, :func:`beyond_int64`); else ``""``."""
     items = value if isinstance(value, (list, tuple)) else [value]
     flat = [v for item in items for v in (item if isinstance(item, (list, tuple)) else [item])
             if isinstance(v, numbers.Real) and not isinstance(v, bool)]
+    floats = [v for v in flat if not isinstance(v, numbers.Integral)]  # (a huge int is no float: isnan overflows)
+    if any(math.isnan(v) for v in floats):
+        return ": not a number (NaN)"
+    if any(math.isinf(v) for v in floats):
+        return ": not a finite number (a number past 1.8e308, such as 1e400, overflows a float to infinity)"
     if integer:
         return ": beyond the 64-bit integers it is computed in (magnitudes below 2**63)" \
             if any(beyond_int64(v) for v in flat) else ""

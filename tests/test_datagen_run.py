@@ -293,6 +293,12 @@ def test_existing_dataset_is_refused_without_resume_and_on_a_mismatched_resume(s
     err = one_line_error()
     assert str(out) in err and "views_per_scene" in err
 
+    args = small_args(out, "--resume")  # seventh probe (D22): "a different config_hash ('4781...', now 'a144...')"
+    args[args.index("camera.focal_px=60")] = "camera.focal_px=50"
+    assert main(args) == 2
+    assert one_line_error() == (f"frontiernet datagen: error: {out}: cannot resume, the dataset was made with other "
+                                "settings (camera.focal_px: 60 in the dataset, 50 now); use another --out")
+
     assert snapshot(out) == before  # nothing in the dataset was touched
 
 

@@ -123,8 +123,9 @@ def test_resume_makes_only_the_missing_runs_and_refuses_another_config(map_data,
     assert shards[1].read_bytes() == reference  # the same seed gives the same bytes
     assert not list((copy / "shards").glob("*.tmp-*"))
     other = OmegaConf.merge(conf, {"mapgen": {"max_steps": 30}})
-    with pytest.raises(InputError, match="different config_hash"):
-        generate_maps(SCENES, copy, other, seed=1, resume=True, progress=False)
+    with pytest.raises(InputError, match=r"copy: cannot resume, the dataset was made with other settings "
+                                         r"\(mapgen.max_steps: \d+ in the dataset, 30 now\); use another --out"):
+        generate_maps(SCENES, copy, other, seed=1, resume=True, progress=False)  # (seventh probe, D22: the hashes)
     nbvp_changed = OmegaConf.merge(conf, {"nbvp": {"attempts_per_node": 7}})  # a method no run of it uses
     summary = generate_maps(SCENES, copy, nbvp_changed, seed=1, resume=True, progress=False)
     assert summary["runs_done_before"] == 2 and summary["runs_this_session"] == 0

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..config import dotted_parent
+from ..config import differences as config_differences, dotted_parent
 from .plan import depth_sources
 
 KEYS_ADDED_AFTER_PLANS = {
@@ -137,25 +137,10 @@ def with_keys_added_after(conf: dict) -> dict:
     return conf
 
 
-def differences(old, new, prefix: str = ""):
-    """Every dotted key whose value differs between two nested dicts, in sorted key order, as
-    ``(key, "key: OLD in the plan, NEW now")`` (``absent`` for a missing key)."""
-    if isinstance(old, dict) and isinstance(new, dict):
-        for key in sorted(set(old) | set(new), key=str):
-            name = f"{prefix}{key}"
-            if key not in old or key not in new:
-                shown = [repr(side[key]) if key in side else "absent" for side in (old, new)]
-                yield name, f"{name}: {shown[0]} in the plan, {shown[1]} now"
-            else:
-                yield from differences(old[key], new[key], f"{name}.")
-    elif old != new:
-        name = prefix.rstrip(".")
-        yield name, f"{name}: {old!r} in the plan, {new!r} now"
-
-
-def first_difference(old, new, prefix: str = "") -> str | None:
-    """The first of :func:`differences` as its text; None when equal."""
-    return next((text for _, text in differences(old, new, prefix)), None)
+def differences(old, new):
+    """Every dotted key whose value differs between a stored plan's settings `old` and this run's `new`,
+    as ``(key, "key: OLD in the plan, NEW now")`` (:func:`frontiernet.config.differences`)."""
+    return config_differences(old, new, before="the plan")
 
 
 METHOD_SECTIONS = {
@@ -257,4 +242,4 @@ def runs_changed(plan: dict, settings: dict, finished=None) -> tuple[list[str], 
 
 
 __all__ = ["KEYS_ADDED_AFTER_PLANS", "KEYS_IDLE_WHEN", "METHOD_SECTIONS", "Readers", "with_idle_keys",
-           "with_keys_added_after", "differences", "first_difference", "blocking_difference", "runs_changed"]
+           "with_keys_added_after", "differences", "blocking_difference", "runs_changed"]
