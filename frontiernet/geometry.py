@@ -192,9 +192,12 @@ is no pinhole camera (its rays' frustum, and the map sized to it, grow without b
 def check_intrinsics_fit(fx: float, fy: float, cx: float, cy: float, width: int, height: int,
                          what: str = "--intrinsics") -> None:
     """InputError naming `what` when pixels intrinsics do not fit a `width` x `height` image, as given before any
-    scaling: a principal point (`cx`, `cy`) outside it (the intrinsics of another image size, or typed wrong), or a
-    focal length above :data:`MAX_FOCAL_PER_IMAGE_SIDE` or below :data:`MIN_FOCAL_PER_IMAGE_SIDE` times its larger
-    side."""
+    scaling: a number that is not finite, a principal point (`cx`, `cy`) outside it (the intrinsics of another image
+    size, or typed wrong), or a focal length above :data:`MAX_FOCAL_PER_IMAGE_SIDE` or below
+    :data:`MIN_FOCAL_PER_IMAGE_SIDE` times its larger side. Typed ``--intrinsics`` and those read from files
+    (:meth:`~frontiernet.sequences.Camera.checked`) alike."""
+    if not np.all(np.isfinite([fx, fy, cx, cy])):
+        raise InputError(f"{what}: intrinsics must be finite numbers, got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
     if not (-0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5):
         raise InputError(f"{what}: the principal point ({cx:g}, {cy:g}) lies outside the {width} x {height} image "
                          f"(intrinsics of another image size?)")
@@ -232,15 +235,16 @@ def pinhole_intrinsics(K, image_shape: tuple[int, int]) -> np.ndarray:
     return K
 
 
-def rigid_pose(T_world_cam) -> np.ndarray:
-    """(4, 4) float64 rigid transform, or InputError naming `T_world_cam`."""
+def rigid_pose(T_world_cam, what: str = "T_world_cam") -> np.ndarray:
+    """(4, 4) float64 rigid transform, or InputError naming `what` (a pose read from a file: its file, line
+    and frame, e.g. ``"rw/trajectory.log:2: the matrix of frame 0"``)."""
     T = np.asarray(T_world_cam, np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"T_world_cam must be a finite (4, 4) matrix, got {T.tolist() if T.size <= 16 else T.shape}")
+        raise InputError(f"{what} must be a finite (4, 4) matrix, got {T.tolist() if T.size <= 16 else T.shape}")
     R = T[:3, :3]
     if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(R.T @ R, np.eye(3), atol=1e-4) \
             or np.linalg.det(R) < 0:
-        raise InputError(f"T_world_cam must be a rigid transform (rotation + translation), got {T.tolist()}")
+        raise InputError(f"{what} must be a rigid transform (rotation + translation), got {T.tolist()}")
     return T
 
 

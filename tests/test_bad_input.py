@@ -49,8 +49,12 @@ def test_malformed_yaml_config_names_the_file_and_line(tmp_path, one_line_error)
 
 def test_a_range_where_one_scene_is_taken_says_so(one_line_error):
     # issue 55's second probe: "procedural seed must be an integer" for procedural:5-2
+    assert main(["scene", "info", "procedural:2-5"]) == 2
+    assert "a range of seeds names several scenes, and this takes one (e.g. procedural:2)" in one_line_error()
+    # seventh probe (D23): an inverted range names no scene, not several
     assert main(["scene", "info", "procedural:5-2"]) == 2
-    assert "a range of seeds names several scenes, and this takes one (e.g. procedural:5)" in one_line_error()
+    assert one_line_error() == ("frontiernet scene: error: scene spec 'procedural:5-2': seed range must satisfy "
+                                "0 <= FIRST <= LAST")
 
 
 def test_a_scene_option_in_exponent_notation_is_a_number():

@@ -234,6 +234,38 @@ def test_an_empty_output_path_is_refused(argv, tmp_path, monkeypatch, one_line_e
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["explore", "--scene", "procedural:3", "--method", "classic", "--out", "o", "--show-prediction", ""],
+     "argument --show-prediction: an empty path ('') names no predictor file"),
+    (["explore", "--scene", "procedural:3", "--out", "o", "--config", ""],
+     "argument --config: an empty path ('') names no config file"),
+    (["sequence", "--input", "", "--out", "o"], "argument --input: an empty path ('') names no sequence or recording"),
+    (["datagen", "preview", ""], "argument DIR: an empty path ('') names no dataset"),
+    (["evaluate", "m.safetensors", "--data", ""], "argument --data: an empty path ('') names no dataset folder"),
+    (["train", "--resume", "", "data.path=d"], "argument --resume: an empty path ('') names no checkpoint"),
+])
+def test_an_empty_input_path_is_refused(argv, message, tmp_path, monkeypatch, one_line_error):
+    # seventh probe (D20): --show-prediction '' read '.' (".: is a folder, expected a file (predictor file)"), as
+    # --config '', sequence --input '' (". : unknown sequence format") and datagen preview '' did
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    assert f"{message}; give a path (the current folder is '.')" in one_line_error()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_empty_path_given_to_the_library_names_no_file(tmp_path, monkeypatch):
+    from frontiernet.mapprediction import load_predictor
+    from frontiernet.sequences import read_redwood
+
+    monkeypatch.chdir(tmp_path)  # '' was read as '.': ".: is a folder, expected a file (predictor file)"
+    with pytest.raises(InputError, match=r"^an empty path \(''\) names no predictor file; give a path"):
+        load_predictor("")
+    with pytest.raises(InputError, match=r"^an empty path \(''\) names no Redwood sequence folder; give a path"):
+        read_redwood("")
+
+
 BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(f"{key}: &{key} [{', '.join([f'*{previous}'] * 9)}]\n"
                                                        for previous, key in zip("abcdefg", "bcdefgh"))
 """A YAML bomb: 9^8 = 43 million strings once its aliases are expanded."""

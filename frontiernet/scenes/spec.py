@@ -178,6 +178,19 @@ def _is_scene_folder(path: Path) -> bool:
     return (path / "occ_map.npy").is_file() or any(path.glob("*.glb"))
 
 
+def _seed_range(text: str, argument: str) -> tuple[int, int]:
+    """(FIRST, LAST) of the seed range `argument` (``FIRST-LAST``) of scene spec `text`; InputError naming
+    `text` unless both are integers with 0 <= FIRST <= LAST (an inverted range names no scene)."""
+    first, _, last = argument.partition("-")
+    try:
+        low, high = int(first), int(last)
+    except ValueError:
+        raise InputError(f"scene spec '{text}': a seed range is procedural:FIRST-LAST, e.g. procedural:0-199") from None
+    if not 0 <= low <= high:
+        raise InputError(f"scene spec '{text}': seed range must satisfy 0 <= FIRST <= LAST")
+    return low, high
+
+
 def expand_specs(texts) -> list[str]:
     """Expand seed ranges, globs and folders of scene folders into single scene specs.
 
@@ -204,14 +217,7 @@ def expand_specs(texts) -> list[str]:
             raise InputError(f"scene spec '{text}': scenes are separate words (--scenes procedural:3 procedural:4), "
                              "not joined by commas")
         if prefix == "procedural:" and "-" in argument.lstrip("-"):
-            first, _, last = argument.partition("-")
-            try:
-                low, high = int(first), int(last)
-            except ValueError:
-                raise InputError(f"scene spec '{text}': a seed range is procedural:FIRST-LAST, "
-                                 "e.g. procedural:0-199") from None
-            if not 0 <= low <= high:
-                raise InputError(f"scene spec '{text}': seed range must satisfy 0 <= FIRST <= LAST")
+            low, high = _seed_range(text, argument)
             if high - low + 1 > MAX_SEED_RANGE:
                 raise InputError(f"scene spec '{text}': a seed range of {high - low + 1:,} scenes; at most "
                                  f"{MAX_SEED_RANGE:,} in one range (split the work into several runs)")
@@ -278,6 +284,7 @@ def _procedural(spec, options):
     except ValueError:
         first, dash, last = spec.argument.partition("-")
         if dash and first.strip().isdigit() and last.strip().isdigit():
+            _seed_range(spec.text, spec.argument)  # 3-1 names no scene: said so
             raise InputError(f"scene spec '{spec.text}': a range of seeds names several scenes, and this takes one "
                              f"(e.g. procedural:{first.strip()})") from None
         raise InputError(f"scene spec '{spec.text}': procedural seed must be an integer") from None
