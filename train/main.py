@@ -33,6 +33,7 @@ from lightning.pytorch.loggers import CSVLogger
 from lightning.fabric.utilities.exceptions import MisconfigurationException
 from omegaconf import OmegaConf
 
+from frontiernet.allocator import keep_freed_memory
 from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.io import input_file, write_json
@@ -360,6 +361,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     L.seed_everything(int(conf.seed), workers=True, verbose=False)
     if conf.trainer.threads:
         torch.set_num_threads(int(conf.trainer.threads))
+    keep_freed_memory()  # each step's activations are not page-faulted in anew (2.4x a CPU step: frontiernet.allocator)
     train_part = {key: plain(conf[key]) for key in ("loss", "optim")}
     train_part["val_scenes"] = list(datamodule.val_scenes)  # evaluate reads them from the checkpoint
     init_path = init_file(conf)  # absolute, so that the checkpoint names its base from any folder

@@ -25,6 +25,7 @@ import torch.nn.functional as F
 from omegaconf import OmegaConf
 
 from frontiernet.config import load_config, merge_user
+from frontiernet.allocator import keep_freed_memory
 from frontiernet.errors import InputError
 from frontiernet.io import write_json
 from frontiernet.mapprediction.networks import NetworkSettings, PredictorSpec, parameter_count
@@ -210,6 +211,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     L.seed_everything(int(conf.seed), workers=True, verbose=False)
     if conf.trainer.threads:
         torch.set_num_threads(int(conf.trainer.threads))
+    keep_freed_memory()  # each step's activations are not page-faulted in anew (2.4x a CPU step: frontiernet.allocator)
     train_part = {key: OmegaConf.to_container(conf[key], resolve=True) for key in ("loss", "optim")}
     train_part["scenes"] = {"train": train_scenes, "val": val_scenes}  # mapeval leaves them out (checkpoints too)
     module = MapPredictionModule(spec.to_dict(), train_part)
