@@ -10,6 +10,7 @@ independent of the reader (its own messages and quaternions from scipy).
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -389,6 +390,11 @@ def _bad_recording(case: str, tmp_path: Path) -> tuple[Path, list[str]]:
     path = bag.write(tmp_path / "rec", kind)
     if case.startswith("truncated"):
         _truncated(path if path.is_file() else next(path.glob("*.db3")))
+    if case == "mcap named .bag":  # eighth probe (E30): "truncated or corrupt (UnicodeDecodeError ...)"
+        path = bag.write(tmp_path / "mc", "plain_mcap").rename(tmp_path / "rec.bag")
+    if case == "rosbag2 version 99":  # eighth probe (E30): rosbags' "please report issue.", for a bad file
+        metadata = path / "metadata.yaml"
+        metadata.write_text(re.sub(r"version: \d+", "version: 99", metadata.read_text(), count=1))
     extra = {"wrong type": ["--topics", "rgb=/camera/color/camera_info"],
              "one topic twice": ["--topics", "rgb=/camera/color/image_raw,depth=/camera/color/image_raw"],
              "intrinsics focal": ["--intrinsics", "1e6,1e6,19.5,14.5"]}.get(case, [])
@@ -423,6 +429,9 @@ BAD = {
     "truncated bag": r"rec.bag: not a readable recording, truncated or corrupt",
     "truncated mcap": r"rec.mcap: not a readable recording, truncated or corrupt",
     "truncated db3": r"rec: not a readable recording, truncated or corrupt",
+    "mcap named .bag": r"rec.bag: a .mcap recording named .bag; rename it rec.mcap$",
+    "rosbag2 version 99": r"rec: not a readable recording, truncated or corrupt \(AnyReaderError: Rosbag2 version 99 "
+                          r"not supported\)$",
     "ambiguous": r"rec: several colour image topics \(/camera/color/image_raw, /camera/infra1/image_rect_raw\): "
                  r"choose one with --topics rgb=TOPIC",
 }

@@ -150,7 +150,10 @@ def test_bad_sequence_input_is_one_line_exit_2(two_room_scene, tmp_path, capsys,
         ([str(tmp_path / "no_depth"), "frames.stride=0"], "frames.stride must be an integer >= 1, got 0"),
         # issue 55's fourth probe: a ZeroDivisionError (the ROS output's clock), exit 1
         ([str(tmp_path / "metres"), "outputs.video_fps=0"], "outputs.video_fps must be a number in [0.01, 1000], got 0"),
-        ([str(tmp_path / "metres"), "outputs.point_voxel_m=0"], "outputs.point_voxel_m must be a number > 0, got 0"),
+        ([str(tmp_path / "metres"), "outputs.point_voxel_m=0"], "outputs.point_voxel_m must be a number >= 0.001, got 0"),
+        # eighth probe (E1): Open3D's "voxel_size is too small" after every frame, an internal error, cache/ left
+        ([str(tmp_path / "metres"), "outputs.point_voxel_m=1e-9"],
+         "outputs.point_voxel_m must be a number >= 0.001, got 1e-09"),
         ([str(tmp_path / "metres"), "outputs.point_stride_px=0"], "outputs.point_stride_px must be an integer in [1, 4096], got 0"),
         ([str(tmp_path / "metres"), "outputs.ros.map_every_frames=0"], "outputs.ros.map_every_frames must be an"),
         ([str(tmp_path / "metres"), "seed=-1"], "seed must be an integer in [0, 4294967295], got -1"),

@@ -137,6 +137,30 @@ def test_redwood_errors(tmp_path):
         read_redwood(malformed)
 
 
+def test_redwood_poses_are_taken_by_their_frame_index(tmp_path):
+    # eighth probe (E6): the headers' frame indices were ignored, poses assigned by position: entries listed
+    # 2, 0, 1 gave frame 0 frame 2's pose; a frame listed twice (and another not at all) was used as listed
+    root = write_redwood(tmp_path / "order")
+    entries = (root / "trajectory.log").read_text().splitlines()
+    (root / "trajectory.log").write_text("\n".join(entries[10:15] + entries[:10]) + "\n")
+    sequence = read_redwood(root)
+    for index in range(3):
+        np.testing.assert_allclose(sequence.frames[index].T_world_cam, pose([0, 0.1 * index, 0], [index, 0, 0]),
+                                   atol=1e-7)
+    (root / "trajectory.log").write_text("\n".join(entries[:5] + entries[:5] + entries[10:15]) + "\n")
+    with pytest.raises(InputError, match=r"order/trajectory.log:6: frame 0 is listed twice \(also at line 1\); "
+                                         r"each frame has one pose$"):
+        read_redwood(root)
+    (root / "trajectory.log").write_text("\n".join(entries[:5] + entries[10:15]) + "\n")  # frames 0 and 2
+    with pytest.raises(InputError, match=r"order/trajectory.log: no pose for frame 1, though the log lists frame 2: "
+                                         r"the first number of a header line is the frame's index, from 0"):
+        read_redwood(root)
+    (root / "trajectory.log").write_text("\n".join(["-1 -1 0", *entries[1:5]]) + "\n")
+    with pytest.raises(InputError, match=r"trajectory.log:1: a frame header's first number is the frame's index, "
+                                         r"a whole number >= 0; got '-1 -1 0'"):
+        read_redwood(root)
+
+
 @pytest.mark.parametrize("layout", ["redwood", "images"])
 def test_a_folder_named_like_a_frame_is_named(layout, tmp_path):
     # seventh probe (D18): a folder color/00001.jpg was skipped, and the message counted the images instead
@@ -222,6 +246,20 @@ def test_tum(tmp_path):
     strict = read_tum(tmp_path, camera, max_time_difference_s=0.0045)  # 1.000 has no depth, 1.100 and 2.000 no pose
     assert [frame.timestamp for frame in strict] == [1.033, 1.066]
     assert "skipped 1 frame(s) without a depth frame and 2 without a ground-truth pose" in strict.notes[0]
+
+
+def test_text_files_saved_with_a_byte_order_mark_read_as_without(tmp_path):
+    # eighth probe (E22): "rgb.txt:1: expected finite numbers, got '\ufeff#'" (a Windows editor's UTF-8 mark)
+    write_tum(tmp_path / "tum")
+    for name in ("rgb.txt", "depth.txt", "groundtruth.txt"):
+        path = tmp_path / "tum" / name
+        path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    camera = Camera.pinhole(52.5, 52.5, 31.95, 23.95, 64, 48)
+    assert [frame.timestamp for frame in read_tum(tmp_path / "tum", camera)] == [1.000, 1.033, 1.066, 1.100]
+    root = write_redwood(tmp_path / "rw")  # and a Redwood trajectory and its Open3D intrinsics
+    for name in ("trajectory.log", "camera_intrinsic.json"):
+        (root / name).write_bytes(b"\xef\xbb\xbf" + (root / name).read_bytes())
+    assert len(read_redwood(root)) == 3
 
 
 # ----------------------------------------------------------------------------- COLMAP
@@ -340,6 +378,23 @@ def test_colmap_intrinsics_out_of_bounds_name_the_camera(colmap_project):
         read_colmap(colmap_project)
 
 
+def test_a_camera_of_no_width_is_named_so(colmap_project, tmp_path):
+    # eighth probe (E29): "COLMAP camera 1: the principal point (319.5, 239.5) lies outside the 0 x 480 image"
+    text = legacy_text_model(colmap_project)
+    lines = (text / "cameras.txt").read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if line.startswith("1 "))
+    lines[at] = "1 PINHOLE 0 120 100 102 80 60"
+    (text / "cameras.txt").write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"project: COLMAP camera 1: an image of 0 x 120 px; width and height must be "
+                                         r"at least 1 px$"):
+        read_colmap(colmap_project)
+    root = write_redwood(tmp_path / "rw")  # an Open3D intrinsic file alike
+    (root / "camera_intrinsic.json").write_text(json.dumps({"width": 0, "height": 24,
+                                                            "intrinsic_matrix": [30, 0, 0, 0, 30, 0, 15.5, 11.5, 1]}))
+    with pytest.raises(InputError, match=r"camera_intrinsic.json: an image of 0 x 24 px"):
+        read_redwood(root)
+
+
 def test_a_colmap_pose_that_is_no_rigid_transform_names_the_image(colmap_project):
     # seventh probe (D17's class): a quaternion not of unit length in frames.txt / images.txt made a scaled
     # rotation, refused only by the map ("T_world_cam must be a rigid transform", no file, no frame)
@@ -358,6 +413,49 @@ def test_a_colmap_pose_that_is_no_rigid_transform_names_the_image(colmap_project
     frames.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"project: the COLMAP model's pose of image a.png must be a rigid "
                                          r"transform \(rotation \+ translation\), got \[\["):
+        read_colmap(colmap_project)
+
+
+def legacy_text_model(project: Path) -> Path:
+    """`project`'s model rewritten as the text files of COLMAP before 3.12 (cameras, images, points3D:
+    no rigs.txt or frames.txt, so images.txt holds the poses and camera ids); returns the model folder."""
+    model, text = pycolmap.Reconstruction(project / "sparse" / "0"), project / "sparse" / "0"
+    for name in ("cameras", "images", "points3D", "frames", "rigs"):
+        (text / f"{name}.bin").unlink(missing_ok=True)
+    model.write_text(text)
+    for name in ("frames.txt", "rigs.txt"):
+        (text / name).unlink(missing_ok=True)
+    return text
+
+
+def edit_image_line(text: Path, image_id: int, edit) -> None:
+    """Rewrites the first line of image `image_id` in ``text/images.txt`` with ``edit(fields)``."""
+    lines = (text / "images.txt").read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if line.split()[:1] == [str(image_id)] and not line.startswith("#"))
+    fields = lines[at].split()
+    edit(fields)
+    lines[at] = " ".join(fields)
+    (text / "images.txt").write_text("\n".join(lines) + "\n")
+
+
+def test_a_colmap_image_of_a_camera_the_model_lacks_is_refused(colmap_project):
+    # eighth probe (E2): images.txt naming camera 9, which cameras.txt lacks: internal error (IndexError: Rig
+    # with ID 9 does not exist), exit 1
+    text = legacy_text_model(colmap_project)
+    edit_image_line(text, 3, lambda fields: fields.__setitem__(8, "9"))
+    with pytest.raises(InputError, match=r"sparse/0: not a readable COLMAP model \(Rig with ID 9 does not exist; "
+                                         r"an id in one file that the others do not hold, e\.g\. an image's "
+                                         r"CAMERA_ID not in cameras\.txt\)"):
+        read_colmap(colmap_project)
+
+
+def test_a_colmap_pose_with_a_zero_quaternion_is_refused(colmap_project):
+    # eighth probe (E7): QW QX QY QZ = 0 0 0 0 in images.txt became the identity rotation (pycolmap's matrix())
+    # and was used; TUM's reader refuses the same quaternion
+    text = legacy_text_model(colmap_project)
+    edit_image_line(text, 1, lambda fields: fields.__setitem__(slice(1, 5), ["0"] * 4))
+    with pytest.raises(InputError, match=r"project: the COLMAP model's pose of image a.png: a quaternion has zero "
+                                         r"length"):
         read_colmap(colmap_project)
 
 

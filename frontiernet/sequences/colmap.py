@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import intrinsics_matrix, rigid_pose
+from ..geometry import intrinsics_matrix, quaternion_rotations, rigid_pose
 from ..io import input_folder
 from ..workers import keep_sigterm_handler
 
@@ -99,8 +99,12 @@ def colmap_camera(camera: pycolmap.Camera) -> Camera:
     return Camera(camera.width, camera.height, K, model, remap=_undistortion_maps(camera, K))
 
 
-def world_from_cam(image: pycolmap.Image) -> np.ndarray:
-    """(4, 4) float64 ``T_world_cam`` of a registered image: the inverse of its ``cam_from_world``."""
+def world_from_cam(image: pycolmap.Image, what: str = "COLMAP image") -> np.ndarray:
+    """(4, 4) float64 ``T_world_cam`` of a registered image: the inverse of its ``cam_from_world``.
+
+    InputError naming `what` for a quaternion of zero length (pycolmap's ``matrix()`` makes it the
+    identity rotation) or not finite; one of another length is left to :func:`rigid_pose` to refuse."""
+    quaternion_rotations(image.cam_from_world().rotation.quat, what)
     cam_from_world = np.asarray(image.cam_from_world().matrix(), np.float64)  # (3, 4) [R | t]
     rotation, translation = cam_from_world[:, :3], cam_from_world[:, 3]
     pose = np.eye(4)
@@ -168,7 +172,8 @@ def sequence_from_reconstruction(reconstruction: pycolmap.Reconstruction, image_
         for file, what in ((path, "image"), (depth[index], "depth")):
             if file is not None:
                 _check_size(file, what, camera, image.camera_id)
-        pose = rigid_pose(world_from_cam(image), f"{root}: the COLMAP model's pose of image {image.name}")
+        what = f"{root}: the COLMAP model's pose of image {image.name}"
+        pose = rigid_pose(world_from_cam(image, what), what)
         frames.append(SequenceFrame(index=index, name=image.name, rgb_path=path, camera=camera, T_world_cam=pose,
                                     depth_path=depth[index], depth_scale=1000.0))
     registered = (f"{len(images)} of {reconstruction.num_images()} images in the model registered; "
@@ -195,7 +200,10 @@ def read_colmap(model_dir: str | Path, image_dir: str | Path | None = None,
         depth_dir = image_dir.parent / "depth"
     try:
         reconstruction = pycolmap.Reconstruction(model)
-    except (ValueError, RuntimeError) as error:  # pycolmap's failed checks (ValueError in 4.2)
-        reason = (str(error).strip().splitlines() or [type(error).__name__])[-1]
+    except (ValueError, RuntimeError, IndexError, KeyError) as error:  # pycolmap's failed checks (ValueError
+        # in 4.2; IndexError for an id no other file holds: an image's camera is its trivial rig, "Rig with ID 9")
+        reason = (str(error).strip().strip("'").splitlines() or [type(error).__name__])[-1]
+        if isinstance(error, (IndexError, KeyError)):
+            reason += "; an id in one file that the others do not hold, e.g. an image's CAMERA_ID not in cameras.txt"
         raise InputError(f"{model}: not a readable COLMAP model ({reason})") from None
     return sequence_from_reconstruction(reconstruction, image_dir, path, depth_dir=depth_dir)

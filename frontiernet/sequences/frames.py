@@ -49,8 +49,11 @@ class Camera:
     def checked(self, what: str) -> Camera:
         """This camera if its intrinsics fit its image as typed ``--intrinsics`` must
         (:func:`~frontiernet.geometry.check_intrinsics_fit`: finite, the principal point inside, a focal
-        length within 0.04 to 100 x the larger side); InputError naming `what` (the file it was read from)
-        otherwise."""
+        length within 0.04 to 100 x the larger side) and if the image has a size; InputError naming `what` (the
+        file it was read from) otherwise."""
+        if not (self.width >= 1 and self.height >= 1):  # (was "the principal point ... lies outside the 0 x 480 image")
+            raise InputError(f"{what}: an image of {self.width} x {self.height} px; width and height must be at "
+                             "least 1 px")
         K = self.K
         check_intrinsics_fit(K[0, 0], K[1, 1], K[0, 2], K[1, 2], self.width, self.height, what)
         return self

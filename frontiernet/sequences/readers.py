@@ -102,10 +102,12 @@ def default_camera(size: tuple[int, int]) -> Camera:
 
 def _number_rows(path: Path, columns: int) -> list[tuple[int, list[str]]]:
     """(line number, fields) of the non-empty, non-``#`` lines of a text file with at least
-    `columns` whitespace-separated fields; InputError naming the file and line otherwise."""
+    `columns` whitespace-separated fields; InputError naming the file and line otherwise. A UTF-8 byte-order
+    mark (Windows editors write one) is no part of the first line (it made a comment line a bad number's).
+    The other text files of the sequence formats are read so as well."""
     input_file(path)
     rows = []
-    for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+    for number, line in enumerate(path.read_text("utf-8-sig", errors="replace").splitlines(), 1):
         fields = line.split()
         if not fields or fields[0].startswith("#"):
             continue
@@ -231,15 +233,18 @@ def read_tum(root: str | Path, camera: Camera | None = None, max_time_difference
 # ----------------------------------------------------------------------------- Redwood
 
 def read_redwood_log(path: Path) -> np.ndarray:
-    """(N, 4, 4) float64 matrices of a Redwood ``.log`` trajectory: per frame a line ``i i i+1``
-    then the 4 x 4 camera-to-world matrix row by row (metres); InputError naming the line if malformed
-    or not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`)."""
-    lines = [(number, line.split()) for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1)
-             if line.strip()]
+    """(N, 4, 4) float64 matrices of a Redwood ``.log`` trajectory, in frame order: per entry a header line
+    ``i i i+1`` then the 4 x 4 camera-to-world matrix row by row (metres). The header's first number is the
+    frame's index (Redwood's and Open3D's ``metadata``: 0 is the first image by name), so entries may come in
+    any order, each frame's pose is the entry of its index; the indices must be 0 to N - 1, each once. InputError
+    naming the line if malformed, a frame index listed twice, one missing (frames after it would take other
+    frames' poses) or a matrix that is not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`)."""
+    text = path.read_text("utf-8-sig", errors="replace")  # (a byte-order mark: _number_rows)
+    lines = [(number, line.split()) for number, line in enumerate(text.splitlines(), 1) if line.strip()]
     if len(lines) % 5:
         raise InputError(f"{path}: {len(lines)} non-empty lines; a Redwood .log has 5 per frame "
                          f"(a line 'i i i+1' then 4 matrix rows)")
-    rows = []
+    rows, frames = [], {}  # frame index -> entry (position in the file)
     for position, (number, fields) in enumerate(lines):
         header = position % 5 == 0
         if len(fields) != (3 if header else 4):
@@ -248,13 +253,26 @@ def read_redwood_log(path: Path) -> np.ndarray:
         values = _floats(path, number, fields)
         if not header:
             rows.append(values)
+        elif not values[0] >= 0 or values[0] != int(values[0]):
+            raise InputError(f"{path}:{number}: a frame header's first number is the frame's index, a whole "
+                             f"number >= 0; got '{' '.join(fields)}'")
+        elif int(values[0]) in frames:
+            raise InputError(f"{path}:{number}: frame {int(values[0])} is listed twice (also at line "
+                             f"{lines[5 * frames[int(values[0])]][0]}); each frame has one pose")
+        else:
+            frames[int(values[0])] = position // 5
+    missing = next(index for index in range(len(frames) + 1) if index not in frames)
+    if missing < len(frames):
+        raise InputError(f"{path}: no pose for frame {missing}, though the log lists frame {max(frames)}: the "
+                         "first number of a header line is the frame's index, from 0 (the first image by name)")
+    order = [frames[index] for index in range(len(frames))]
     matrices = np.array(rows, np.float64).reshape(-1, 4, 4)
     bad = np.flatnonzero(np.abs(matrices[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1, initial=0.0) > 1e-6)
     if len(bad):
         raise InputError(f"{path}:{lines[5 * bad[0] + 4][0]}: the matrix's last row must be 0 0 0 1")
-    for index, matrix in enumerate(matrices):  # a scaled or sheared matrix: named here, not by the map
-        rigid_pose(matrix, f"{path}:{lines[5 * index + 1][0]}: the pose of frame {index}")
-    return matrices
+    for index, entry in enumerate(order):  # a scaled or sheared matrix: named here, not by the map
+        rigid_pose(matrices[entry], f"{path}:{lines[5 * entry + 1][0]}: the pose of frame {index}")
+    return matrices[order]
 
 
 def _redwood_trajectory(root: Path) -> Path | None:
@@ -273,7 +291,7 @@ def read_open3d_intrinsic(path: Path) -> Camera:
     ``intrinsic_matrix``: the 3 x 3 K as 9 numbers, column-major); InputError naming the file for
     intrinsics that do not fit its size (:meth:`Camera.checked`)."""
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text("utf-8-sig"))
         K = np.array(data["intrinsic_matrix"], np.float64).reshape(3, 3).T
         width, height = int(data["width"]), int(data["height"])
     except (ValueError, KeyError, TypeError) as error:
@@ -325,7 +343,7 @@ def _redwood_poses(root: Path, frame_count: int, notes: list) -> list:
 def read_redwood(root: str | Path, camera: Camera | None = None) -> Sequence:
     """A Redwood-style RGB-D folder: colour images in ``color/``, ``image/`` or ``rgb/``, optional
     16-bit millimetre depth PNGs in ``depth/``, and a ``.log`` trajectory (``trajectory.log`` or
-    the only one), matched by sorted file order.
+    the only one): the i-th image by name takes the trajectory's entry of frame index i (:func:`read_redwood_log`).
 
     Intrinsics: `camera` when given, else ``camera_intrinsic.json`` / ``intrinsic.json`` (Open3D
     format), else the PrimeSense default fx = fy = 525, cx = 319.5, cy = 239.5. A folder without a

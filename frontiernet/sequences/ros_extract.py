@@ -12,6 +12,7 @@ Bad data (a truncated or corrupt file, a message that is not what its topic's ro
 
 from __future__ import annotations
 
+import re
 import shutil
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -34,8 +35,27 @@ def is_recording(path: str | Path) -> bool:
     return (path.is_file() and path.suffix.lower() in RECORDING_SUFFIXES) or (path / "metadata.yaml").is_file()
 
 
+RECORDING_MAGIC = {".bag": b"#ROSBAG V2.0", ".mcap": b"\x89MCAP0\r\n", ".db3": b"SQLite format 3\x00"}
+"""The first bytes of each kind of recording file, by the suffix it goes by."""
+
+
 def _reason(error: Exception) -> str:
-    return f"{type(error).__name__}: {(str(error).splitlines() or [''])[0][:160]}"
+    """`error`'s first line, less a library's advice to report its bug (rosbags' "please report issue."): the
+    file is what is wrong."""
+    text = re.sub(r"[;,.]?\s*please report[^.;)]*\.?", "", (str(error).splitlines() or [""])[0], flags=re.I)
+    return f"{type(error).__name__}: {text.strip()[:160]}"
+
+
+def _check_suffix(path: Path) -> None:
+    """InputError naming a recording file whose bytes are another kind's than its suffix says (an MCAP named
+    .bag was "truncated or corrupt (UnicodeDecodeError ...)")."""
+    if not path.is_file() or path.suffix.lower() not in RECORDING_MAGIC:
+        return
+    with open(path, "rb") as handle:
+        head = handle.read(16)
+    kind = next((suffix for suffix, magic in RECORDING_MAGIC.items() if head.startswith(magic)), None)
+    if kind is not None and kind != path.suffix.lower():
+        raise InputError(f"{path}: a {kind} recording named {path.suffix}; rename it {path.with_suffix(kind).name}")
 
 
 @contextmanager
@@ -50,6 +70,7 @@ def open_recording(path: Path):
     if not is_recording(path):
         raise InputError(f"{path}: not a recording (a .bag, .mcap or .db3 file, or a rosbag2 folder with "
                          "metadata.yaml)")
+    _check_suffix(path)
     try:  # rosbag2 files without message definitions are read with ROS 2 Humble's
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
         reader.open()
