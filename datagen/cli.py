@@ -130,8 +130,13 @@ def run_preview(args) -> int:
     if args.n < 1:
         raise InputError(f"--n must be a positive integer, got {args.n}")
     dataset = open_dataset(args.dataset)
-    if len(dataset) == 0:
-        raise InputError(f"{args.dataset}: the dataset has no samples yet")
+    if len(dataset) == 0:  # (was "no samples yet" of a dataset whose shards were deleted too)
+        from .generate import missing_shards
+
+        missing = missing_shards(Path(args.dataset), dataset.info) if Path(args.dataset).is_dir() else []
+        raise InputError(f"{args.dataset}: the dataset has no samples" + (
+            f": the {len(missing)} shard(s) its dataset.json plans are not in {Path(args.dataset) / 'shards'} "
+            "(deleted, or a run that has made none yet)" if missing else " yet"))
     root = Path(args.dataset)
     out = Path(args.out) if args.out else (root if root.is_dir() else root.parent) / "preview"
     max_depth = float(dataset.records[0].get("max_depth", 3.5))

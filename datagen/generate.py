@@ -11,6 +11,7 @@ same seed gives the same bytes.
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import re
 import shutil
@@ -23,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from frontiernet import __version__
 from frontiernet.config import first_difference
 from frontiernet.errors import InputError, whole_number
-from frontiernet.io import check_not_dangling, write_json
+from frontiernet.io import LOCK_NAME, check_not_dangling, claim_output_folder, write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
 from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
@@ -81,6 +82,26 @@ def plan_shards(specs: list[str], views_per_scene: int, shard_size: int, seed: i
     return tasks
 
 
+def missing_shards(root: Path, info: dict) -> list[ShardTask]:
+    """The shards the dataset.json `info` of the dataset folder `root` plans (:func:`plan_shards` of its
+    ``scenes``, ``views_per_scene``, ``shard_size`` and ``seed``) that ``shards/`` lacks, less those of the
+    scenes its last run reported failed (``failed_scenes`` of ``summary.json``: no view was made of them, and
+    the run said so). What is left is a shard deleted or not made yet (an interrupted run): ``datagen
+    --resume`` makes it. Empty for a description that does not say what it plans."""
+    try:
+        tasks = plan_shards([str(spec) for spec in info["scenes"]], int(info["views_per_scene"]),
+                            int(info["shard_size"]), int(info["seed"]), Path(root))
+    except (KeyError, TypeError, ValueError):
+        return []
+    failed = set()
+    if (root / "summary.json").is_file():
+        try:
+            failed = {failure["scene"] for failure in json.loads((root / "summary.json").read_text())["failed_scenes"]}
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    return [task for task in tasks if task.spec not in failed and not Path(task.path).is_file()]
+
+
 def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[str], int]:
     if not specs:
         raise InputError("no scenes given (--scenes SPEC ...)")
@@ -130,7 +151,7 @@ def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "se
     check_not_dangling(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not (out / SHARDS_DIR).is_dir():
+    if out.is_dir() and any(entry.name != LOCK_NAME for entry in out.iterdir()) and not (out / SHARDS_DIR).is_dir():
         raise InputError(f"{out}: folder is not empty and holds no dataset; choose another --out")
     if resume:  # (a typo in --out would otherwise start a second dataset without a word)
         print(f"{command}: note: --resume: {out} holds no dataset yet (no {INFO_NAME}), so there is nothing to "
@@ -157,8 +178,9 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
         resume: continue a dataset in `out` (shards on disk are kept, the rest are made).
         progress: show a progress bar.
     Raises:
-        InputError: bad arguments, an unusable output folder, a resume that does not
-            match the dataset on disk. Failing scenes do not raise: they are reported.
+        InputError: bad arguments, an unusable output folder or one another run writes
+            (:func:`~frontiernet.io.claim_output_folder`: two runs made the same shards), a resume that does
+            not match the dataset on disk. Failing scenes do not raise: they are reported.
     """
     from .backends import run_tasks
 
@@ -170,32 +192,33 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
             "scenes": specs, "views_per_scene": views_per_scene, "shard_size": shard_size, "config": conf_dict}
     created = not (out / INFO_NAME).exists()
     existed = out.exists()
-    prepare_output(out, info, resume)
-    removed = remove_stale_temporaries(out / SHARDS_DIR)
-    if removed:
-        log.info("removed %d unfinished shard file(s) of an interrupted run", removed)
-    tasks = plan_shards(specs, views_per_scene, shard_size, seed, out)
-    todo = [task for task in tasks if not shard_complete(task.path)]
-    if todo and (out / CACHE_DIR).is_dir():
-        # the training caches were built from the dataset as it was: once shards are added they no
-        # longer match it (training would refuse them), so they go; the next `train` rebuilds its own
-        log.warning("removing %s: the training caches of the dataset before this run", out / CACHE_DIR)
-        shutil.rmtree(out / CACHE_DIR)
-    start = time.perf_counter()
-    results = run_tasks([asdict(task) for task in todo], conf_dict, info, backend=backend, workers=workers,
-                        progress=progress, total_views=sum(task.num_views for task in todo))
-    elapsed = time.perf_counter() - start
-    remove_stale_temporaries(out / SHARDS_DIR)  # left by workers that died (their shards were redone)
-    from .summary import summarise
+    with claim_output_folder(out, force=True):  # one run at a time writes a dataset (--resume included)
+        prepare_output(out, info, resume)
+        removed = remove_stale_temporaries(out / SHARDS_DIR)
+        if removed:
+            log.info("removed %d unfinished shard file(s) of an interrupted run", removed)
+        tasks = plan_shards(specs, views_per_scene, shard_size, seed, out)
+        todo = [task for task in tasks if not shard_complete(task.path)]
+        if todo and (out / CACHE_DIR).is_dir():
+            # the training caches were built from the dataset as it was: once shards are added they no
+            # longer match it (training would refuse them), so they go; the next `train` rebuilds its own
+            log.warning("removing %s: the training caches of the dataset before this run", out / CACHE_DIR)
+            shutil.rmtree(out / CACHE_DIR)
+        start = time.perf_counter()
+        results = run_tasks([asdict(task) for task in todo], conf_dict, info, backend=backend, workers=workers,
+                            progress=progress, total_views=sum(task.num_views for task in todo))
+        elapsed = time.perf_counter() - start
+        remove_stale_temporaries(out / SHARDS_DIR)  # left by workers that died (their shards were redone)
+        from .summary import summarise
 
-    summary = summarise(out, tasks, results, elapsed, done_before=len(tasks) - len(todo))
-    if created and summary["views"] == 0 and results:  # every shard failed: a dataset of nothing
-        _take_back(out, existed)  # the next run must not find an empty dataset in its way
-        failures = summary["failed_scenes"] or [{"scene": specs[0], "error": "no view made"}]
-        raise InputError(f"{failures[0]['scene']}: {failures[0]['error']} (no view was made of "
-                         f"{len(summary['failed_scenes'])} failed scene(s); nothing was left in {out})")
-    write_json(out / "summary.json", summary)
-    return summary
+        summary = summarise(out, tasks, results, elapsed, done_before=len(tasks) - len(todo))
+        if created and summary["views"] == 0 and results:  # every shard failed: a dataset of nothing
+            _take_back(out, existed)  # the next run must not find an empty dataset in its way
+            failures = summary["failed_scenes"] or [{"scene": specs[0], "error": "no view made"}]
+            raise InputError(f"{failures[0]['scene']}: {failures[0]['error']} (no view was made of "
+                             f"{len(summary['failed_scenes'])} failed scene(s); nothing was left in {out})")
+        write_json(out / "summary.json", summary)
+        return summary
 
 
 def _take_back(out: Path, existed: bool) -> None:

@@ -27,7 +27,7 @@ from omegaconf import OmegaConf
 
 from frontiernet import __version__
 from frontiernet.errors import InputError, check_seed, positive_number, whole_number
-from frontiernet.io import write_json
+from frontiernet.io import claim_output_folder, write_json
 
 from .generate import _slug, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
@@ -269,8 +269,9 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
     """Generate (or resume) a map dataset in `out`; returns the summary also written to ``out/summary.json``.
 
     Raises:
-        InputError: bad scenes, settings or options, an unusable `out`, a resume that does not match the
-            dataset there (all before anything is written). Failing scenes do not raise: they are reported.
+        InputError: bad scenes, settings or options, an unusable `out` or one another run writes
+            (:func:`~frontiernet.io.claim_output_folder`), a resume that does not match the dataset there (all
+            before anything is written). Failing scenes do not raise: they are reported.
     """
     from frontiernet.scenes.spec import expand_specs, parse_spec
     from frontiernet.workers import check_backend, run_parallel
@@ -295,41 +296,42 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
     info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed, "scenes": specs,
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}
     created, existed = not (out / INFO_NAME).exists(), out.exists()
-    prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
-                   _read_info_rehashed, write_map_dataset_info, command="mapgen", settings=hashed_settings)
-    remove_stale_temporaries(out / SHARDS_DIR)
-    tasks = plan_map_tasks(specs, runs, seed, out)
-    todo = [task for task in tasks if not map_shard_complete(task.path)]
-    if todo and (out / "cache").is_dir():
-        shutil.rmtree(out / "cache")  # derived from the dataset as it was
-    bar = _Progress(len(todo), progress)
-    start = time.perf_counter()
-    threads = max(1, (os.cpu_count() or 1) // workers)
+    with claim_output_folder(out, force=True):  # one run at a time writes a dataset (--resume included)
+        prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
+                       _read_info_rehashed, write_map_dataset_info, command="mapgen", settings=hashed_settings)
+        remove_stale_temporaries(out / SHARDS_DIR)
+        tasks = plan_map_tasks(specs, runs, seed, out)
+        todo = [task for task in tasks if not map_shard_complete(task.path)]
+        if todo and (out / "cache").is_dir():
+            shutil.rmtree(out / "cache")  # derived from the dataset as it was
+        bar = _Progress(len(todo), progress)
+        start = time.perf_counter()
+        threads = max(1, (os.cpu_count() or 1) // workers)
 
-    def died(index: int, error: str) -> dict:
-        return {"task": os.path.basename(todo[index].path), "spec": todo[index].spec, "ok": False, "error": error,
-                "bad_input": False, "seconds": 0.0}
+        def died(index: int, error: str) -> dict:
+            return {"task": os.path.basename(todo[index].path), "spec": todo[index].spec, "ok": False, "error": error,
+                    "bad_input": False, "seconds": 0.0}
 
-    try:
-        results = run_parallel(run_map_task, [(asdict(task), conf_dict, info) for task in todo], backend=backend,
-                               workers=workers, on_result=lambda index, result: bar.done(result), died=died,
-                               retries=1, initializer=_init_worker if workers > 1 else None,
-                               initargs=(None, threads))
-    finally:
-        bar.close()
-    remove_stale_temporaries(out / SHARDS_DIR)
-    summary = summarise_maps(tasks, results, time.perf_counter() - start, len(tasks) - len(todo))
-    if created and summary["runs"] == 0 and results:  # every run failed: leave no empty dataset in the way
-        if existed:
-            shutil.rmtree(out / SHARDS_DIR, ignore_errors=True)
-            (out / INFO_NAME).unlink(missing_ok=True)
-        else:
-            shutil.rmtree(out)
-        failures = summary["failed_scenes"] or [{"scene": specs[0], "error": "no run made"}]
-        failure = failures[0]
-        raise InputError(f"{failure['scene']}: {failure['error']} (every run failed; nothing was left in {out})")
-    write_json(out / "summary.json", summary)
-    return summary
+        try:
+            results = run_parallel(run_map_task, [(asdict(task), conf_dict, info) for task in todo], backend=backend,
+                                   workers=workers, on_result=lambda index, result: bar.done(result), died=died,
+                                   retries=1, initializer=_init_worker if workers > 1 else None,
+                                   initargs=(None, threads))
+        finally:
+            bar.close()
+        remove_stale_temporaries(out / SHARDS_DIR)
+        summary = summarise_maps(tasks, results, time.perf_counter() - start, len(tasks) - len(todo))
+        if created and summary["runs"] == 0 and results:  # every run failed: leave no empty dataset in the way
+            if existed:
+                shutil.rmtree(out / SHARDS_DIR, ignore_errors=True)
+                (out / INFO_NAME).unlink(missing_ok=True)
+            else:
+                shutil.rmtree(out)
+            failures = summary["failed_scenes"] or [{"scene": specs[0], "error": "no run made"}]
+            failure = failures[0]
+            raise InputError(f"{failure['scene']}: {failure['error']} (every run failed; nothing was left in {out})")
+        write_json(out / "summary.json", summary)
+        return summary
 
 
 def summarise_maps(tasks: list[MapTask], results: list[dict], seconds: float, done_before: int) -> dict:

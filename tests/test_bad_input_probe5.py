@@ -126,14 +126,14 @@ def test_an_8_bit_depth_image_is_refused_naming_the_file(tmp_path, one_line_erro
 
 # ----------------------------------------------------------------------------- export (item 6)
 
-@pytest.mark.parametrize("threshold", ["1e9", "10.5"])
+@pytest.mark.parametrize("threshold", ["1e9", "10.5", "10"])  # 10, the truncation (eighth probe, E10): 100 % frontier
 def test_export_refuses_a_frontier_threshold_past_the_truncation(threshold, tmp_path, one_line_error):
     from frontiernet.model import default_model_path
 
     out = tmp_path / "m.safetensors"
     assert main(["export", str(default_model_path()), "--format", "safetensors", "--out", str(out),
                  "--frontier-threshold", threshold]) == 2
-    assert "--frontier-threshold must be in (0, 10] pixels" in one_line_error()
+    assert "--frontier-threshold must be in (0, 10) pixels" in one_line_error()
     assert not out.exists()
 
 
@@ -245,7 +245,8 @@ def two_scenes(tmp_path_factory):
 
 @pytest.mark.parametrize("overrides, message", [
     (["data.batch_size=100"], "data.batch_size: 100 is more than the 2 training views"),
-    (["trainer.strategy=bogus"], "trainer: "),  # (a precision is checked before the data: probe6's)
+    # (a precision is checked before the data: probe6's; a strategy too since the eighth probe's E4)
+    (["trainer.strategy=bogus"], "trainer.strategy=bogus: not one this training takes"),
 ])
 def test_loop_and_trainer_settings_are_refused_before_the_training_cache(two_scenes, overrides, message, tmp_path,
                                                                          one_line_error):

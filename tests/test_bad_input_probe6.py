@@ -84,6 +84,12 @@ def no_cluster(monkeypatch):
     (["trainer.precision=bf16-true"], "trainer.precision=bf16-true: not one this training takes"),
     # two CPU processes that shared one loader and wrote no results (an internal error at the end)
     (["trainer.strategy=ddp", "trainer.devices=2"], "trainer.devices=2: training runs on the CPU here"),
+    # eighth probe (E4): exit 0, the spawned process trained and this one wrote its untrained weights as the model
+    (["trainer.strategy=ddp_spawn"], "trainer.strategy=ddp_spawn: not one this training takes; valid: auto, ddp, "
+                                     "ddp_find_unused_parameters_false, ddp_find_unused_parameters_true, "
+                                     "single_device (the weights this process holds are written as the model: it "
+                                     "must train them itself)"),
+    (["trainer.strategy=deepspeed"], "trainer.strategy=deepspeed: not one this training takes"),
     # Lightning's INFO lines on stderr before the error line
     (["model.network.pretrained=bogus"], "bogus: ImageNet weights file, network.pretrained not found"),
 ])
@@ -92,6 +98,18 @@ def test_trainer_settings_that_cannot_run_here_are_refused_before_the_data(overr
     runs = tmp_path / "runs"  # (no dataset: the old code got past these settings to refuse the data)
     refused(["train", "--no-progress", f"data.path={tmp_path / 'no_data'}", f"out={runs}", "trainer.accelerator=cpu",
              *overrides], message, one_line_error, runs)
+
+
+def test_a_gpu_asked_for_where_there_is_none_names_the_key(tmp_path, no_cluster, one_line_error):
+    # eighth probe (E26): "trainer: No supported gpu backend found!" (Lightning's words, after its setup began)
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("a CUDA GPU is here: trainer.accelerator=gpu is taken")
+    runs = tmp_path / "runs"
+    refused(["train", "--no-progress", f"data.path={tmp_path / 'no_data'}", f"out={runs}", "trainer.accelerator=gpu"],
+            "trainer.accelerator=gpu: no CUDA GPU here (torch finds none); give trainer.accelerator=cpu, or auto (a "
+            "GPU where there is one)", one_line_error, runs)
 
 
 # ----------------------------------------------------------------------------- internal errors (item 2)

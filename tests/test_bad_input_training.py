@@ -4,6 +4,7 @@ no training cache, no export)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -77,6 +78,18 @@ def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Pa
     # Lightning refused it only after its INFO lines on stderr
     (["trainer.limit_val_batches=1.5"], "trainer.limit_val_batches: a fraction of the validation batches is in "
                                         "[0, 1] (or give a whole number of batches, e.g. 1), got 1.5"),
+    # eighth probe (E19): "got 60", a value never typed (YAML 1.1 reads 1:00 as a base-60 number)
+    (["trainer.max_time=1:00"], "trainer.max_time: a wall-clock limit is DD:HH:MM:SS (e.g. 00:01:00:00), or null "
+                                "for none; got 60, the number YAML makes of an unquoted 1:00 (base 60): write all "
+                                "four fields, two digits each"),
+    (["trainer.max_time=1:00:00:00"], "got 216000, the number YAML makes of an unquoted 1:00:00:00 (base 60)"),
+    # eighth probe (E27): the advice was the bare key name, "...: init_inputs"
+    (["init_weights=default", "model.network.inputs=depth"],
+     "model.network.inputs: depth, but the run starts from init_weights's rgbd (its network replaces model.network): "
+     "give init_inputs=depth (the started network's first layer then takes depth)"),
+    # eighth probe (E25): "... or train on a dataset made with bogus", after the data load, the valid ones unnamed
+    (["model.labels.gain_definition=bogus"], "model.labels.gain_definition must be one of unobserved/blend, "
+                                             "unobserved/region, occluded/blend, occluded/region (or null), got 'bogus'"),
 ])
 def test_training_settings_judged_without_data_are_refused_before_anything(tmp_path, overrides, message,
                                                                             one_line_error):
@@ -84,6 +97,22 @@ def test_training_settings_judged_without_data_are_refused_before_anything(tmp_p
     assert main(["train", "--no-progress", f"data.path={tmp_path / 'no_data'}", f"out={runs}", "name=tiny", *TINY,
                  *overrides]) == 2
     assert message in one_line_error()
+    assert not runs.exists()
+
+
+def test_an_override_is_judged_by_the_shipped_kind_of_its_key_not_a_config_files(tmp_path, one_line_error):
+    # eighth probe (E32): with train_tiny.yaml's `cache_workers: 0`, data.cache_workers=abc "takes a number (default
+    # 0)": the key also takes auto, which configs/train.yaml ships
+    from conftest import REPO_ROOT
+
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", "--config", str(REPO_ROOT / "configs" / "train_tiny.yaml"),
+                 f"data.path={tmp_path / 'no_data'}", f"out={runs}", "data.cache_workers=abc"]) == 2
+    from frontiernet.errors import PER_CORE
+
+    most = PER_CORE * (os.cpu_count() or 1)
+    assert one_line_error().endswith(f"error: data.cache_workers must be an integer in [0, {most}], got 'abc' (at "
+                                     f"most {PER_CORE} per core of this machine); or auto")
     assert not runs.exists()
 
 
@@ -105,6 +134,69 @@ def test_a_crop_larger_than_the_datasets_own_views_is_refused_before_the_cache(t
     assert ("augment.crop_size: 128 px is larger than the 64 px views it crops (data.image_size: null keeps the "
             "dataset's size)") in one_line_error()
     assert not runs.exists() and not (two_scenes / "cache").exists()
+
+
+def test_gain_classes_other_than_the_datasets_are_refused_before_the_trainer(two_scenes, tmp_path, one_line_error):
+    # eighth probe (E3): Lightning's INFO lines, then an internal error at the first validation step (RuntimeError:
+    # shape '[2, 2]' is invalid for input of size 23): the dataset's views hold 11 gain classes
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", f"data.path={two_scenes}", f"out={runs}", *TINY,
+                 "model.labels.bin_edges=[1,50]", "model.labels.num_classes=2"]) == 2
+    assert one_line_error() == (
+        "frontiernet train: error: model.labels.bin_edges: gain classes of bin edges [1, 50] x 0.01 m^3, the "
+        "dataset's [1, 50, 150, 300, 450, 750, 1000, 1500, 2000, 2500, 3500] x 0.01 m^3 (datagen ground_truth.gain); "
+        "give the dataset's (model.labels.num_classes: as many), or train on a dataset made with yours")
+    assert not runs.exists()
+    import json
+    import shutil
+
+    other = tmp_path / "other"  # the shipped model on a dataset of other classes: its gain Dice compares other ones
+    shutil.copytree(two_scenes, other, ignore=shutil.ignore_patterns("cache"))
+    info = json.loads((other / "dataset.json").read_text())
+    info["config"]["ground_truth"]["gain"]["bin_unit_m3"] = 0.02
+    (other / "dataset.json").write_text(json.dumps(info))
+    model = model_with(tmp_path, 0.0)
+    assert main(["evaluate", str(model), "--data", str(other), "--all"]) == 2
+    assert f"{other}: the model ({model}) has gain classes of bin edges [1, 50, " in one_line_error()
+
+
+def test_a_dataset_missing_a_shard_it_lists_is_refused_naming_it(two_scenes, tmp_path, one_line_error):
+    # eighth probe (E5): trained and evaluated on the other scenes without a word
+    import json
+    import shutil
+
+    from train.data import open_training_data
+
+    partial = tmp_path / "partial"
+    shutil.copytree(two_scenes, partial, ignore=shutil.ignore_patterns("cache"))
+    (partial / "shards" / "00001-procedural-4-0000.zip").unlink()
+    message = (f"{partial}: shard 00001-procedural-4-0000.zip of scene procedural:4 is missing from {partial / 'shards'} "
+               "(1 of the shards its dataset.json plans: deleted, or a run that did not finish); make them with the "
+               "dataset's `frontiernet datagen` command and --resume")
+    runs = tmp_path / "runs"
+    assert main(["train", "--no-progress", f"data.path={partial}", f"out={runs}", *TINY]) == 2
+    assert one_line_error() == f"frontiernet train: error: {message}"
+    assert not runs.exists()
+    assert main(["evaluate", str(model_with(tmp_path, 0.0)), "--data", str(partial), "--all"]) == 2
+    assert one_line_error() == f"frontiernet evaluate: error: {message}"
+    # a scene its run reported failed (summary.json) made no shard, and the run said so: the rest is the dataset
+    summary = json.loads((partial / "summary.json").read_text())
+    summary["failed_scenes"] = [{"scene": "procedural:4", "error": "no view", "bad_input": True}]
+    (partial / "summary.json").write_text(json.dumps(summary))
+    assert open_training_data(partial).scenes == ["procedural:3"]
+
+
+def test_evaluate_scenes_named_twice_count_once_and_an_empty_one_is_refused(two_scenes, tmp_path, capsys,
+                                                                          one_line_error):
+    # eighth probe: a scene named twice was counted twice, "on 1 views of 2 given scene(s)" (E14); '' was refused
+    # after the data load, "scene(s) not in the dataset: " naming nothing (E31)
+    model = str(model_with(tmp_path, 0.0))
+    assert main(["evaluate", model, "--data", str(two_scenes), "--scenes", "", "--max-samples", "1"]) == 2
+    assert one_line_error().endswith("error: --scenes: an empty scene spec (item 1 of the 1 given); give the dataset's "
+                                     "scene specs as separate words, e.g. --scenes procedural:3 procedural:4")
+    assert main(["evaluate", model, "--data", str(two_scenes), "--scenes", "procedural:3", "procedural:3",
+                 "--max-samples", "1", "--size", "64"]) == 0
+    assert "on 1 views of 1 given scene(s)" in capsys.readouterr().out
 
 
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs /proc, a folder no file can be made in")
@@ -138,6 +230,22 @@ def test_resuming_from_a_checkpoint_that_cannot_resume_is_refused_before_anythin
     assert main(args + [str(tmp_path / "model.ckpt")]) == 2
     assert f"{tmp_path / 'model.ckpt'}: weights are not all finite" in one_line_error()
     assert not runs.exists()
+
+
+@pytest.mark.parametrize("argv, flag, what", [
+    (["train", "--no-progress", "data.path=d", "out=o", "--resume"], "--resume", "checkpoint"),
+    (["explore", "--scene", "procedural:3", "--out", "o", "--show-prediction"], "--show-prediction", "predictor file"),
+])
+def test_an_override_after_an_option_of_an_optional_file_is_named_as_one(argv, flag, what, tmp_path, monkeypatch,
+                                                                         one_line_error):
+    # eighth probe (E18): "optim.lr=0.1: checkpoint to resume from not found", the override taken for the file
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:  # (argparse's usage error)
+        main([*argv, "optim.lr=0.1"])
+    assert stop.value.code == 2
+    assert one_line_error().endswith(f"error: argument {flag}: took the config override optim.lr=0.1 for its {what}; "
+                                     f"give the overrides before {flag} (or a {what} after it)")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_run_that_fails_before_its_first_step_leaves_no_folder_it_made(two_scenes, tmp_path, monkeypatch):

@@ -156,8 +156,8 @@ def test_lightning_config_errors_are_one_line(dataset_copy, tmp_path, one_line_e
     assert "data.batch_size" in one_line_error()
     assert main(args + ["optim.lr=-1"]) == 2
     assert "optim.lr" in one_line_error()
-    assert main(args + ["trainer.strategy=bogus"]) == 2  # (Lightning's own check; precision is ours: train.main)
-    message = one_line_error()
+    assert main(args + ["trainer.accelerator=bogus"]) == 2  # (Lightning's own check; precision and strategy are
+    message = one_line_error()  # ours: train.main)
     assert "trainer:" in message and "bogus" in message
     not_a_checkpoint = tmp_path / "notes.txt"
     not_a_checkpoint.write_text("hello")

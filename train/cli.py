@@ -21,7 +21,8 @@ def add_parser(subparsers) -> None:
                     "checkpoints/last.ckpt and best.ckpt, metrics.csv, model.safetensors, summary.json.")
     options.config_file(train, "configs/train.yaml (and model.*)")
     options.config_overrides(train, "data.path=DIR trainer.max_epochs=2 model.network.inputs=rgb")
-    train.add_argument("--resume", nargs="?", const="last", metavar="CKPT", type=options.input_path("checkpoint"),
+    train.add_argument("--resume", nargs="?", const="last", metavar="CKPT",
+                       type=options.optional_input_path("checkpoint", "--resume"),
                        help="continue the run's last checkpoint (or the given one)")
     options.no_progress(train)
     train.set_defaults(func=run_train)
@@ -81,6 +82,12 @@ def run_evaluate(args) -> int:
         input_size(args.size, "--size")
     if args.all and args.scenes:
         raise InputError("--all and --scenes exclude each other: give one")
+    if args.scenes:  # ('' was refused after the data load, "scene(s) not in the dataset: "; a repeat counted twice)
+        empty = next((index for index, scene in enumerate(args.scenes) if not scene.strip()), None)
+        if empty is not None:
+            raise InputError(f"--scenes: an empty scene spec (item {empty + 1} of the {len(args.scenes)} given); give "
+                             "the dataset's scene specs as separate words, e.g. --scenes procedural:3 procedural:4")
+        args.scenes = list(dict.fromkeys(scene.strip() for scene in args.scenes))
     if args.json:
         check_output_file(args.json, writable="--json")  # a folder given as --json fails now, not after the evaluation
     check_depth_files(known_source(args.depth, "--depth"))  # (an unknown one was refused after the data load)

@@ -128,7 +128,11 @@ class CachedSamples(_Items):
 
 
 def open_training_data(path: str | Path) -> FrontierDataset:
-    """``open_dataset`` with errors as :class:`InputError` (missing, empty or corrupt folder)."""
+    """``open_dataset`` with errors as :class:`InputError` (missing, empty or corrupt folder, or a folder
+    that lacks a shard its dataset.json plans: :func:`~datagen.generate.missing_shards`; training and
+    evaluating on the rest would drop its views without a word)."""
+    from datagen.generate import missing_shards
+
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: dataset folder not found (make one with `frontiernet datagen`)")
@@ -136,9 +140,33 @@ def open_training_data(path: str | Path) -> FrontierDataset:
         dataset = open_dataset(path)
     except DatasetError as error:
         raise InputError(str(error)) from None
+    missing = missing_shards(path, dataset.info) if path.is_dir() else []
+    if missing:
+        raise InputError(f"{path}: shard {missing[0].name} of scene {missing[0].spec} is missing from "
+                         f"{path / 'shards'} ({len(missing)} of the shards its dataset.json plans: deleted, or a run "
+                         f"that did not finish); make them with the dataset's `frontiernet datagen` command and "
+                         f"--resume")
     if len(dataset) == 0:
         raise InputError(f"{path}: the dataset holds no samples")
     return dataset
+
+
+def gain_bins_mismatch(labels, dataset: FrontierDataset) -> str | None:
+    """What differs between the gain classes `labels` (a model's ``labels``: ``bin_edges``, ``bin_unit_m3``)
+    defines and those the dataset's views are labelled with (dataset.json ``config.ground_truth.gain``), as
+    ``bin edges [1, 50] x 0.01 m^3, the dataset's [1, 50, ...] x 0.01 m^3``; None when they agree or the
+    dataset does not record its own. Training and evaluating read the dataset's classes as they are: other
+    edges failed at the first validation step (a confusion matrix of the wrong size) or scored other classes."""
+    gain = ((dataset.info.get("config") or {}).get("ground_truth") or {}).get("gain") or {}
+    if "bin_edges" not in gain:
+        return None
+    theirs = [float(edge) for edge in gain["bin_edges"]], float(gain.get("bin_unit_m3", labels["bin_unit_m3"]))
+    ours = [float(edge) for edge in labels["bin_edges"]], float(labels["bin_unit_m3"])
+    if ours == theirs:
+        return None
+    def text(bins):
+        return f"[{', '.join(f'{edge:g}' for edge in bins[0])}] x {bins[1]:g} m^3"
+    return f"bin edges {text(ours)}, the dataset's {text(theirs)}"
 
 
 def _limit(indices: list[int], limit, seed: int) -> list[int]:

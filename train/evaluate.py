@@ -19,7 +19,7 @@ from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import labels_gain_definition
 from frontiernet.model import load_model
 
-from .data import TrainingSamples, open_training_data
+from .data import TrainingSamples, gain_bins_mismatch, open_training_data
 from .metrics import FrontierMetrics, GainDice
 from .transforms import network_batch
 
@@ -49,6 +49,9 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
         raise InputError(f"{data}: holds gain labels of definition {dataset.gain_definition}, but the model "
                          f"({model_path or 'shipped'}) was trained on {trained_on}; its gain Dice would compare "
                          f"other volumes")
+    if (differs := gain_bins_mismatch(conf["labels"], dataset)) is not None:
+        raise InputError(f"{data}: the model ({model_path or 'shipped'}) has gain classes of {differs}; its gain "
+                         f"Dice would compare other classes")
     recorded = list(conf.get("info", {}).get("val_scenes") or [])
     if scenes:
         chosen = list(scenes)

@@ -58,7 +58,8 @@ def _check_network_asked(conf, model: FrontierNet) -> None:
     started = model.config.to_dict()
     for key, value in asked.items():
         if key in started and value != default.get(key) and _plain(value) != _plain(started[key]):
-            hint = "init_inputs" if key == "inputs" else f"leave model.network.{key} out"
+            hint = (f"give init_inputs={value} (the started network's first layer then takes {value})"
+                    if key == "inputs" else f"leave model.network.{key} out")  # (was the bare key name)
             raise InputError(f"model.network.{key}: {value}, but the run starts from init_weights's "
                              f"{_plain(started[key])} (its network replaces model.network): {hint}")
 

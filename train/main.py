@@ -19,7 +19,6 @@ import json
 import logging
 import os
 import platform
-import re
 import time
 import warnings
 from contextlib import contextmanager
@@ -43,9 +42,9 @@ from frontiernet.model.network import resolve_pretrained
 
 from .config import plain
 from .cache import check_cache_folder
-from .data import FrontierDataModule, open_training_data, view_size, worker_count
+from .data import FrontierDataModule, gain_bins_mismatch, open_training_data, view_size, worker_count
 from .finetune import freeze, init_file, initial_weights, shared_base
-from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_schedule
+from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_max_time, check_schedule
 
 log = logging.getLogger(__name__)
 
@@ -193,14 +192,19 @@ without any, ``trainer.num_nodes`` > 1 waits for the other nodes for ever."""
 PRECISIONS = ("32-true", "32", "16-mixed", "16", "bf16-mixed", "bf16")
 """The ``trainer.precision`` values a run takes: Lightning's, less those that cast the weights (``64-true``,
 ``16-true``, ``bf16-true``: the loaders' float32 views then fail at the first step) and Transformer Engine's."""
+STRATEGIES = ("auto", "ddp", "ddp_find_unused_parameters_false", "ddp_find_unused_parameters_true", "single_device")
+"""The ``trainer.strategy`` values a run takes: Lightning's that train in this process, which writes the model file
+(``ddp`` starts the other ranks as copies of the command); not those that train in spawned or forked processes
+(``ddp_spawn``: exit 0, the untrained weights written), DeepSpeed's, FSDP's or XLA's (the network fits one device)."""
 
 
 def check_trainer(trainer) -> None:
     """InputError naming the ``trainer.*`` setting that Lightning takes but this run cannot, or refuses only after
     its first lines on stderr (a ``limit_val_batches`` fraction above 1): several nodes
     outside a multi-node launch (:data:`CLUSTER_VARIABLES`: it waits for ever), a precision not in
-    :data:`PRECISIONS` (64-true failed at the first step), several devices on the CPU (the processes
-    Lightning starts there share one dataset's loaders and write no results)."""
+    :data:`PRECISIONS` (64-true failed at the first step) or a strategy not in :data:`STRATEGIES`, a GPU where there
+    is none, several devices on the CPU (the processes Lightning starts there share one dataset's loaders and write
+    no results)."""
     limit = trainer.limit_val_batches
     if isinstance(limit, float) and not 0.0 <= limit <= 1.0:  # (Lightning refuses it after its INFO lines)
         raise InputError(f"trainer.limit_val_batches: a fraction of the validation batches is in [0, 1] (or give a "
@@ -210,43 +214,22 @@ def check_trainer(trainer) -> None:
         raise InputError(f"trainer.num_nodes={nodes}: no multi-node launch here (none of "
                          f"{', '.join(CLUSTER_VARIABLES)} is set), so the run would wait for the other nodes for ever; "
                          "give trainer.num_nodes=1, or start it on every node (torchrun, srun)")
-    if str(trainer.precision) not in PRECISIONS:
-        raise InputError(f"trainer.precision={trainer.precision}: not one this training takes; valid: "
-                         f"{', '.join(PRECISIONS)} (the views are float32: a precision that casts the weights "
-                         "fails at the first step)")
+    for key, valid, why in (("precision", PRECISIONS, "the views are float32: a precision that casts the weights "
+                                                      "fails at the first step"),
+                            ("strategy", STRATEGIES, "the weights this process holds are written as the model: it "
+                                                     "must train them itself")):
+        if str(trainer[key]) not in valid:
+            raise InputError(f"trainer.{key}={trainer[key]}: not one this training takes; valid: {', '.join(valid)} "
+                             f"({why})")
     accelerator = str(trainer.accelerator)
+    if accelerator in ("gpu", "cuda") and not torch.cuda.is_available():  # (Lightning: "No supported gpu backend")
+        raise InputError(f"trainer.accelerator={accelerator}: no CUDA GPU here (torch finds none); give "
+                         "trainer.accelerator=cpu, or auto (a GPU where there is one)")
     on_cpu = accelerator == "cpu" or (accelerator == "auto" and not torch.cuda.is_available())
     if on_cpu and str(trainer.devices) not in ("auto", "1"):
         raise InputError(f"trainer.devices={trainer.devices}: training runs on the CPU here (trainer.accelerator="
                          f"{accelerator}{', no CUDA GPU' if accelerator == 'auto' else ''}), in one process; give "
                          "trainer.devices=1 (or auto), or train on GPUs (trainer.accelerator=gpu)")
-
-
-MAX_TIME = re.compile(r"(\d+):(\d\d):(\d\d):(\d\d)")
-"""``trainer.max_time`` as text: DD:HH:MM:SS, as Lightning's Timer reads it."""
-
-
-def check_max_time(value) -> None:
-    """InputError naming ``trainer.max_time`` unless it is null (no limit), DD:HH:MM:SS text or a mapping of
-    timedelta's keys (``{hours: 2}``), as Lightning takes it, of more than 0 s: 00:00:00:00 stopped the run
-    before its first step, which then failed at its end ("last.ckpt: model file not found") and left its
-    folder behind."""
-    if value is None:
-        return
-    try:
-        if isinstance(value, str):
-            days, hours, minutes, seconds = (int(part) for part in MAX_TIME.fullmatch(value.strip()).groups())
-            if hours > 23 or minutes > 59 or seconds > 59:  # (99:99:99:99 read as 103 days)
-                raise ValueError
-            length = timedelta(days=days, hours=hours, minutes=minutes, seconds=seconds)
-        else:
-            length = timedelta(**plain(value))
-    except (AttributeError, TypeError, ValueError, OverflowError):  # (no match, not a mapping, a bad key)
-        raise InputError(f"trainer.max_time: a wall-clock limit is DD:HH:MM:SS (e.g. 00:01:00:00), or null for "
-                         f"none; got {value!r}") from None
-    if length.total_seconds() <= 0:
-        raise InputError(f"trainer.max_time: {value} leaves no time to train (the run would stop before its first "
-                         "step); give a limit above 0 (e.g. 00:01:00:00), or null for none")
 
 
 def check_crop(crop, size: int, size_key: str) -> None:
@@ -338,6 +321,9 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     if conf.data.image_size is None and conf.augment.crop_size is not None:
         check_crop(conf.augment.crop_size, view_size(dataset), "data.image_size: null keeps the dataset's size")
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
+    if differs := gain_bins_mismatch(conf.model.labels, dataset):  # (else an internal error at the first validation)
+        raise InputError(f"model.labels.bin_edges: gain classes of {differs} (datagen ground_truth.gain); give the "
+                         "dataset's (model.labels.num_classes: as many), or train on a dataset made with yours")
     datamodule = FrontierDataModule(conf, progress, dataset)
     check_loop_settings(conf, len(datamodule.split()[0]))  # before the training cache is built
     checkpoints = out / "checkpoints"
