@@ -34,15 +34,17 @@ def _config_json(conf: dict) -> str:
 
 
 def check_threshold(value: float, labels: dict) -> float:
-    """`value` (``--frontier-threshold``, the l of F = [D < l]) as a float in (0, r], r the model's
-    ``labels.truncation_px``: its distance D is a softplus-decoded ``r * exp(-y)`` <= r, so any l above r
-    marks every pixel of every image a frontier. InputError naming the option otherwise."""
+    """`value` (``--frontier-threshold``, the l of F = [D < l]) as a float in (0, r), r the model's
+    ``labels.truncation_px``: its distance D is a softplus-decoded ``r * exp(-y)`` <= r, so l = r marks every
+    pixel but those of D exactly r a frontier (100.00 % of an image), a larger l every pixel (as
+    ``labels.frontier_threshold_px < labels.truncation_px`` of configs/ranges/model.yaml). InputError naming the
+    option otherwise."""
     r = float(labels["truncation_px"])
     value = positive_number(value, "--frontier-threshold", "pixels")
-    if value > r:
-        raise InputError(f"--frontier-threshold must be in (0, {r:g}] pixels, got {value:g}: the model's distance "
-                         f"field is truncated at labels.truncation_px = {r:g} px, so a larger threshold marks every "
-                         f"pixel a frontier (this model's own: {float(labels['frontier_threshold_px']):g} px)")
+    if value >= r:
+        raise InputError(f"--frontier-threshold must be in (0, {r:g}) pixels, got {value:g}: the model's distance "
+                         f"field is truncated at labels.truncation_px = {r:g} px, so a threshold there or above marks "
+                         f"every pixel a frontier (this model's own: {float(labels['frontier_threshold_px']):g} px)")
     return value
 
 

@@ -142,11 +142,12 @@ def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides:
     they set must exist in `conf` (a typo would otherwise be ignored in silence), except under
     a key whose default is null or an empty mapping (open option sections), and every value must
     be in its declared range (:func:`check_ranges` with `layout`: where `conf`'s shipped files sit)."""
+    shipped = conf
     if user_file is not None:
         user = _read_yaml(Path(user_file))
         check_keys(conf, user, str(user_file))
         conf = OmegaConf.merge(conf, user)
-    conf = apply_overrides(conf, overrides)
+    conf = apply_overrides(conf, overrides, shipped)
     check_ranges(conf, layout)
     return conf
 
@@ -180,9 +181,32 @@ def check_ranges(conf, layout: Layout) -> None:
             raise InputError(f"{relation.text()} must hold ({relation.reason}), got {got}")
 
 
-def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConfig:
+def _refuse_values_set_inside(overrides: list[str]) -> None:
+    """InputError for a ``KEY=VALUE`` of a value that is no mapping followed by an override of a key inside KEY
+    (``sim.camera=5 sim.camera.width=64``): the later one made KEY a section again, and the value was dropped
+    without a word (in the other order the value is refused: KEY takes a section)."""
+    import yaml
+
+    for at, item in enumerate(overrides):
+        key, _, text = item.partition("=")
+        inside = next((other for other in overrides[at + 1:] if other.split("=", 1)[0].strip().startswith(
+            key.strip() + ".")), None)
+        if inside is None:
+            continue
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:
+            value = text
+        if not isinstance(value, dict):
+            raise InputError(f"override '{item}' sets {key.strip()} to a value, but '{inside}' after it sets a key "
+                             f"inside it (a section): give one of them")
+
+
+def apply_overrides(conf: DictConfig, overrides: Iterable[str] = (), shipped: DictConfig | None = None) -> DictConfig:
     """`conf` with ``key.sub=value`` strings merged on top (InputError for a malformed one or a
-    key that `conf` does not have, see :func:`merge_user`)."""
+    key that `conf` does not have, see :func:`merge_user`). A value's kind is judged by the `shipped`
+    config's (default `conf`): a user file's 0 for a key that also takes ``auto`` made ``abc`` "takes a
+    number (default 0)", the file's value named as the default and ``auto`` left out."""
     overrides = list(overrides)
     if overrides:
         bad = [item for item in overrides if "=" not in item]
@@ -194,11 +218,12 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = ()) -> DictConf
         if empty is not None:
             key = empty.split("=", 1)[0].strip()
             raise InputError(f"override '{empty}' has no value (write {key}=null for none)")
+        _refuse_values_set_inside(overrides)
         try:
             extra = OmegaConf.from_dotlist(overrides)
         except OmegaConfBaseException as error:
             raise InputError(f"bad override {overrides}: {error}") from None
-        check_keys(conf, extra, "override")
+        check_keys(conf if shipped is None else shipped, extra, "override")
         try:
             conf = OmegaConf.merge(conf, extra)
         except OmegaConfBaseException as error:

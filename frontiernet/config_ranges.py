@@ -4,7 +4,8 @@
 key, up front (before a command sets anything up).
 
 A declaration maps a dotted key to a spec. A YAML list is the choices of a text key
-(``map.invalid_depth: [free, skip]``; a null among them: null is taken); a string is a range of numbers::
+(``map.invalid_depth: [free, skip]``; a null among them: null is taken), or of an integer key (``[6, 26]``: those
+integers alone); a string is a range of numbers::
 
     "(0, inf)"                  a number > 0
     "int [1, inf)"              an integer >= 1
@@ -75,10 +76,13 @@ class Range:
     nullable: bool = False
     numbers: bool = True
     texts: tuple[str, ...] = ()
+    choices: tuple[int, ...] = ()  # an integer key's values (declared as a list of them); () any in the interval
 
     def describe(self) -> str:
         """What a value must be, as the message says it: ``an integer >= 1``, ``one of free, skip``."""
         others = self.texts + (("null",) if self.nullable else ())
+        if self.choices:
+            return "one of " + ", ".join(map(str, self.choices)) + (" (or null)" if self.nullable else "")
         if self.shape == "bool":
             return "true or false" + (f" (or {' or '.join(others)})" if others else "")
         if not self.numbers:
@@ -114,6 +118,8 @@ class Range:
             return isinstance(value, bool)
         if not self.numbers:
             return False
+        if self.choices:
+            return isinstance(value, numbers.Integral) and not isinstance(value, bool) and value in self.choices
         if self.shape == "value":
             return self._admits_number(value)
         if self.shape == "box":
@@ -197,8 +203,10 @@ def parse_range(spec, where: str) -> Range:
     (a malformed declaration is the library's bug, but say which)."""
     if isinstance(spec, list):
         texts = tuple(item for item in spec if item is not None)
+        if texts and all(isinstance(item, int) and not isinstance(item, bool) for item in texts):
+            return Range(integer=True, choices=texts, nullable=None in spec)
         if not texts or not all(isinstance(item, str) for item in texts):
-            raise ValueError(f"{where}: choices must be a list of text (and null), got {spec!r}")
+            raise ValueError(f"{where}: choices must be a list of text or of integers (and null), got {spec!r}")
         return Range(numbers=False, texts=texts, nullable=None in spec)
     boolean = _BOOLEAN.match(str(spec).strip())
     if boolean is not None:

@@ -214,6 +214,10 @@ def test_outputs_are_replaced_only_with_force(plan_spec, tmp_path, capsys, one_l
      "--max-steps must be an integer in [1, 100000]"),
     (["explore", "--scene", "procedural:3", "--no-video", "--out", "{tmp}/e", "run.max_steps="],
      "override 'run.max_steps=' has no value (write run.max_steps=null for none)"),  # was taken as ''
+    # eighth probe (E12): the section set to a number was dropped for the key set inside it after
+    (["explore", "--scene", "procedural:3", "--no-video", "--out", "{tmp}/e", "sim.camera=5", "sim.camera.width=64"],
+     "override 'sim.camera=5' sets sim.camera to a value, but 'sim.camera.width=64' after it sets a key inside it (a "
+     "section): give one of them"),
     (["bench", "render", "--scene", "procedural:0", "--repeats", "1000000000"], "--repeats must be an integer in [1, 10000]"),
     (["bench", "explore", "--scene", "procedural:0", "--steps", "1000000000"], "--steps must be an integer in [1, 100000]"),
     (["bench", "inference", "--model", "{tmp}/model.onnx"], "model.onnx: bench inference times a torch model"),
@@ -493,7 +497,10 @@ def test_a_second_run_on_the_same_out_is_refused_while_the_first_writes(plan_spe
     with claim_output_folder(out) as claimed:  # a first run, writing
         assert (claimed / LOCK_NAME).read_text().strip() == str(os.getpid())
         for argv in (["explore", "--scene", plan_spec, "--max-steps", "1", "--no-video", "--force"],
-                     ["render", plan_spec, "--pose", "2.0,1.5,1.2,0", "--force"]):
+                     ["render", plan_spec, "--pose", "2.0,1.5,1.2,0", "--force"],
+                     # eighth probe (E9): two datagen runs on one --out both made the same shards
+                     ["datagen", "--scenes", plan_spec, "--views-per-scene", "1", "--no-progress", "--resume"],
+                     ["mapgen", "--scenes", plan_spec, "--no-progress", "--resume"]):
             assert main([*argv, "--out", str(out)]) == 2
             assert f"{out}: another run (process " in one_line_error()
         (claimed / "metrics.json").write_text("{}")

@@ -83,6 +83,36 @@ def test_datagen_actions_refuse_what_they_would_ignore(argv, message, tmp_path, 
     assert not (tmp_path / "pv").exists()
 
 
+def test_preview_of_a_dataset_whose_shards_are_gone_says_they_are_missing(tmp_path, one_line_error):
+    # eighth probe (E28): "the dataset has no samples yet", of shards that were deleted, not yet to come
+    out = tmp_path / "ds"
+    assert main(["datagen", "--scenes", "procedural:3", "--views-per-scene", "1", "--out", str(out), "--no-progress",
+                 "--set", "camera.width=32", "camera.height=32", "camera.focal_px=20"]) == 0
+    for shard in (out / "shards").glob("*.zip"):
+        shard.unlink()
+    assert main(["datagen", "preview", str(out), "--n", "1", "--out", str(tmp_path / "pv")]) == 2
+    assert one_line_error() == (f"frontiernet datagen: error: {out}: the dataset has no samples: the 1 shard(s) its "
+                                f"dataset.json plans are not in {out / 'shards'} (deleted, or a run that has made none "
+                                "yet)")
+    assert not (tmp_path / "pv").exists()
+
+
+@pytest.mark.parametrize("argv, message", [
+    # eighth probe (E20): "argument ACTION: invalid choice: '1' (choose from ...)", --n's value named as the action
+    (["datagen", "--scenes", "procedural:3", "preview", "ds1", "--n", "1", "--out", "pv7"],
+     "frontiernet datagen: error: --scenes took 'preview' for one of its values, but 'preview' names the action: "
+     "give it first, then its options (`frontiernet datagen preview ...`)"),
+    (["bench", "--set", "run.seed=1", "render", "--repeats", "1"],
+     "frontiernet bench: error: --set took 'render' for one of its values, but 'render' names the benchmark: give "
+     "it first, then its options (`frontiernet bench render ...`)"),
+])
+def test_a_list_option_that_took_the_name_of_an_action_says_so(argv, message, one_line_error):
+    with pytest.raises(SystemExit) as stop:  # (argparse's usage error)
+        main(argv)
+    assert stop.value.code == 2
+    assert one_line_error() == message
+
+
 # ----------------------------------------------------------------------------- sequence
 
 def test_sequence_refuses_a_network_size_out_of_range(tmp_path, one_line_error):

@@ -33,18 +33,48 @@ from frontiernet.errors import InputError
      "--max-steps 4 contradicts run.max_steps=5: give one of them"),
     (["bench", "--scenes", "procedural:0", "--methods", "classic", "--seed", "3", "--out", "{out}", "--set",
       "run.seed=4"], "--seed 3 contradicts run.seed=4: give one of them"),
+    # eighth probe (E8): the key --model stands for with a map predictor's method was dropped (config.yaml recorded it)
+    (["explore", "--scene", "procedural:0", "--method", "mapex", "--model", "mine.safetensors", "--out", "{out}",
+      "mapex.predictor=other.safetensors"],
+     "--model mine.safetensors contradicts mapex.predictor=other.safetensors: give one of them"),
+    (["bench", "explore", "--scene", "procedural:0", "--method", "seer", "--model", "mine.safetensors", "--json",
+      "seer.predictor=other.safetensors"],
+     "--model mine.safetensors contradicts seer.predictor=other.safetensors: give one of them"),
+    (["bench", "explore", "--scene", "procedural:0", "--depth", "gt", "--json", "run.depth=emulated"],
+     "--depth gt contradicts run.depth=emulated: give one of them"),
     # a focal length of 1e30 px (a field of view of 0 degrees) rendered blank frames
     (["explore", "--scene", "procedural:0", "sim.camera.focal_px=1e30", "--out", "{out}"],
      "sim.camera.focal_px <= 100 * sim.camera.width must hold"),
     # near_clip_m past the camera's range: a dataset of no frontier pixel
     (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--out", "{out}", "--set",
       "ground_truth.near_clip_m=5"], "ground_truth.near_clip_m < camera.max_depth must hold"),
+    # eighth probe (E21): refused per scene, as the scenes' failures ("procedural:3: ... (no view was made of 2
+    # failed scene(s)"), after every scene had loaded; 18 lay inside the declared int [6, 26]
+    (["datagen", "--scenes", "procedural:0", "procedural:1", "--views-per-scene", "1", "--out", "{out}", "--set",
+      "ground_truth.frontier_connectivity=18"], "error: ground_truth.frontier_connectivity must be one of 6, 26, got 18"),
+    (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--out", "{out}", "--set",
+      "ground_truth.gain.yaw_offsets_deg=[]"], "error: len(ground_truth.gain.yaw_offsets_deg) >= 1 must hold (a gain "
+                                              "view per heading: with none, no gain is measured)"),
+    (["explore", "--scene", "procedural:0", "--method", "seer", "--out", "{out}", "seer.yaw_offsets_deg=[]"],
+     "error: len(seer.yaw_offsets_deg) >= 1 must hold"),
 ])
 def test_accepted_nonsense_is_one_line_before_any_folder(argv, message, tmp_path, one_line_error):
     out = tmp_path / "o"
     assert main([arg.format(out=out) for arg in argv]) == 2
     assert message in one_line_error()
     assert not out.exists()
+
+
+def test_an_option_and_its_key_naming_one_depth_source_in_two_spellings_agree(tmp_path, capsys):
+    # eighth probe (E17): "--depth gt contradicts run.depth=ground_truth: give one of them", both names of one source
+    out = tmp_path / "o"
+    assert main(["explore", "--scene", "procedural:3", "--max-steps", "1", "--method", "classic", "--no-video",
+                 "--depth", "gt", "--out", str(out), "run.depth=ground_truth", "sim.camera.width=32",
+                 "sim.camera.height=32", "sim.camera.focal_px=20"]) == 0
+    assert "(ground_truth depth)" in capsys.readouterr().out
+    assert main(["explore", "--scene", "procedural:3", "--depth", "gt", "run.depth=emulated", "--out",
+                 str(tmp_path / "o2")]) == 2  # another source still contradicts it
+    assert "--depth gt contradicts run.depth=emulated: give one of them" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("value", ["99:99:99:99", "00:24:00:00", "00:00:60:00"])

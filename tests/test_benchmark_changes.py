@@ -42,6 +42,16 @@ def test_a_change_only_monocular_runs_read_redoes_those_runs_and_keeps_the_other
     assert code == 2 and "conf.planner.clearance_m: 0.2 in the plan, 0.35 now" in stderr and "--redo-changed" not in stderr
 
 
+def test_redo_changed_on_a_folder_without_a_benchmark_says_it_starts_one(plan_spec, tmp_path):
+    # eighth probe (E15): a new benchmark began without a word (datagen --resume says so of an empty folder)
+    out = tmp_path / "new"
+    code, stdout, stderr = bench("--scenes", plan_spec, "--methods", "classic", "--starts", "1", "--repeats", "1",
+                                 "--max-steps", "4", "--out", out, "--redo-changed")
+    assert code == 0, stderr
+    assert stdout.splitlines()[0] == (f"bench: note: --redo-changed: {out} holds no benchmark yet (no plan.json), so "
+                                      "there is nothing to redo; starting a new one")
+
+
 def test_monocular_keys_change_only_monocular_runs_and_a_methods_section_only_its_runs():
     """What --redo-changed may redo: a ``monocular_*`` key of the map or the planner (read only with a
     depth source that has flying pixels) changes a gt,emulated plan's emulated runs only;

@@ -40,6 +40,17 @@ def test_render_writes_rgb_depth_in_metres_and_camera(plan_spec, tmp_path, capsy
     assert (out / "depth.png").is_file() and (out / "normals.png").is_file()
 
 
+def test_a_render_of_no_surface_says_so(plan_spec, tmp_path, capsys):
+    # eighth probe (E11): "valid depth 0%, range nan-nan m" for a view without depth (a 1 mm camera range)
+    config = tmp_path / "near.yaml"
+    config.write_text("camera: {width: 16, height: 16, focal_px: 10, max_depth: 0.001}\n")
+    out = tmp_path / "view"
+    assert main(["render", plan_spec, "--pose", "2.0,1.5,1.2,0", "--config", str(config), "--no-check",
+                 "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == (f"wrote {out}: valid depth 0%, no surface within the camera's "
+                                               "max_depth of 0.001 m")
+
+
 def test_poses_read_the_same_on_every_command():
     # render's --pose, explore's --start and the benchmark's start poses: degrees unless 'rad'
     assert parse_pose_text("1,2,1.2,90") == pytest.approx((1, 2, 1.2, np.pi / 2, 0.0))

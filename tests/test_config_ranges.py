@@ -73,6 +73,7 @@ def test_the_user_file_configs_hold_only_values_in_range():
     ("list length 3 [0, 255]", [[0, 1, 255]], [[0, 1], [0, 1, 256]], "a list of 3 numbers in [0, 255]"),
     (["free", "skip"], ["free", "skip"], ["bogus", 1, None], "one of free, skip"),
     (["rgb", None], ["rgb", None], ["depth"], "one of rgb (or null)"),
+    ([6, 26], [6, 26], [18, 6.0, True, "6", None], "one of 6, 26"),  # integer choices (frontier connectivity)
     ("int [0, 256] or auto or null", [0, "auto", None], ["many", -1, 0.5], "an integer in [0, 256] (or auto or null)"),
 ])
 def test_range_specs_admit_what_they_say(spec, good, bad, words):

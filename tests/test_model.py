@@ -141,6 +141,29 @@ def test_model_file_round_trip(tmp_path):
     assert (tmp_path / "h.safetensors").stat().st_size < 0.6 * path.stat().st_size
 
 
+def test_checkpoints_of_other_kinds_are_named_for_what_they_are(tmp_path, one_line_error):
+    # eighth probe: a map predictor's checkpoint was "not written by frontiernet train" (E23); a dataset shard
+    # (a zip archive) got torch's words, cut mid-word, asking to report a bug (E24)
+    from frontiernet.cli.main import main
+
+    mapex = tmp_path / "last.ckpt"
+    torch.save({"state_dict": {"w": torch.zeros(2)}, "hyper_parameters": {"predictor": {"kind": "mapex"},
+                                                                         "train": {}}}, mapex)
+    shard = tmp_path / "00000-procedural-3-0000.zip"
+    with zipfile.ZipFile(shard, "w") as archive:  # as datagen writes one: a folder a view, then meta.json
+        archive.writestr("000000/rgb.png", b"")
+        archive.writestr("meta.json", "{}")
+    flat = tmp_path / "flat.zip"
+    with zipfile.ZipFile(flat, "w") as archive:
+        archive.writestr("meta.json", "{}")
+    for path, reason in ((mapex, "a mapex map predictor's checkpoint (frontiernet train of configs/train_mapex.yaml), "
+                                 "not a FrontierNet model's"),
+                         (shard, "not a readable checkpoint (a zip archive, but not PyTorch's; a dataset shard?)"),
+                         (flat, "not a readable checkpoint (a zip archive, but not PyTorch's; a dataset shard?)")):
+        assert main(["export", str(path), "--format", "onnx", "--out", str(tmp_path / "m.onnx")]) == 2
+        assert one_line_error() == f"frontiernet export: error: {path}: {reason}"
+
+
 def test_bad_model_files_are_refused_by_name(tmp_path):
     with pytest.raises(InputError, match="not found"):
         load_model(tmp_path / "nope.safetensors")

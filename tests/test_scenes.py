@@ -92,6 +92,19 @@ def test_hm3d_basis_glb_is_refused_or_loaded_geometry_only(tmp_path, caplog):
     assert "geometry only" in caplog.text
 
 
+def test_a_folder_of_several_unrelated_meshes_is_no_hm3d_scene(tmp_path, one_line_error):
+    # eighth probe (E13): `scene info ./` read the first .glb by name (room.glb of room.glb, room_bitflip.glb)
+    from frontiernet.cli.main import main
+
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    for name in ("room.glb", "room_copy.glb"):
+        _box_scene_yup().export(folder / name)
+    assert main(["scene", "info", str(folder)]) == 2
+    assert one_line_error() == (f"frontiernet scene: error: {folder}: several .glb files (room.glb, room_copy.glb) "
+                                "and none named meshes.glb, an HM3D scene folder's own; give the scene's file")
+
+
 def test_floorplan_image_is_extruded_with_walls_floor_and_ceiling(tmp_path):
     plan = np.full((60, 80), 254, np.uint8)
     plan[10:50, 10:13] = plan[10:50, 67:70] = 0

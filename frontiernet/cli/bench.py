@@ -174,6 +174,12 @@ def run_exploration_benchmark(args) -> int:
         raise InputError(f"run.max_steps={conf.run.max_steps}: the benchmark gives each scene its budget "
                          "(configs/bench.yaml budget), or one fixed budget with --max-steps N; use that instead")
     methods = [m.strip() for m in args.methods.split(",")]  # (an empty item is refused by main, as --depth's)
+    if args.redo_changed:  # (a typo in --out started a new benchmark without a word: as datagen --resume says)
+        from ..benchmark.store import plan_file
+
+        if plan_file(args.out) is None:
+            print(f"bench: note: --redo-changed: {args.out} holds no benchmark yet (no plan.json), so there is "
+                  "nothing to redo; starting a new one")
     result = main(conf, args.scenes, methods, args.out, starts=args.starts, repeats=args.repeats,
                   max_steps=args.max_steps, workers=args.workers, backend=args.backend, seed=args.seed,
                   model=args.model, depth=args.depth, scene_starts=args.scene_starts,
@@ -270,8 +276,10 @@ def run_explore(args) -> int:
     """Explore ``--steps`` steps and print each stage's mean time per step as a ratio to the render
     of the same run (:func:`~frontiernet.benchmark.perf.bench_explore`)."""
     from ..benchmark.perf import bench_explore, bench_explore_against
+    from .explore import model_contradictions
 
     counts(steps=args.steps)
+    options.refuse_contradictions(args.overrides, model_contradictions(args.method, args.model, args.depth))
     if args.against is not None:
         return _print_explore_against(bench_explore_against(args.scene, args.against, args.method, args.steps,
                                                             args.depth, args.model, args.overrides), args)

@@ -37,7 +37,7 @@ def add_parser(subparsers) -> None:
                         help="also write exploration.mcap: the frontiers, the camera overlay, the map and the "
                              "camera's tf as ROS 2 messages for Foxglove and RViz (as frontiernet sequence writes)")
     parser.add_argument("--show-prediction", nargs="?", const=True, metavar="PREDICTOR",
-                        type=options.input_path("predictor file"),
+                        type=options.optional_input_path("predictor file", "--show-prediction"),
                         help="draw the map as a mapex predictor completes it beside the robot's own in "
                              "exploration.mp4 (alone: the method's own prediction for mapex and frontiernet-mapex, "
                              "else mapex.predictor, else the shipped one; docs/mapprediction.md)")
@@ -60,6 +60,23 @@ def summary_line(record: dict, out) -> str:
             f"{', recording.rrd' if 'rerun' in record else ''}{', exploration.mcap' if 'mcap' in record else ''})")
 
 
+def model_contradictions(method: str, model, depth) -> dict:
+    """The config keys that ``--model`` and ``--depth`` set in a `method` run, for
+    :func:`~.options.refuse_contradictions`: ``run.depth``, and ``<method>.predictor`` where the method runs a map
+    predictor (seer, mapex: ``--model`` names its file; a FrontierNet model has no key). An unknown method: no
+    predictor key (the run refuses it, naming the valid ones)."""
+    from ..errors import InputError
+    from ..exploration.methods import runs_frontiernet_model, uses_model
+
+    keys = {"run.depth": (f"--depth {depth}", depth)}
+    try:
+        if uses_model(method) and not runs_frontiernet_model(method):
+            keys[f"{method}.predictor"] = (f"--model {model}", model)
+    except InputError:
+        pass
+    return keys
+
+
 def run(args) -> int:
     from ..exploration.run import RUN_OUTPUTS, check_run, load_run_config, main
     from ..io import check_output_files, check_output_folder, claim_output_folder
@@ -69,7 +86,7 @@ def run(args) -> int:
     options.refuse_contradictions(args.overrides, {
         "planner.mode": ("--map-free", "map_free" if args.map_free else None),
         "run.seed": (f"--seed {args.seed}", args.seed), "run.max_steps": (f"--max-steps {args.max_steps}", args.max_steps),
-        "run.depth": (f"--depth {args.depth}", args.depth)})
+        **model_contradictions(args.method, args.model, args.depth)})
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # over a --config file's
     conf = load_run_config(args.config, overrides)
     settings = {"method": args.method, "model": args.model, "depth": args.depth, "max_steps": args.max_steps,

@@ -10,6 +10,8 @@ command's own are declared in its module.
 from __future__ import annotations
 
 import argparse
+import re
+from pathlib import Path
 
 from ..errors import InputError
 
@@ -109,9 +111,13 @@ def refuse_contradictions(overrides, options: dict) -> None:
     """InputError where an option and the config key it sets are both given, with other values: `options`
     maps a dotted key to (the option as typed, e.g. ``--seed 1``, and its value; None where not given), and
     a ``KEY=VALUE`` of `overrides` setting that key to another value (read as YAML) contradicts it. Without
-    it one of the two was ignored without a word (``--seed 1 run.seed=2`` ran seed 1)."""
+    it one of the two was ignored without a word (``--seed 1 run.seed=2`` ran seed 1). Names of one thing
+    count as one value: a depth source's alias (``--depth gt run.depth=ground_truth``; the key ``run.depth``)."""
     import yaml
 
+    from ..depth import depth_source_name
+
+    same = {"run.depth": depth_source_name}  # key -> its values' canonical name
     for item in overrides or ():
         key, _, text = str(item).partition("=")
         flag, value = options.get(key.strip(), (None, None))
@@ -121,7 +127,8 @@ def refuse_contradictions(overrides, options: dict) -> None:
             given = yaml.safe_load(text)
         except yaml.YAMLError:
             given = text.strip()
-        if str(given) != str(value):
+        canonical = same.get(key.strip(), str)
+        if canonical(str(given)) != canonical(str(value)):
             raise InputError(f"{flag} contradicts {str(item).strip()}: give one of them")
 
 
@@ -148,6 +155,29 @@ def input_path(what: str):
         return text
 
     return check
+
+
+_OVERRIDE = re.compile(r"[A-Za-z_][\w-]*(\.[\w-]+)*=.*")
+"""A word that reads as a ``KEY=VALUE`` config override."""
+
+
+def optional_input_path(what: str, flag: str):
+    """The argparse type of an option whose value may be left out (``--resume [CKPT]``, ``--show-prediction
+    [PREDICTOR]``): :func:`input_path`, and a word that reads as a ``KEY=VALUE`` config override and is no file
+    is refused as the override it is, which `flag` took for its value (``--resume optim.lr=0.1`` was
+    "optim.lr=0.1: checkpoint to resume from not found"). A model file's name (``epoch=3-step=9.ckpt``) is no
+    override."""
+    check = input_path(what)
+
+    def take(text: str) -> str:
+        text = check(text)
+        if _OVERRIDE.fullmatch(text) and not Path(text).exists() and \
+                Path(text).suffix.lower() not in (".ckpt", ".safetensors", ".pt", ".onnx"):
+            raise argparse.ArgumentTypeError(f"took the config override {text} for its {what}; give the overrides "
+                                             f"before {flag} (or a {what} after it)")
+        return text
+
+    return take
 
 
 def output_folder(parser, *, force: bool = False, default: str | None = None) -> None:

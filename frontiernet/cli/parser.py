@@ -43,14 +43,19 @@ class Parser(argparse.ArgumentParser):
         commands = set(subcommands.choices) if subcommands is not None else set()
         for child in (subcommands.choices.values() if subcommands is not None else ()):
             child.siblings = subcommands.choices  # (an option of another subcommand is named so: _option_hint)
-        values = 0  # the values the option before still takes (-1: any number, nargs + or *)
+        values, flag = 0, None  # the values the option `flag` before still takes (-1: any number, nargs + or *)
         for token in tokens:
             name = token.split("=", 1)[0]
+            if token in commands and values == -1:  # (its list took the name: argparse named a later word instead)
+                what = str(subcommands.metavar or "command").lower()
+                self.error(f"{flag} took '{token}' for one of its values, but '{token}' names the {what}: give it "
+                           f"first, then its options (`{self.prog} {token} ...`)")
             if token == "--" or token in commands:
                 break
             if token.startswith("-") and len(token) > 1 and not NEGATIVE_NUMBER.match(token):
                 action = self._option_string_actions.get(name)
                 values = 0 if action is None or "=" in token else self._values_taken(action)
+                flag = name
                 if name.startswith("--") and len(name) > 2 and name not in known:
                     self.error(f"unrecognized option {name}{self._option_hint(name, sorted(known))}")
                 continue

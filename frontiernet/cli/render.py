@@ -47,7 +47,7 @@ def run(args) -> int:
                                          "K": frame.K.tolist(), "width": camera.width, "height": camera.height,
                                          "max_depth": camera.max_depth, "depth_units": "m", "depth_invalid": "NaN"})
     valid = np.isfinite(frame.depth)
-    print(f"wrote {Path(out)}: valid depth {valid.mean():.0%}, "
-          f"range {np.nanmin(frame.depth) if valid.any() else float('nan'):.2f}-"
-          f"{np.nanmax(frame.depth) if valid.any() else float('nan'):.2f} m")
+    seen = (f"range {np.nanmin(frame.depth):.2f}-{np.nanmax(frame.depth):.2f} m" if valid.any() else
+            f"no surface within the camera's max_depth of {camera.max_depth:g} m")  # (was "range nan-nan m")
+    print(f"wrote {Path(out)}: valid depth {valid.mean():.0%}, {seen}")
     return 0

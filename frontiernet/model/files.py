@@ -200,12 +200,21 @@ def _read_checkpoint(path: Path) -> tuple[dict, dict]:
         raise InputError(f"{path}: refused: the checkpoint holds objects other than weights and plain "
                          f"data (opening it could run code): {str(error).splitlines()[0][:160]}") from None
     except Exception as error:  # a damaged archive: the unpickler fails with KeyError, IndexError, ...
-        raise InputError(f"{path}: not a readable checkpoint ({error.__class__.__name__}: "
-                         f"{str(error).splitlines()[0][:120] if str(error) else 'truncated?'})") from None
+        text = str(error).splitlines()[0] if str(error) else ""
+        if 'hasRecord("version")' in text or "inline_container" in text:  # (torch's zip reader's words, cut
+            reason = "a zip archive, but not PyTorch's; a dataset shard?"  # mid-sentence, asked to report a bug)
+        else:
+            reason = f"{error.__class__.__name__}: {text[:120] if text else 'truncated?'}"
+        raise InputError(f"{path}: not a readable checkpoint ({reason})") from None
     if not isinstance(checkpoint, dict) or "state_dict" not in checkpoint:
         raise InputError(f"{path}: not a frontiernet training checkpoint (no state_dict)")
-    model_conf = (checkpoint.get("hyper_parameters") or {}).get("model")
+    hyper = checkpoint.get("hyper_parameters") or {}
+    model_conf = hyper.get("model")
     if not isinstance(model_conf, dict) or "network" not in model_conf:
+        predictor = hyper.get("predictor")
+        if isinstance(predictor, dict) and "kind" in predictor:  # (was "not written by frontiernet train": it was)
+            raise InputError(f"{path}: a {predictor['kind']} map predictor's checkpoint (frontiernet train of "
+                             f"configs/train_{predictor['kind']}.yaml), not a FrontierNet model's")
         raise InputError(f"{path}: checkpoint has no FrontierNet model config (not written by frontiernet train)")
     prefix = "net."
     state = {name[len(prefix):]: value for name, value in checkpoint["state_dict"].items()

@@ -163,7 +163,9 @@ def load_mesh_file(path: str | Path, spec_text: str, *, up: str = "z", scale: fl
 
 
 def find_hm3d_glb(path: str | Path) -> Path:
-    """Resolve an HM3D scene folder (``<root>/<split>/<NNNNN-id>``) or file to its ``<id>.glb``."""
+    """Resolve an HM3D scene folder (``<root>/<split>/<NNNNN-id>``) or file to its ``<id>.glb``, else the
+    folder's one .glb (``.basis.glb``) file; InputError for none, or for several, none named ``<id>.glb``
+    (two unrelated meshes: the first by name was read as the scene)."""
     path = Path(path)
     if path.is_file():
         return path
@@ -172,13 +174,17 @@ def find_hm3d_glb(path: str | Path) -> Path:
     if not path.is_dir():
         raise InputError(f"{path}: no such HM3D scene folder or file")
     scene_id = path.name.split("-", 1)[-1]
-    candidates = [path / f"{scene_id}.glb"] + sorted(path.glob("*.glb"))
-    for candidate in candidates:
-        if candidate.is_file() and not candidate.name.endswith((".basis.glb", ".semantic.glb")):
-            return candidate
-    basis = sorted(path.glob("*.basis.glb"))
-    if basis:
-        return basis[0]
+    if (path / f"{scene_id}.glb").is_file():
+        return path / f"{scene_id}.glb"
+    plain = [glb for glb in sorted(path.glob("*.glb"))
+             if glb.is_file() and not glb.name.endswith((".basis.glb", ".semantic.glb"))]
+    for found in (plain, sorted(path.glob("*.basis.glb"))):
+        if len(found) > 1:
+            raise InputError(f"{path}: several .glb files ({', '.join(glb.name for glb in found[:4])}"
+                             f"{' ...' if len(found) > 4 else ''}) and none named {scene_id}.glb, an HM3D scene "
+                             "folder's own; give the scene's file")
+        if found:
+            return found[0]
     raise InputError(f"{path}: HM3D scene folder holds no .glb file")
 
 
