@@ -271,7 +271,8 @@ def test_a_run_that_fails_before_its_first_step_leaves_no_folder_it_made(two_sce
 @pytest.mark.parametrize("overrides", [["optim.lr=1e30"], ["model.input.rgb_std=[1e-30,1e-30,1e-30]"]],
                          ids=["the loss", "a BatchNorm variance"])
 def test_a_run_that_stops_being_finite_ends_at_once_in_one_line_and_saves_no_diverged_weights(two_scenes, tmp_path,
-                                                                                              overrides, capsys):
+                                                                                              overrides, capsys,
+                                                                                              monkeypatch):
     # it trained to its end on NaN and failed only when writing the weights, in 19 lines, leaving runs/tiny
     import logging
     import sys
@@ -280,7 +281,8 @@ def test_a_run_that_stops_being_finite_ends_at_once_in_one_line_and_saves_no_div
                                       if isinstance(logger, logging.Logger))]
     for handler in (handler for logger in loggers for handler in logger.handlers):  # made on an earlier test's
         if type(handler) is logging.StreamHandler:  # captured stderr (Lightning's, at import), since closed
-            handler.stream = sys.stderr  # (setStream would flush the closed one)
+            monkeypatch.setattr(handler, "stream", sys.stderr)  # (setStream would flush the closed one; put back
+            # after the test, whose capture closes with it)
     runs = tmp_path / "runs"
     assert main(["train", "--no-progress", f"data.path={two_scenes}", f"out={runs}", "name=tiny",
                  *[item for item in TINY if item != "trainer.max_steps=1"], "trainer.max_steps=6",
