@@ -40,11 +40,11 @@ from frontiernet.model import load_model, save_model
 from frontiernet.model.files import check_finite, model_base
 from frontiernet.model.network import resolve_pretrained
 
-from .config import plain
+from .config import check_max_time, plain
 from .cache import check_cache_folder
 from .data import FrontierDataModule, gain_bins_mismatch, open_training_data, view_size, worker_count
 from .finetune import freeze, init_file, initial_weights, shared_base
-from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_max_time, check_schedule
+from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_schedule
 
 log = logging.getLogger(__name__)
 

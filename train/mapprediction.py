@@ -32,7 +32,7 @@ from frontiernet.mapprediction.networks import NetworkSettings, PredictorSpec, p
 from frontiernet.mapprediction.predictor import save_predictor
 from frontiernet.mapprediction.quality import scores
 
-from .main import check_max_time
+from .config import check_max_time
 from .module import FiniteTraining, FrontierNetModule, check_schedule
 
 

@@ -4,8 +4,6 @@ the model class owns what it is trained and judged with)."""
 from __future__ import annotations
 
 import math
-import re
-from datetime import timedelta
 
 import lightning as L
 from lightning.pytorch.callbacks import Callback, Timer
@@ -13,8 +11,8 @@ import torch
 
 from frontiernet.errors import InputError
 from frontiernet.model import FrontierNet, NetworkConfig, load_imagenet_encoder
+from frontiernet.model.files import first_non_finite
 
-from .config import plain
 from .losses import frontier_loss
 from .metrics import FrontierMetrics
 
@@ -27,46 +25,6 @@ def check_schedule(optim: dict, has_max_time: bool) -> None:
             raise InputError(f"optim.{key}: must be one of {', '.join(allowed)}, got {optim[key]!r}")
     if optim.get("horizon") == "time" and not has_max_time:
         raise InputError("optim.horizon: 'time' ends the schedule at trainer.max_time, which is not set")
-
-
-MAX_TIME = re.compile(r"(\d+):(\d\d):(\d\d):(\d\d)")
-"""``trainer.max_time`` as text: DD:HH:MM:SS, as Lightning's Timer reads it."""
-
-
-def check_max_time(value) -> None:
-    """InputError naming ``trainer.max_time`` unless it is null (no limit), DD:HH:MM:SS text or a mapping of
-    timedelta's keys (``{hours: 2}``), as Lightning takes it, of more than 0 s: 00:00:00:00 stopped the run
-    before its first step, which then failed at its end ("last.ckpt: model file not found") and left its
-    folder behind."""
-    if value is None:
-        return
-    try:
-        if isinstance(value, str):
-            days, hours, minutes, seconds = (int(part) for part in MAX_TIME.fullmatch(value.strip()).groups())
-            if hours > 23 or minutes > 59 or seconds > 59:  # (99:99:99:99 read as 103 days)
-                raise ValueError
-            length = timedelta(days=days, hours=hours, minutes=minutes, seconds=seconds)
-        else:
-            length = timedelta(**plain(value))
-    except (AttributeError, TypeError, ValueError, OverflowError):  # (no match, not a mapping, a bad key)
-        raise InputError(f"trainer.max_time: a wall-clock limit is DD:HH:MM:SS (e.g. 00:01:00:00), or null for "
-                         f"none; got {value!r}{_base_60(value)}") from None
-    if length.total_seconds() <= 0:
-        raise InputError(f"trainer.max_time: {value} leaves no time to train (the run would stop before its first "
-                         "step); give a limit above 0 (e.g. 00:01:00:00), or null for none")
-
-
-def _base_60(value) -> str:
-    """For a whole number of 60 or more, what YAML 1.1 read as that base-60 number (``1:00`` is 60): the user typed
-    that, not the number (``trainer.max_time=1:00`` said "got 60")."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 60:
-        return ""
-    digits = []
-    while value:
-        value, digit = divmod(value, 60)
-        digits.insert(0, digit)
-    typed = ":".join([str(digits[0]), *(f"{digit:02d}" for digit in digits[1:])])
-    return f", the number YAML makes of an unquoted {typed} (base 60): write all four fields, two digits each"
 
 
 class TrainingDiverged(InputError):
@@ -95,9 +53,9 @@ class FiniteTraining(Callback):
             raise self._diverged(trainer, f"the training loss became {float(loss.detach().float().mean())}")
 
     def on_save_checkpoint(self, trainer, module, checkpoint: dict) -> None:
-        for name, value in checkpoint["state_dict"].items():
-            if torch.is_tensor(value) and value.is_floating_point() and not bool(torch.isfinite(value).all()):
-                raise self._diverged(trainer, f"the network's {name} became NaN or infinite")
+        name = first_non_finite(checkpoint["state_dict"])
+        if name is not None:
+            raise self._diverged(trainer, f"the network's {name} became NaN or infinite")
 
 
 class FrontierNetModule(L.LightningModule):

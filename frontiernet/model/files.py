@@ -110,14 +110,23 @@ def read_model_file(path: Path) -> tuple[dict, dict]:
     return state, conf
 
 
+def first_non_finite(tensors: dict) -> str | None:
+    """The name of the first floating-point tensor of `tensors` (name -> tensor; other values skipped) that
+    holds a NaN or an infinity, or None."""
+    for name, value in tensors.items():
+        if torch.is_tensor(value) and value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            return name
+    return None
+
+
 def check_finite(tensors: dict, path: Path) -> None:
     """Refuse, naming model file `path` and the first such tensor, weights (name -> tensor) that hold a NaN
     or an infinity (a run that diverged, a damaged file): the network would predict NaN, which reads as
     no frontier anywhere."""
-    for name, value in tensors.items():
-        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
-            raise InputError(f"{path}: weights are not all finite ({name} holds NaN or infinity); the model "
-                             f"file is damaged or its training diverged")
+    name = first_non_finite(tensors)
+    if name is not None:
+        raise InputError(f"{path}: weights are not all finite ({name} holds NaN or infinity); the model "
+                         f"file is damaged or its training diverged")
 
 
 def model_base(conf: dict) -> SharedBase | None:
