@@ -21,7 +21,8 @@ from frontiernet.sequences import open_sequence
 from frontiernet.sequences.gravity import gravity_alignment
 from frontiernet.sequences.ros_out import OutputFrames, typestore
 from frontiernet.sequences.stream import FrontierStream, TrackedFrontier, load_sequence_config, metric_depth
-from test_rosbag import rendered_frames, write_redwood
+from test_rosbag import write_redwood
+from test_rosbag_outputs import rendered_frames
 
 FRAMES = 5
 
