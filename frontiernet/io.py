@@ -106,6 +106,19 @@ def cv_max_image_pixels() -> int:
         return 2**30
 
 
+def _check_jpeg_complete(path: Path, what: str) -> None:
+    """InputError naming JPEG file `path` when it ends before its image does: no end-of-image marker
+    (FF D9) after its last start-of-scan (FF DA; entropy-coded data never holds FF DA, and a thumbnail's
+    end marker comes before the main image's scans). libjpeg would decode what is there and print its
+    own "Premature end of JPEG file" line to stderr beside ours; other formats pass untouched."""
+    with open(path, "rb") as file:
+        if file.read(3) != b"\xff\xd8\xff":
+            return
+        data = file.read()
+    if data.rfind(b"\xff\xd9") < data.rfind(b"\xff\xda"):
+        raise InputError(f"{path}: a truncated JPEG (the file ends inside its image data) ({what})")
+
+
 def read_image(path: str | Path, flags: int, what: str = "image") -> np.ndarray:
     """``cv2.imread(path, flags)`` of input file `path` (:func:`input_file`, `what`: what the file is to the
     user); InputError naming it when OpenCV cannot read it, or when its header claims more pixels than OpenCV
@@ -114,6 +127,7 @@ def read_image(path: str | Path, flags: int, what: str = "image") -> np.ndarray:
     import cv2
 
     path = input_file(path, what)
+    _check_jpeg_complete(path, what)
     try:
         image = cv2.imread(str(path), flags)
     except cv2.error as error:

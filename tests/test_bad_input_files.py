@@ -107,3 +107,25 @@ def test_a_boolean_array_is_no_depth_map(tmp_path, one_line_error):
                  "--out", str(tmp_path / "p")]) == 2
     assert "mask.npy: holds bool values, not depth (integer units or float metres)" in one_line_error()
     assert not (tmp_path / "p").exists()
+
+
+def test_a_truncated_jpeg_is_one_line_of_ours_not_libjpegs_too(files, capfd):
+    """libjpeg prints "Premature end of JPEG file" to the file descriptor itself (issue 55's 8th probe, E16):
+    refused before OpenCV decodes, so ours is the only line; a whole JPEG (with a thumbnail's end marker
+    early, as EXIF adds one) still reads."""
+    import cv2
+
+    image = np.random.default_rng(0).integers(0, 255, (48, 64, 3), np.uint8)
+    whole = cv2.imencode(".jpg", image)[1].tobytes()
+    (files / "cut.jpg").write_bytes(whole[: len(whole) // 3])
+    thumbnail = cv2.imencode(".jpg", image[::4, ::4])[1].tobytes()  # in an APP1 segment, as EXIF holds one
+    app1 = b"Exif\0\0" + thumbnail
+    (files / "thumb.jpg").write_bytes(whole[:2] + b"\xff\xe1" + (len(app1) + 2).to_bytes(2, "big") + app1 + whole[2:])
+    argv = ["predict", "--image", str(files / "cut.jpg"), "--depth", str(files / "depth.npy"), "--out", str(files / "o")]
+    assert main(argv) == 2
+    err = capfd.readouterr().err.strip()
+    assert err.endswith("cut.jpg: a truncated JPEG (the file ends inside its image data) (image)") and "\n" not in err
+    from frontiernet.io import read_image
+
+    assert read_image(files / "thumb.jpg", cv2.IMREAD_COLOR).shape == (48, 64, 3)
+    assert capfd.readouterr().err == ""
