@@ -250,9 +250,10 @@ class SeerSource(FrontierSource):
         open_cells = np.isfinite(grid.cost) | ring
         return grid, geodesic_distance(np.where(open_cells, 1.0, np.inf), start) * grid.cell_m
 
-    def best_view(self, cells: np.ndarray, crop: Crop | None, grid, length: np.ndarray, robot: np.ndarray, z: float):
-        """(xy (2,), yaw, gain m^3, path length m) of a cluster's best-gain view, or None."""
-        centre = cells.mean(axis=0)
+    def best_view(self, cells: np.ndarray, centre: np.ndarray, key: bytes, crop: Crop | None, grid, length: np.ndarray,
+                  robot: np.ndarray, z: float):
+        """(xy (2,), yaw, gain m^3, path length m) of the best-gain view of the cluster of (N, 2) world xy
+        `cells` (average `centre`, identity `key`: :meth:`_key`), or None."""
         ring = np.array([[r * np.cos(p), r * np.sin(p)] for r in self.radii for p in self.phis])
         xy = centre + ring
         index = grid.cells(xy)
@@ -268,7 +269,7 @@ class SeerSource(FrontierSource):
         bearings = np.arctan2(sample[None, :, 1] - xy[keep, None, 1], sample[None, :, 0] - xy[keep, None, 0])
         mean = bearings[:, 0] + wrap(bearings - bearings[:, :1]).mean(axis=1)
         yaws = mean[:, None] + self.offsets[None, :]  # (kept views, headings)
-        kept = self._kept_gains(cells, crop, centre, z)
+        kept = self._kept_gains(key, crop, centre)
         missing = [k for k, ring_index in enumerate(keep) if ring_index not in kept.gains]
         if missing:
             poses = poses_from_headings(np.column_stack([np.repeat(xy[keep[missing]], len(self.offsets), axis=0),
@@ -285,9 +286,10 @@ class SeerSource(FrontierSource):
         """A cluster's identity between frames: its (N, 2) world xy `cells` and the camera height `z`."""
         return np.round(cells / float(self.map.voxel_size)).astype(np.int64).tobytes() + np.float64(z).tobytes()
 
-    def _scored(self, cells: np.ndarray, crop: Crop | None, z: float) -> bool:
-        """Whether the cluster's ring of views has gains kept with `crop` (only views newly reachable to score)."""
-        kept = self._view_gains.get(self._key(cells, z))
+    def _scored(self, key: bytes, crop: Crop | None) -> bool:
+        """Whether the ring of views of the cluster `key` has gains kept with `crop` (only views newly
+        reachable to score)."""
+        kept = self._view_gains.get(key)
         return kept is not None and kept.crop is crop
 
     def _stale_view(self, key: bytes, centre: np.ndarray, grid, length: np.ndarray, previous: dict):
@@ -307,10 +309,9 @@ class SeerSource(FrontierSource):
             return None
         return xy, yaw, gain, float(length[cell[0], cell[1]])
 
-    def _kept_gains(self, cells: np.ndarray, crop: Crop | None, centre: np.ndarray, z: float) -> ViewGains:
-        """The :class:`ViewGains` of the cluster of (N, 2) world xy `cells` with `crop` (a new, empty one
-        when none is kept for them, or it was integrated with another crop)."""
-        key = self._key(cells, z)
+    def _kept_gains(self, key: bytes, crop: Crop | None, centre: np.ndarray) -> ViewGains:
+        """The :class:`ViewGains` of the cluster `key` (average `centre`) with `crop` (a new, empty one when
+        none is kept for it, or it was integrated with another crop)."""
         kept = self._view_gains.get(key)
         if kept is None or kept.crop is not crop:
             reach = self.radii[-1] + self.reach
@@ -348,20 +349,20 @@ class SeerSource(FrontierSource):
             sorted(range(len(clusters)), key=lambda k: float(np.hypot(*(clusters[k].mean(axis=0) - robot))))
         for index in order:
             cells, crop = clusters[index], crops[index]
-            if budget is not None and not self._scored(cells, crop, z):
+            key, centre = self._key(cells, z), cells.mean(axis=0)
+            if budget is not None and not self._scored(key, crop):
                 if budget == 0:
-                    key = self._key(cells, z)
-                    view = self._stale_view(key, cells.mean(axis=0), grid, length, previous)
+                    view = self._stale_view(key, centre, grid, length, previous)
                     if view is not None:
-                        self._last[key] = (cells.mean(axis=0), view)
+                        self._last[key] = (centre, view)
                     if view is None or view[2] < self.min_gain:
                         continue
                     found.append(self._observation(view, cells, robot, heading, z, T))
                     continue
                 budget -= 1
-            view = self.best_view(cells, crop, grid, length, robot, z)
+            view = self.best_view(cells, centre, key, crop, grid, length, robot, z)
             if view is not None:
-                self._last[self._key(cells, z)] = (cells.mean(axis=0), view)
+                self._last[key] = (centre, view)
             if view is None or view[2] < self.min_gain:
                 continue
             found.append(self._observation(view, cells, robot, heading, z, T))
