@@ -76,6 +76,28 @@ def test_each_method_is_compared_with_classic_over_paired_runs():
     assert "Against classic" not in table_markdown(rows, ["procedural:1"], ["ours"], interval=INTERVAL)
 
 
+def test_methods_that_ran_more_starts_are_compared_on_all_of_them_and_the_tables_on_the_common_ones():
+    """A plan grown by more starts for classic and random-frontier (``common_starts``): the summary and the
+    comparisons hold the start every method ran; a section more compares the two on all their starts."""
+    from frontiernet.benchmark.report import common_starts
+
+    planned = [{"method": method, "start": start, "repeat": 0}
+               for method, starts in (("classic", 3), ("random-frontier", 3), ("ours", 1)) for start in range(starts)]
+    assert common_starts(planned) == ({(0, 0)}, ["classic", "random-frontier"])
+    value = {"classic": 0.4, "random-frontier": 0.4, "ours": 0.6}
+    rows = [{**run, "scene": "procedural:1", "status": "done", "success": True,
+             **{field: value[run["method"]] * (0.5 if run["method"] == "random-frontier" and run["start"] else 1)
+                for field in ("vox25_shared", "vox50_shared", "vox100")}} for run in planned]
+    table = table_markdown(rows, ["procedural:1"], ["classic", "random-frontier", "ours"], interval=INTERVAL,
+                           starts=common_starts(planned))
+    blocks = {block.split("\n")[0]: block for block in table.split("### ")}
+    assert "| classic | 1 | 40.0 | 40.0 | 40.0 | 100.0 |" in blocks["Summary: procedural (1 scene)"]
+    assert "| random-frontier | 1.00x (0-0) | 1.00x (0-0) |" in blocks["Against classic (paired runs)"]
+    every = blocks["Against classic on every start"]
+    assert "| random-frontier | 0.67x [0.50, 1.00] (0-2) |" in every and "| ours |" not in every
+    assert "classic, random-frontier ran more" in table
+
+
 def test_the_monocular_penalty_is_each_methods_ratio_to_ground_truth_over_paired_runs():
     """With several depth sources the summary and the comparison with classic come per source, and
     the penalty table gives each method's mean Vox@k on a source over its mean on ground truth,

@@ -116,3 +116,28 @@ def test_the_bound_and_nbvp_columns_are_ratios_of_paired_means(tmp_path):
     assert share[1].startswith("0.80x [0.80, 0.80]")  # a constant ratio: a point interval
     assert row["classic"][6].split(" / ")[0] == "0.50x" and np.isclose(float(row["classic"][3]), 15.0)
     assert "scene-sized step budgets" in table and "Interim: 22 of 24" in table
+
+
+def test_the_table_compares_the_methods_on_the_starts_every_method_has(tmp_path):
+    """A benchmark grown by more starts for two methods (pass 2 of classic and random-frontier) keeps its
+    table on the starts every method ran: the same runs behind every row, the others named in the caption."""
+    import json
+
+    runs, rows = [], []
+    for scene in ("procedural:1", "procedural:2"):
+        for method, starts in (("classic", 3), ("random-frontier", 3), ("frontiernet", 1)):
+            for start in range(starts):
+                runs.append({"scene": scene, "method": method, "start": start, "repeat": 0,
+                             "key": f"{scene}/{method}/start{start}_repeat0"})
+                value = {"classic": 0.4, "random-frontier": 0.2 if start else 0.4, "frontiernet": 0.6}[method]
+                rows.append({"scene": scene, "method": method, "start": start, "repeat": 0, "depth": None,
+                             "status": "done", "vox25_shared": value, "vox50_shared": value, "vox100": value})
+    plan = {"settings": {"budget": {"steps_per_m2": 6.5}, "vox_steps": "coverage"},
+            "start_poses": {"procedural:1": [], "procedural:2": []}, "runs": runs}
+    (tmp_path / "plan.json").write_text(json.dumps(plan))
+    table = readme_markdown(rows, tmp_path)
+    row = {line.strip("| ").split(" | ")[0]: line.strip("| ").split(" | ")
+           for line in table.splitlines() if line.startswith("| ") and not line.startswith("| method")}
+    assert row["classic"][2] == row["random-frontier"][2] == row["frontiernet"][2] == "2"
+    assert row["random-frontier"][3] == "40.0" and row["random-frontier"][6].startswith("1.00x")  # start 0 alone
+    assert "Interim" not in table and "Each scene from its first start (classic and random-frontier ran more" in table

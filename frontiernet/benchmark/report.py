@@ -130,6 +130,19 @@ def _source_groups(scenes: list[str]) -> dict[str, list[str]]:
     return dict(groups)
 
 
+def common_starts(runs: list[dict]) -> tuple[set, list[str]]:
+    """The (start, repeat) pairs that the plan's `runs` give every method, and the methods given more
+    (a benchmark grown by more starts for some methods: ``METHODS=classic,random-frontier STARTS=3``).
+    The table compares the methods on the same starts: a comparison's shared Vox@k step is the mean
+    over the methods that ran it (:func:`add_shared_vox`), so a start only two methods ran
+    has another step than one all ran, and its runs would weigh in one method's mean and not another's."""
+    planned: dict[str, set] = {}
+    for run in runs:
+        planned.setdefault(run["method"], set()).add((run["start"], run["repeat"]))
+    common = set.intersection(*planned.values()) if planned else set()
+    return common, [method for method, pairs in planned.items() if pairs != common]
+
+
 def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
     """Table I layout per scene source and over all scenes: rows methods, columns Vox@25/50/100
     and success, cells mean +- std over the finished runs (`done`) of those scenes (success: the
@@ -304,7 +317,7 @@ def metric_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> 
 
 
 def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
-                   depths: list[str] | None = None, *, interval) -> str:
+                   depths: list[str] | None = None, *, interval, starts: tuple[set, list[str]] | None = None) -> str:
     """The summary (:func:`summary_markdown`), each method against ``classic``
     (:func:`versus_markdown`), where the steps go (:func:`~.steps_report.steps_markdown`), the compute
     (:func:`compute_markdown`), then one Table I per metric
@@ -312,12 +325,20 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
     With several depth sources (`depths`, rows with their ``depth``): the summary and the
     comparison with classic per source, the monocular penalty (:func:`penalty_markdown`), then
     compute and the per-metric tables per source, each part under a ``## <source> depth`` heading.
-    `interval`: ``report.interval`` of ``configs/bench.yaml`` (the comparisons' bootstrap)."""
-    done = [r for r in rows if r["status"] == "done"]
+    `interval`: ``report.interval`` of ``configs/bench.yaml`` (the comparisons' bootstrap); `starts`:
+    :func:`common_starts` of the plan, where some methods ran more starts than others: every table is then
+    of the starts all methods ran, and a section more compares the methods that ran more on all of theirs."""
+    every = [r for r in rows if r["status"] == "done"]
+    common, more = starts if starts is not None else (None, [])
+    done = every if not more else [r for r in every if (r["start"], r["repeat"]) in common]
     lines = []
     if pending:
         lines += [f"Interim: {len(rows)} of {len(rows) + pending} runs finished; Vox@25 and @50 thresholds are "
                   "shared among the finished runs of each comparison.", ""]
+    if more:
+        lines += [f"The tables are of the starts every method ran ({len(done)} finished runs); {', '.join(more)} "
+                  f"ran more, compared on all of theirs under \"Against {REFERENCE} on every start\" ({len(every)} "
+                  "finished runs in all; results.csv holds every run).", ""]
     regimes = depths or [None]
 
     def of(depth) -> list[dict]:
@@ -329,6 +350,10 @@ def table_markdown(rows: list[dict], scenes: list[str], methods: list[str], pend
     for depth in regimes:
         lines += heading(depth, "summary") + summary_markdown(of(depth), scenes, methods)
         lines += versus_markdown(of(depth), scenes, methods, interval)
+        if REFERENCE in more:  # (a start only some methods ran has its Vox@k step shared among those)
+            lines += versus_markdown([r for r in every if depth is None or r.get("depth") == depth], scenes,
+                                     [m for m in methods if m in more], interval, fields=tuple(VOX_FIELDS),
+                                     title=f"Against {REFERENCE} on every start")
         lines += bound_markdown(of(depth), scenes, methods, interval)
         lines += steps_markdown(of(depth), methods)
     lines += penalty_markdown(done, methods, depths, interval)
@@ -383,7 +408,7 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
 
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
                  finished: FinishedRuns | None = None, depths: list[str] | None = None, *, interval,
-                 vox_steps: str = "budget") -> dict:
+                 vox_steps: str = "budget", starts: tuple[set, list[str]] | None = None) -> dict:
     """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
     ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
     `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not;
@@ -391,7 +416,8 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     benchmark's depth sources when it has several (the rows carry theirs; results.csv then has a
     ``depth`` column after ``method``), else None; `interval`: ``report.interval`` of
     ``configs/bench.yaml``; `vox_steps`: how Vox@25 / @50's shared steps are set (:func:`add_shared_vox`;
-    a plan's ``settings.vox_steps``, ``budget`` for plans made before the scene-sized protocol)."""
+    a plan's ``settings.vox_steps``, ``budget`` for plans made before the scene-sized protocol); `starts`:
+    the plan's :func:`common_starts` (:func:`table_markdown`)."""
     out = Path(out)
     finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
@@ -409,7 +435,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
         writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
-    table = table_markdown(rows, scenes, methods, pending, depths, interval=interval)
+    table = table_markdown(rows, scenes, methods, pending, depths, interval=interval, starts=starts)
     write_text(out / "table.md", table)
     plots = []
     for stem, members, title in _plot_sets(scenes, {row["scene"] for row in rows}):
@@ -418,7 +444,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
+__all__ = ["write_report", "common_starts", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
            "ratio_interval",
            "paired_ratio_cell", "penalty_markdown", "metric_markdown", "compute_markdown", "coverage_at",
            "SUCCESS_COVERAGE"]
