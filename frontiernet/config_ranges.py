@@ -25,11 +25,13 @@ A key holding a comparison declares a *relation* between keys, its value the rea
     "labels.num_classes == len(labels.bin_edges)": one class a bin edge
     "procedural.l_shape_probability + procedural.u_shape_probability <= 1": the rest is a rectangle
     "map.max_range_m <= sim:camera.max_depth": rays beyond the sensor's range
+    "tracking.height_window_m[0] <= 0 <= tracking.height_window_m[1]": the window holds the camera's height
 
 A chain of ``<``, ``<=``, ``==``, ``>=``, ``>`` between terms, each a sum (``+``) of products (``*``) of
-numbers, keys of the file, ``len(key)`` and ``file:key`` (a key of another shipped file: the relation holds where the layout
-holds both). A relation with a null or absent key is not checked (null turns a rule off). Composite configs (a run's
-config holds ``sim`` and ``scenes`` as sections) say where each file's keys sit with a *layout*,
+numbers, keys of the file, ``len(key)``, ``key[i]`` (item i of a list key: a pair's min ``[0]``, max ``[1]``)
+and ``file:key`` (a key of another shipped file: the relation holds where the layout holds both). A relation
+with a null or absent key is not checked (null turns a rule off). Composite configs (a run's config holds
+``sim`` and ``scenes`` as sections) say where each file's keys sit with a *layout*,
 ``{"": "explore", "scenes": "scenes", "ground_truth": "datagen.ground_truth"}``: a section prefix
 of the composite, then the file, or the file and its section, whose declarations apply there.
 """
@@ -55,6 +57,7 @@ _BOOLEAN = re.compile(r"^bool(?P<alternatives>(\s+or\s+[\w-]+)*)$")
 _COMPARISON = re.compile(r"\s+(<=|>=|==|<|>)\s+")
 _OPERATORS = {"<": operator.lt, "<=": operator.le, "==": operator.eq, ">=": operator.ge, ">": operator.gt}
 _LENGTH = re.compile(r"^len\((?P<key>[\w.:]+)\)$")
+_ITEM = re.compile(r"^(?P<key>[\w.:]+)\[(?P<index>\d+)\]$")
 
 Layout = Mapping[str, str | Sequence[str]]
 """Where a composite config's shipped files sit: section prefix ("" for the top) -> file name(s) or
@@ -283,8 +286,8 @@ class Relation:
 
 
 def _factor_key(factor: str) -> str | None:
-    """The key a factor reads (``len(a.b)``: ``a.b``), None for a number."""
-    length = _LENGTH.match(factor)
+    """The key a factor reads (``len(a.b)``, ``a.b[1]``: ``a.b``), None for a number."""
+    length = _LENGTH.match(factor) or _ITEM.match(factor)
     if length is not None:
         return length["key"]
     try:
@@ -301,6 +304,10 @@ def _factor_value(factor: str, values: Mapping[str, object]) -> float | None:
     value = values.get(key)
     if _LENGTH.match(factor):
         return float(len(value)) if isinstance(value, (list, tuple)) else None
+    item = _ITEM.match(factor)
+    if item is not None:  # (a list too short, or no list: its own range says so)
+        index = int(item["index"])
+        value = value[index] if isinstance(value, (list, tuple)) and index < len(value) else None
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return None
     return float(value)

@@ -5,6 +5,7 @@ half-written file."""
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import tempfile
@@ -47,12 +48,36 @@ def input_file(path: str | Path, what: str = "file", *, empty_ok: bool = True) -
     if path.is_dir():
         raise InputError(f"{path}: is a folder, expected a file ({what})")
     if not path.exists():
-        raise InputError(f"{path}: {what} not found")
+        raise InputError(f"{path}: {what} not found{_why_missing(path)}")
     if not path.is_file():
         raise InputError(f"{path}: not a regular file, expected a file ({what})")
     if not empty_ok and path.stat().st_size == 0:
         raise InputError(f"{path}: empty file (0 bytes), expected a {what}")
     return path
+
+
+def _why_missing(path: Path) -> str:
+    """What an input `path` that does not exist is, where it is more than nothing (``""`` then): ``: a symbolic
+    link loop (a -> b -> a)`` (a link, or a folder on the way, that leads back to itself: "not found" alone
+    sent one looking for a missing file) or ``: a symbolic link to X, which does not exist``."""
+    try:
+        os.stat(path)
+    except OSError as error:
+        if error.errno == errno.ELOOP:
+            hops, current = [str(path)], path
+            while current.is_symlink() and len(hops) < 6:
+                target = os.readlink(current)
+                hops.append(target)
+                current = current.parent / target
+                if os.path.normpath(current) == os.path.normpath(path):
+                    break
+            chain = " -> ".join(hops) + (" -> ..." if len(hops) == 6 else "")
+            return f": a symbolic link loop ({chain}), which leads back to itself"
+    except ValueError:
+        return ""
+    if path.is_symlink():
+        return f": a symbolic link to {os.readlink(path)}, which does not exist"
+    return ""
 
 
 def input_folder(path: str | Path, what: str = "input") -> Path:
@@ -64,7 +89,7 @@ def input_folder(path: str | Path, what: str = "input") -> Path:
         kind = "a file" if path.is_file() else "not a regular file nor a folder (a device or a pipe?)"
         raise InputError(f"{path}: is {kind}, expected a folder ({what})")
     if not path.is_dir():
-        raise InputError(f"{path}: {what} folder not found")
+        raise InputError(f"{path}: {what} folder not found{_why_missing(path)}")
     return path
 
 

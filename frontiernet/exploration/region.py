@@ -25,8 +25,23 @@ def _camera_clearance(scene, voxels, conf) -> tuple[float, np.ndarray]:
     """Camera height z (:func:`camera_z`) and the (X, Y) float64 clearance (metres) of each
     column over the planning band around it."""
     z = camera_z(scene, voxels, conf)
-    band = max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
-    return z, voxels.column_clearance(voxels.layer(z), band)
+    return z, voxels.column_clearance(voxels.layer(z), _band_layers(voxels, conf))
+
+
+def _band_layers(voxels, conf) -> int:
+    """Voxel layers the planning band ``planner.height_band_m`` reaches on each side of the camera's."""
+    return max(1, int(np.ceil(float(conf.planner.height_band_m) / voxels.voxel_size)))
+
+
+def _band_past_the_room(scene, voxels, conf, z: float) -> str | None:
+    """What a planning band (camera height z +- ``planner.height_band_m``) that takes in the floor's layer
+    or the grid's top one reaches (``the floor``, ``the top of the scene``), None if neither: every column
+    then holds an obstacle, which the band, not the clearance, put there."""
+    k, band = voxels.layer(z), _band_layers(voxels, conf)
+    floor = voxels.floor_layer if voxels.floor_layer else voxels.layer(float(scene.bounds[0, 2]))
+    if k - band <= floor:
+        return "the floor"
+    return "the top of the scene" if k + band >= voxels.shape[2] - 1 else None
 
 
 def _largest_region(traversable: np.ndarray) -> np.ndarray:
@@ -59,6 +74,12 @@ def start_sampler(scene, voxels, conf):
 
     def draw(rng: np.random.Generator) -> np.ndarray:
         if not len(cells):  # named by the clearance that left none: the robot's own, or the start's within it
+            reached = None if region.any() else _band_past_the_room(scene, voxels, conf, z)
+            if reached is not None:  # (or by the planning band, where it takes in the floor or the top)
+                raise InputError(f"{scene.metadata.spec}: the planning band, camera height {conf.motion.camera_height_m} "
+                                 f"m +- planner.height_band_m = {conf.planner.height_band_m} m, reaches {reached}: "
+                                 "every column holds an obstacle, so the robot has nowhere to be; use a smaller "
+                                 "planner.height_band_m")
             key, value = (("planner.clearance_m", conf.planner.clearance_m) if not region.any()
                           else ("run.start_clearance_m", conf.run.start_clearance_m))
             most = float(clearance[region].max()) if region.any() else float(clearance.max(initial=0.0))

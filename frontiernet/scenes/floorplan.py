@@ -117,9 +117,26 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
         inside = inside | (occupied & ndimage.binary_dilation(inside, iterations=2))
         doors = np.zeros_like(free)
     if not (free & inside).any():
-        raise InputError(f"{path}: the floor plan has no free space inside a building")
+        raise InputError(f"{path}: the floor plan has no free space inside a building"
+                         f"{_grey_levels(image, occupied_below, free_above)}")
     return FloorPlan(occupied=occupied, inside=inside | (occupied & ndimage.binary_dilation(inside)),
                      doors=doors, resolution=float(resolution))
+
+
+def _grey_levels(image: np.ndarray, occupied_below: float, free_above: float) -> str:
+    """What a plan (float64 pixels) without free space holds against the grey levels it is read by: ``: its
+    values lie in [lo, hi]; free space is above free_above (250), walls below occupied_below (50)`` (and, with
+    no free pixel at all, how to give it: a plan of fractions in [0, 1] is all walls)."""
+    finite = image[np.isfinite(image)]
+    if not finite.size:
+        return ": its values are all NaN or infinite"
+    low, high = float(finite.min()), float(finite.max())
+    text = (f": its values lie in [{low:g}, {high:g}]; free space is above free_above ({free_above:g}), "
+            f"walls below occupied_below ({occupied_below:g})")
+    if high <= free_above:
+        text += (" and no pixel is free: scale it to the grey levels (0 wall, 255 free), or give ?free_above= and "
+                 "?occupied_below= for its values")
+    return text
 
 
 def _door_gaps(candidates: np.ndarray, space_labels: np.ndarray, free: np.ndarray) -> np.ndarray:

@@ -83,8 +83,24 @@ def generate_layout(seed: int, conf, spec_text: str = "procedural") -> Procedura
         layout = _attempt(rng, p, seed)
         if layout is not None:
             return layout
+    changed = _changed_options(p)
+    if changed:  # (the option given is what leaves no building, more often than the footprint)
+        them = "it" if len(changed) == 1 else "them"
+        raise InputError(f"{spec_text}: no valid building after {p.max_attempts} attempts with "
+                         f"{' and '.join(changed)}: no plan fits with {them}; bring {them} nearer the shipped "
+                         "value (configs/scenes.yaml), or widen the footprint or room size options")
     raise InputError(f"{spec_text}: no valid building after {p.max_attempts} attempts; "
                      "widen the footprint or room size options")
+
+
+def _changed_options(p: SimpleNamespace) -> list[str]:
+    """``key=value (shipped: default)`` for each option of `p` (validated options) that differs from the
+    shipped ``procedural`` section of ``configs/scenes.yaml`` (max_attempts aside)."""
+    from ..config import load_config
+
+    shipped = load_config("scenes").procedural
+    return [f"{key}={value!r} (shipped: {shipped[key]!r})" for key, value in vars(p).items()
+            if key in shipped and key != "max_attempts" and value != shipped[key]]
 
 
 def _attempt(rng, p, seed: int) -> ProceduralLayout | None:

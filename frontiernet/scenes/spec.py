@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import glob
 import logging
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -147,12 +148,29 @@ def _guess_source(argument: str) -> str:
                      f"(supported meshes: {', '.join(MESH_SUFFIXES)})")
 
 
+def _names_a_path(body: str) -> bool:
+    """Whether spec body `body` (``[SOURCE:]ARGUMENT``) names an existing file or folder."""
+    source, colon, argument = body.partition(":")
+    return os.path.exists(argument if colon and source in SOURCES else body)
+
+
+def split_options(text: str) -> tuple[str, str, str]:
+    """(body, ``?`` or ``""``, options) of scene spec `text`, split at its first ``?``, unless a ``?`` is part of
+    the name of an existing file or folder (``a?b.glb``): the name wins (the spec's options, if any, follow the
+    ``?`` after it; ``a?b.glb?up=y``), where the first ``?`` read ``b.glb`` as an option that is no key=value."""
+    marks = [at for at, char in enumerate(text) if char == "?"]
+    for at in [len(text)] + marks[:0:-1] if marks else ():
+        if _names_a_path(text[:at]):
+            return text[:at], text[at:at + 1], text[at + 1:]
+    return text.partition("?")
+
+
 def parse_spec(text: str) -> SceneSpec:
     """Parse a scene spec string; raises :class:`InputError` on a malformed one."""
     text = str(text).strip()
     if not text:
         raise InputError("empty scene spec")
-    body, mark, query = text.partition("?")
+    body, mark, query = split_options(text)
     if body == "default":  # (with options too: default?bounds=... is procedural:0?bounds=...)
         body = DEFAULT_SPEC
         text = body + mark + query
@@ -160,8 +178,11 @@ def parse_spec(text: str) -> SceneSpec:
     if query:
         for item in query.split("&"):
             key, eq, value = item.partition("=")
-            if not eq or not key:
-                raise InputError(f"scene spec '{text}': option '{item}' is not key=value")
+            if not eq or not key:  # (a file named a?b.glb is read as that file where it exists: split_options)
+                source, colon, name = text.partition(":")
+                name = name if colon and source in SOURCES else text
+                raise InputError(f"scene spec '{text}': option '{item}' is not key=value ('?' starts the options; "
+                                 f"no file or folder is named '{name}')")
             if not value.strip():  # (read as null: the option would be dropped without a word)
                 raise InputError(f"scene spec '{text}': option {key}= has no value; give {key}=VALUE, or leave "
                                  f"{key} out")
@@ -208,7 +229,7 @@ def expand_specs(texts) -> list[str]:
         if not text:  # ('' was "empty scene spec", naming no option; a,,b a seed that is no integer)
             raise InputError(f"an empty scene spec (item {index + 1} of the {len(texts)} given); give scene specs as "
                              "separate words, e.g. --scenes procedural:3 procedural:4")
-        body, mark, query = text.partition("?")
+        body, mark, query = split_options(text)
         suffix = mark + query
         source, colon, argument = body.partition(":")
         prefix = source + colon if colon and source in SOURCES else ""
@@ -222,7 +243,7 @@ def expand_specs(texts) -> list[str]:
                 raise InputError(f"scene spec '{text}': a seed range of {high - low + 1:,} scenes; at most "
                                  f"{MAX_SEED_RANGE:,} in one range (split the work into several runs)")
             out += [f"procedural:{seed}{suffix}" for seed in range(low, high + 1)]
-        elif any(c in argument for c in "*?["):
+        elif any(c in argument for c in "*?[") and not os.path.exists(argument):  # (a?b.glb: that file)
             matches = sorted(glob.glob(argument))
             if not matches:
                 raise InputError(f"scene spec '{text}': the pattern matches no file or folder")

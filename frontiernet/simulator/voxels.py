@@ -194,10 +194,13 @@ def voxelize_scene(scene: "Scene", conf: "DictConfig") -> VoxelGrid:
     if not count <= int(conf.max_voxels):  # (inf too)
         shown = ", ".join(f"{int(n)}" if n < 1e15 else f"{n:.3g}" for n in cells)
         voxels = f"{count:,.0f}" if count < 1e15 else f"{count:.3g}"
+        bare = math.prod(float(n) for n in np.floor((bounds[1] - bounds[0]) / size) + 1)
+        advice = (f"voxels.lateral_margin_m {margin:g} m a side is what makes it so large: use a smaller margin"
+                  if bare <= int(conf.max_voxels) else "check its scale (metres), or use a larger voxel size")
         raise InputError(f"{scene.metadata.spec}: voxel_size {size} m gives a ({shown}) grid "
                          f"({voxels} voxels > voxels.max_voxels {int(conf.max_voxels):,}) for a scene of "
-                         f"{' x '.join(f'{v:.4g}' for v in bounds[1] - bounds[0])} m; check its scale (metres), "
-                         "or use a larger voxel size")
+                         f"{' x '.join(f'{v:.4g}' for v in bounds[1] - bounds[0])} m and a margin of "
+                         f"{margin:g} m a side; {advice}")
     shape = cells.astype(np.int64)
     rule = conf.explorable
     if rule not in EXPLORABLE_RULES:
