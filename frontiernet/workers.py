@@ -17,6 +17,7 @@ import logging
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -55,23 +56,75 @@ def check_backend(backend: str, workers) -> int:
     return cpu_count_option(workers, "--workers")
 
 
+REDELIVER_S = 0.05
+"""Seconds after a finaliser swallowed an interrupt that :func:`sigterm_as_interrupt` raises it again."""
+
+
+class SignalInterrupt(KeyboardInterrupt):
+    """The KeyboardInterrupt that SIGTERM raises within :func:`sigterm_as_interrupt` (``signal 15``)."""
+
+
 @contextlib.contextmanager
 def sigterm_as_interrupt():
     """Within the block, SIGTERM raises KeyboardInterrupt (as Ctrl-C does), so that cleanup runs
     (``frontiernet`` then exits 130, "interrupted"); the previous handler is restored after. Only
-    the main thread can set handlers: elsewhere (a caller's thread) nothing changes."""
+    the main thread can set handlers: elsewhere (a caller's thread) nothing changes.
+
+    A SIGTERM during the block is neither dropped nor printed as a traceback: Python runs a signal's handler
+    wherever the main thread is, a ``__del__`` or weakref callback included, which swallows the
+    KeyboardInterrupt ("Exception ignored in ...", and the run went on to exit 0); such a one is taken from
+    ``sys.unraisablehook`` and raised again :data:`REDELIVER_S` later (at the latest as the block ends). A
+    SIGTERM pending as the block ends (``signal.signal`` runs pending handlers before it restores the previous
+    one) is raised after the previous handler is back (unless an exception already ends the block), so the
+    raising handler never outlives the block (into interpreter shutdown)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    state = {"closing": False, "in_hook": False, "lost": None, "late": None}
 
     def interrupt(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
+        if state["closing"] or state["in_hook"]:  # (raised below once the handler is restored / by the timer)
+            state["late" if state["closing"] else "lost"] = signum
+            return
+        signum, state["lost"] = state["lost"] or signum, None
+        raise SignalInterrupt(f"signal {signum}")
 
-    previous = signal.signal(signal.SIGTERM, interrupt)
+    def unraisable(report):  # (a finaliser's exception, which Python prints and drops)
+        state["in_hook"] = True
+        try:
+            if isinstance(report.exc_value, KeyboardInterrupt):
+                state["lost"] = signal.SIGTERM if isinstance(report.exc_value, SignalInterrupt) else signal.SIGINT
+            else:
+                previous_hook(report)
+        finally:
+            if state["lost"]:  # (also one that came while the hook ran: `interrupt` noted it)
+                timer = threading.Timer(REDELIVER_S, _redeliver, (state,))
+                timer.daemon = True
+                timer.start()
+            state["in_hook"] = False
+
+    previous = signal.getsignal(signal.SIGTERM)
+    previous_hook = sys.unraisablehook
     try:
+        signal.signal(signal.SIGTERM, interrupt)
+        sys.unraisablehook = unraisable
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        state["closing"] = True
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)  # (None: a native one)
+        if sys.unraisablehook is unraisable:
+            sys.unraisablehook = previous_hook
+    if state["late"] or state["lost"]:  # the block ended, not by an exception: the interrupt ends it now
+        raise SignalInterrupt(f"signal {state['late'] or state['lost']}")
+
+
+def _redeliver(state: dict) -> None:
+    """In a timer's thread: the interrupt that a finaliser swallowed (:func:`sigterm_as_interrupt`), delivered
+    again to the main thread as a SIGTERM, which the block's handler raises there (None: raised already)."""
+    import _thread
+
+    if state["lost"] and not state["closing"]:
+        _thread.interrupt_main(signal.SIGTERM)
 
 
 @contextlib.contextmanager
@@ -102,12 +155,12 @@ def process_pool(workers: int, initializer=None, initargs=()):
     included) the workers are terminated, else the pool is shut down once its tasks are done."""
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=initializer, initargs=initargs)
-    with sigterm_as_interrupt():
-        try:
+    try:
+        with sigterm_as_interrupt():
             yield pool
-        except BaseException:
-            terminate_workers(pool)
-            raise
+    except BaseException:  # (an interruption that the block's end raises too)
+        terminate_workers(pool)
+        raise
     pool.shutdown(wait=True)
 
 
@@ -237,5 +290,5 @@ def _run_ray(function, tasks, workers, retries, cpus_per_task, deliver, died) ->
             ray.shutdown()
 
 
-__all__ = ["BACKENDS", "check_backend", "import_ray", "keep_sigterm_handler", "process_pool", "run_parallel",
-           "sigterm_as_interrupt", "terminate_workers"]
+__all__ = ["BACKENDS", "SignalInterrupt", "check_backend", "import_ray", "keep_sigterm_handler", "process_pool",
+           "run_parallel", "sigterm_as_interrupt", "terminate_workers"]

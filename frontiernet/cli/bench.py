@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..registry import Registry
 from . import options
+from .parser import one_line
 
 BENCH_ACTIONS = Registry("bench action", "frontiernet.bench")
 """Benchmarks added by packages built on the library (``deploy``'s ``bench inference``): modules
@@ -192,7 +193,7 @@ def run_exploration_benchmark(args) -> int:
           f"{result['results']}, {result['table']}, {len(result['plots'])} coverage plot(s) in {args.out}")
     if failed:  # the others' results are written; exit 1 says not all ran (their errors: OUT/failed/)
         print(f"frontiernet bench: {failed} of {len(result['rows'])} runs failed; their errors are in "
-              f"{Path(args.out) / 'failed'}/", file=sys.stderr)
+              f"{one_line(str(Path(args.out) / 'failed'))}/", file=sys.stderr)
         return 1
     return 0
 

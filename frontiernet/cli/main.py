@@ -19,7 +19,7 @@ from ..errors import InputError
 from ..registry import Registry
 from ..workers import sigterm_as_interrupt
 from . import bench, demo, explore, render, scene, sequence
-from .parser import Parser
+from .parser import Parser, one_line
 
 COMMANDS = Registry("command", "frontiernet.commands", {"scene": scene, "render": render, "explore": explore,
                                                        "demo": demo, "bench": bench, "sequence": sequence})
@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
         with sigterm_as_interrupt():  # `kill PID` stops every command as Ctrl-C does: exit 130, "interrupted"
             return int(args.func(args) or 0)
     except InputError as error:
-        print(f"frontiernet {args.command}: error: {error}", file=sys.stderr)
+        print(f"frontiernet {args.command}: error: {one_line(str(error))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"frontiernet {args.command}: interrupted", file=sys.stderr)
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.verbose:
             raise
         log = write_traceback(args.command, sys.argv[1:] if argv is None else argv)
-        message = (str(error).splitlines() or [""])[0][:200]
+        message = one_line((str(error).splitlines() or [""])[0])[:200]
         print(f"frontiernet {args.command}: internal error ({type(error).__name__}: {message}); the traceback is "
               f"in {log} (-v prints it here)", file=sys.stderr)
         return 1

@@ -6,9 +6,18 @@ import argparse
 import difflib
 import re
 import sys
+import unicodedata
 
 NEGATIVE_NUMBER = re.compile(r"-\.?\d")
 """What the parser reads as a (negative) number, not an option (CPython's current argparse pattern, ``match``)."""
+
+
+def one_line(text: str) -> str:
+    """`text` with its control characters (line breaks, tabs, escapes; Unicode categories Cc, Cs, Zl and Zp)
+    written as Python writes them in a string's repr (``\\n``, ``\\x1b``, ``\\u2028``): an error line that quotes a
+    file name or value holding a newline (``scene info $'no\\nsuch.glb'``) stays one line."""
+    return "".join(repr(char)[1:-1] if unicodedata.category(char) in ("Cc", "Cs", "Zl", "Zp") else char
+                   for char in text)
 
 
 class Parser(argparse.ArgumentParser):
@@ -26,7 +35,7 @@ class Parser(argparse.ArgumentParser):
         self._negative_number_matcher = NEGATIVE_NUMBER
 
     def error(self, message: str):  # noqa: D401
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
 
     def parse_known_args(self, args=None, namespace=None):
         """argparse's, after refusing an option (``--name`` or ``--name=value``) this parser does not

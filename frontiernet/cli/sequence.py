@@ -81,6 +81,9 @@ def recording_options(args) -> tuple[object, dict | None]:
 def run(args) -> int:
     from ..sequences.main import load_sequence_config, main
 
+    options.refuse_contradictions(args.overrides, {  # (the option replaced the key without a word)
+        "frames.stride": (f"--stride {args.stride}", args.stride),
+        "frames.max_frames": (f"--max-frames {args.max_frames}", args.max_frames)})
     conf = load_sequence_config(args.config, args.overrides)
     if args.stride is not None:
         conf.frames.stride = args.stride
