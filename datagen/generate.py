@@ -122,6 +122,30 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
     return expanded, shard_size
 
 
+DATASET_KINDS = {"frontiernet-dataset": ("a FrontierNet dataset", "datagen"),
+                 "frontiernet-map-dataset": ("a map dataset", "mapgen")}
+"""The datasets' ``dataset.json`` formats: what each is, and the command that makes (and resumes) it."""
+
+
+def check_dataset_kind(out: Path, read_info, command: str) -> None:
+    """InputError naming `out` when its ``dataset.json`` is not one that `read_info` (`command`'s) reads: a
+    dataset of the other command (``mapgen --out`` a datagen dataset advised ``--resume``, which was then refused
+    as "not a map dataset"), or a damaged description (named as `read_info` names it)."""
+    try:
+        read_info(out)
+    except InputError:
+        try:
+            found = json.loads((out / INFO_NAME).read_text()).get("format")
+        except (OSError, ValueError, AttributeError):
+            found = None
+        if found not in DATASET_KINDS or DATASET_KINDS[found][1] == command:
+            raise
+        what, maker = DATASET_KINDS[found]
+        mine = next((kind for kind, by in DATASET_KINDS.values() if by == command), f"a {command} dataset")
+        raise InputError(f"{out}: holds {what} (frontiernet {maker}), not {mine}: {command} cannot add to it or "
+                         "resume it; choose another --out") from None
+
+
 def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "seed", "scenes", "views_per_scene",
                                                                "generator_version"),
                    read_info=read_dataset_info, write_info=write_dataset_info, command: str = "datagen",
@@ -134,6 +158,7 @@ def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "se
     started, and that is said on stdout, ``<command>: note: --resume: ...``; an error would still be the one
     line on stderr)."""
     if (out / INFO_NAME).exists():
+        check_dataset_kind(out, read_info, command)
         if not resume:
             raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")
         previous = read_info(out)

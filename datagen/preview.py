@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError
-from frontiernet.io import colorize_depth, ensure_dir, write_image
+from frontiernet.io import colorize_depth, ensure_dir, remove_if_empty, write_image
 from frontiernet.simulator.preview import contact_sheet
 
 FRONTIER_COLOUR = (255, 0, 255)  # F tile
@@ -157,19 +157,34 @@ def write_previews(dataset, out_dir: str | Path, n: int = 16, seed: int = 0, *, 
     Args:
         dataset: anything with ``len()`` and ``[i]`` giving sample dicts (see
             :func:`sample_contact_sheet`).
-        out_dir: folder, created if needed; sheet of dataset item ``i`` goes to
-            ``preview_<i>.png`` (``i`` zero-padded to the width of the largest index).
+        out_dir: folder, created if needed (once the first sample is read); sheet of dataset item ``i`` goes
+            to ``preview_<i>.png`` (``i`` zero-padded to the width of the largest index). A run that fails (a
+            corrupt shard) removes the sheets it added and the folders it made: no empty or partial preview.
         n: number of sheets (all samples when the dataset is smaller).
         seed: picks the offset of the evenly spaced indices.
         max_depth, truncation_px: as in :func:`sample_contact_sheet`.
     Returns:
         The written paths, in dataset order.
     """
-    out_dir = ensure_dir(out_dir)
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"{out_dir}: output path exists and is not a folder")
     length = len(dataset)
     width = len(str(max(length - 1, 0)))
-    paths = []
-    for i in preview_indices(length, n, seed):
-        sheet = sample_contact_sheet(dataset[int(i)], max_depth, truncation_px)
-        paths.append(write_image(out_dir / f"preview_{int(i):0{width}d}.png", sheet))
+    made = next((folder for folder in reversed((out_dir, *out_dir.parents)) if not folder.exists()), None)
+    paths, written = [], []
+    try:
+        for i in preview_indices(length, n, seed):
+            sheet = sample_contact_sheet(dataset[int(i)], max_depth, truncation_px)  # (read before the folder is made)
+            path = ensure_dir(out_dir) / f"preview_{int(i):0{width}d}.png"
+            new = not path.exists()
+            paths.append(write_image(path, sheet))
+            if new:
+                written.append(path)
+    except BaseException:  # a sample that cannot be read (a corrupt shard), Ctrl-C: no partial preview is left
+        for path in written:
+            path.unlink(missing_ok=True)
+        if made is not None:
+            remove_if_empty(made)
+        raise
     return paths

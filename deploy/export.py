@@ -34,17 +34,24 @@ def _config_json(conf: dict) -> str:
 
 
 def check_threshold(value: float, labels: dict) -> float:
-    """`value` (``--frontier-threshold``, the l of F = [D < l]) as a float in (0, r), r the model's
-    ``labels.truncation_px``: its distance D is a softplus-decoded ``r * exp(-y)`` <= r, so l = r marks every
-    pixel but those of D exactly r a frontier (100.00 % of an image), a larger l every pixel (as
-    ``labels.frontier_threshold_px < labels.truncation_px`` of configs/ranges/model.yaml). InputError naming the
-    option otherwise."""
-    r = float(labels["truncation_px"])
+    """`value` (``--frontier-threshold``, the l of F = [D < l]) as a float in (d_min, r), d_min and r the model's
+    ``labels.min_distance_px`` and ``labels.truncation_px``: its distance D is a softplus-decoded ``r * exp(-y)``
+    <= r, so l = r marks every pixel but those of D exactly r a frontier (100.00 % of an image), a larger l every
+    pixel; and it was trained on distances clamped at d_min from below (``encode_distance``), so l <= d_min marks
+    (almost) none (0.05 px: 1 pixel of an image, against 2,913 at the model's own). As
+    ``labels.min_distance_px < labels.frontier_threshold_px < labels.truncation_px`` of configs/ranges/model.yaml.
+    InputError naming the option otherwise."""
+    r, low = float(labels["truncation_px"]), float(labels.get("min_distance_px") or 0.0)
     value = positive_number(value, "--frontier-threshold", "pixels")
+    own = f"this model's own: {float(labels['frontier_threshold_px']):g} px"
     if value >= r:
-        raise InputError(f"--frontier-threshold must be in (0, {r:g}) pixels, got {value:g}: the model's distance "
-                         f"field is truncated at labels.truncation_px = {r:g} px, so a threshold there or above marks "
-                         f"every pixel a frontier (this model's own: {float(labels['frontier_threshold_px']):g} px)")
+        raise InputError(f"--frontier-threshold must be in ({low:g}, {r:g}) pixels, got {value:g}: the model's "
+                         f"distance field is truncated at labels.truncation_px = {r:g} px, so a threshold there or above marks "
+                         f"every pixel a frontier ({own})")
+    if value <= low:
+        raise InputError(f"--frontier-threshold must be in ({low:g}, {r:g}) pixels, got {value:g}: the model learned "
+                         f"distances clamped at labels.min_distance_px = {low:g} px, so a threshold there or below "
+                         f"marks (almost) no pixel a frontier ({own})")
     return value
 
 
@@ -71,7 +78,7 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
                          f"{' or '.join('*' + suffix for suffix in SUFFIXES[fmt])}")
     if not out.parent.is_dir():
         raise InputError(f"{out.parent}: output folder does not exist")
-    if frontier_threshold_px is not None:  # (its upper bound is the model's: check_threshold)
+    if frontier_threshold_px is not None:  # (its bounds are the model's: check_threshold)
         positive_number(frontier_threshold_px, "--frontier-threshold", "pixels")
     model, conf = load_model(model_path)
     if frontier_threshold_px is not None:

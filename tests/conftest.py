@@ -117,6 +117,20 @@ def two_room_voxels(two_room_scene):
     return voxelize_scene(two_room_scene, sim_section("voxels"))
 
 
+@pytest.fixture(scope="module")
+def two_scenes(tmp_path_factory) -> Path:
+    """A tiny datagen dataset: 2 procedural scenes x 2 views of 64 x 64 px, one shard a scene (one per test
+    module: some tests change it)."""
+    from datagen.config import load_datagen_config
+    from datagen.generate import generate
+
+    out = tmp_path_factory.mktemp("data") / "two"
+    conf = load_datagen_config(overrides=["camera.width=64", "camera.height=64", "camera.focal_px=40",
+                                          "writer.shard_size=2"])
+    generate(["procedural:3", "procedural:4"], 2, out, conf, seed=0, workers=1, progress=False)
+    return out
+
+
 @pytest.fixture(scope="session")
 def tiny_dataset(tmp_path_factory) -> Path:
     """A tiny datagen dataset: 3 procedural scenes x 8 views of 96 x 96 px (for training tests)."""

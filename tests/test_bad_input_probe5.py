@@ -133,7 +133,7 @@ def test_export_refuses_a_frontier_threshold_past_the_truncation(threshold, tmp_
     out = tmp_path / "m.safetensors"
     assert main(["export", str(default_model_path()), "--format", "safetensors", "--out", str(out),
                  "--frontier-threshold", threshold]) == 2
-    assert "--frontier-threshold must be in (0, 10) pixels" in one_line_error()
+    assert "--frontier-threshold must be in (0.1, 10) pixels" in one_line_error()
     assert not out.exists()
 
 

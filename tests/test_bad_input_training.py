@@ -22,19 +22,6 @@ FIRST = "stem.0.weight"
 """The weight of the shipped model that :func:`model_with` changes."""
 
 
-@pytest.fixture(scope="module")
-def two_scenes(tmp_path_factory) -> Path:
-    """A tiny datagen dataset: 2 procedural scenes x 2 views of 64 x 64 px."""
-    from datagen.config import load_datagen_config
-    from datagen.generate import generate
-
-    out = tmp_path_factory.mktemp("data") / "two"
-    conf = load_datagen_config(overrides=["camera.width=64", "camera.height=64", "camera.focal_px=40",
-                                          "writer.shard_size=2"])
-    generate(["procedural:3", "procedural:4"], 2, out, conf, seed=0, workers=1, progress=False)
-    return out
-
-
 def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Path:
     """The shipped model with one weight set to `value`, as a model file or (suffix .ckpt) a checkpoint
     as ``frontiernet train`` writes one (Lightning's keys included)."""

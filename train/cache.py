@@ -241,9 +241,11 @@ def build_cache(dataset_root: str | Path, path: str | Path, size: int, labels_co
     write_json(partial / INFO_NAME, info)
     (partial / PROGRESS_NAME).unlink()
     (partial / "partial.json").unlink()
-    if path.exists():  # a finished cache of the same key appeared meanwhile (another process): keep it
+    if _holds_cache(path):  # a finished cache of the same key appeared meanwhile (another process): keep it
         shutil.rmtree(partial)
     else:
+        if path.is_dir():  # an empty folder given as data.cache: the cache takes its place
+            path.rmdir()
         os.replace(partial, path)
     return open_cache(path, dataset_root, size, labels_conf)
 
@@ -288,11 +290,18 @@ def _one_thread(worker_id: int) -> None:
     torch.set_num_threads(1)  # each worker decodes one view at a time; processes give the parallelism
 
 
+def _holds_cache(path: Path) -> bool:
+    """Whether `path` is there as something other than an empty folder (an empty one is where a cache is built)."""
+    return path.exists() and not (path.is_dir() and not any(path.iterdir()))
+
+
 def check_cache_folder(cache, path: Path | None = None) -> None:
     """Before anything is made: InputError naming ``data.cache`` when its folder (`cache`, or `path` for
     ``auto``; nothing for null or false, no cache) is a file, or is not there and cannot be made: the
     folder it goes in is missing (a cache is made only in a folder that is there, so a typo makes none)
-    or cannot be written in (:func:`~frontiernet.io.check_writable_folder`)."""
+    or cannot be written in (:func:`~frontiernet.io.check_writable_folder`); or when it is a folder that holds
+    files but is no training cache (no readable ``cache.json`` of this format: it was refused only after the
+    trainer's setup). An empty folder is taken: the cache is built in it."""
     from frontiernet.io import check_writable_folder
 
     if not cache or (str(cache) == "auto" and path is None):
@@ -301,6 +310,13 @@ def check_cache_folder(cache, path: Path | None = None) -> None:
     if path.exists() and not path.is_dir():
         raise InputError(f"data.cache={cache}: is a file, expected the training cache's folder")
     if path.is_dir():
+        if not _holds_cache(path):
+            check_writable_folder(path, "data.cache")
+        elif not (path / INFO_NAME).exists():
+            raise InputError(f"data.cache={cache}: {path} holds files but no {INFO_NAME}, so it is not a training "
+                             "cache; give a new or an empty folder (the cache is built there), or data.cache=auto")
+        else:
+            _read_info(path)
         return
     if not path.parent.is_dir():
         raise InputError(f"data.cache={cache}: the folder it goes in, {path.parent}, does not exist (a cache "
@@ -309,13 +325,26 @@ def check_cache_folder(cache, path: Path | None = None) -> None:
     check_writable_folder(path.parent, "data.cache")
 
 
+def _cache_path(dataset_root: str | Path, cache, size: int, labels_conf) -> Path:
+    """The folder of the cache that ``data.cache`` (`cache`) names: ``auto`` (:func:`default_cache_dir`) or a folder."""
+    return default_cache_dir(Path(dataset_root), size, labels_conf) if str(cache) == "auto" else Path(str(cache))
+
+
+def existing_cache(dataset_root: str | Path, cache, size: int, labels_conf) -> TrainingCache | None:
+    """The cache that ``data.cache`` (`cache`) names, opened and checked against the dataset, `size` and
+    `labels_conf` (:func:`open_cache`: InputError naming the file otherwise), when one is there; None when it is
+    still to be built (no folder, or an empty one)."""
+    path = _cache_path(dataset_root, cache, size, labels_conf)
+    return open_cache(path, dataset_root, size, labels_conf) if _holds_cache(path) else None
+
+
 def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, workers: int = 0,
                  progress=None) -> TrainingCache:
     """The cache named by ``data.cache`` (``auto``: :func:`default_cache_dir`; or a folder), built
     from the dataset when it does not exist yet, else opened and checked."""
     dataset_root = Path(dataset_root)
-    path = default_cache_dir(dataset_root, size, labels_conf) if str(cache) == "auto" else Path(str(cache))
-    if path.exists():
+    path = _cache_path(dataset_root, cache, size, labels_conf)
+    if _holds_cache(path):
         return open_cache(path, dataset_root, size, labels_conf)
     if str(cache) == "auto":  # <dataset>/cache/, made beside the dataset's shards
         try:
@@ -329,7 +358,7 @@ def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, worker
     # two runs on one dataset (e.g. two trainings started together) would share <path>.partial:
     # the second waits for the first's build and opens its cache
     with FileLock(str(path.with_name(path.name + ".lock"))):
-        if path.exists():
+        if _holds_cache(path):
             log.info("the training cache %s was built by another process meanwhile", path)
             return open_cache(path, dataset_root, size, labels_conf)
         log.info("building the training cache %s (%d px)", path, size)

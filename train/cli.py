@@ -87,10 +87,15 @@ def run_evaluate(args) -> int:
         if empty is not None:
             raise InputError(f"--scenes: an empty scene spec (item {empty + 1} of the {len(args.scenes)} given); give "
                              "the dataset's scene specs as separate words, e.g. --scenes procedural:3 procedural:4")
-        args.scenes = list(dict.fromkeys(scene.strip() for scene in args.scenes))
+        from .evaluate import expand_scene_ranges
+
+        args.scenes = expand_scene_ranges(dict.fromkeys(scene.strip() for scene in args.scenes))  # (procedural:3-4)
     if args.json:
         check_output_file(args.json, writable="--json")  # a folder given as --json fails now, not after the evaluation
-    check_depth_files(known_source(args.depth, "--depth"))  # (an unknown one was refused after the data load)
+    from frontiernet.config import load_config
+
+    # (an unknown one was refused after the data load; its options are configs/depth.yaml's, as evaluate reads them)
+    check_depth_files(known_source(args.depth, "--depth"), load_config("depth"))
     torch_model_file(args.model)  # before the data load
     from rich.progress import Progress
 

@@ -23,7 +23,7 @@ from torch.utils.data import DataLoader, Dataset
 from datagen import DatasetError, FrontierDataset, open_dataset
 from frontiernet.errors import InputError, cpu_count_option
 
-from .cache import TrainingCache, ensure_cache
+from .cache import TrainingCache, ensure_cache, existing_cache
 from .config import plain
 from .packed import pack_sample
 from .transforms import network_batch, training_item, training_sample
@@ -274,6 +274,15 @@ def open_training_cache(data_conf, model_conf, dataset: FrontierDataset, progres
         return ensure_cache(data_conf["path"], data_conf["cache"], size, model_conf["labels"],
                             worker_count(data_conf["cache_workers"], "data.cache_workers"),
                             lambda done, total: bar.update(task, completed=done, total=total))
+
+
+def check_training_cache(data_conf, model_conf, dataset: FrontierDataset) -> None:
+    """Before the trainer's setup: InputError naming the file when the training cache that ``data.cache`` names
+    (:func:`~train.cache.existing_cache`; none yet: it is built later) is not one of this dataset at this size and
+    label encoding (it was opened only after Lightning's lines on stderr)."""
+    if data_conf["cache"]:
+        existing_cache(data_conf["path"], data_conf["cache"], int(data_conf["image_size"] or view_size(dataset)),
+                       model_conf["labels"])
 
 
 def _one_thread(worker_id: int) -> None:

@@ -8,6 +8,9 @@ that is given the labelled frontier band and fills it with the most frequent non
 
 from __future__ import annotations
 
+import logging
+import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +25,59 @@ from frontiernet.model import load_model
 from .data import TrainingSamples, gain_bins_mismatch, open_training_data
 from .metrics import FrontierMetrics, GainDice
 from .transforms import network_batch
+
+log = logging.getLogger(__name__)
+TORCH_WORKER_WARNING = r"This DataLoader will create \d+ worker processes in total"
+"""The start of torch's warning (four lines on stderr, printed twice) when a loader has more workers than the cores
+this process may use: :func:`evaluate` says it in one line of its own instead."""
+
+
+def usable_cores() -> int:
+    """The CPU cores this process may run on (its affinity, as torch counts them; else the machine's)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def expand_scene_ranges(specs) -> list[str]:
+    """``evaluate --scenes`` with procedural seed ranges expanded as datagen's ``--scenes`` expands them
+    (``procedural:3-4``: procedural:3 and procedural:4; a malformed one refused, naming it), before the data is
+    read; duplicates dropped. Patterns (``*``, ``[``) are kept: they match the dataset's scenes
+    (:func:`pick_scenes`)."""
+    from frontiernet.scenes.spec import expand_specs
+
+    out = []
+    for spec in specs:
+        body = spec.partition("?")[0]
+        seeds = body[len("procedural:"):] if body.startswith("procedural:") else ""
+        out += expand_specs([spec]) if "-" in seeds.lstrip("-") or "," in seeds else [spec]
+    return list(dict.fromkeys(out))
+
+
+def pick_scenes(specs, available: list[str], data) -> list[str]:
+    """The scenes of dataset `data` (its scene specs `available`) that ``--scenes`` `specs` name: a spec as the
+    dataset records it, or a pattern with ``*`` or ``[`` (``procedural:*``) matched against them (datagen expands
+    one on the file system: here the dataset's scenes are what there is). InputError naming the spec that names
+    none."""
+    import fnmatch
+
+    held = ", ".join(available[:4]) + (f" and {len(available) - 4} more" if len(available) > 4 else "")
+    chosen, unknown = [], []
+    for spec in specs:
+        if spec not in available and any(mark in spec.partition("?")[0] for mark in "*["):
+            matches = [scene for scene in available if fnmatch.fnmatchcase(scene, spec)]
+            if not matches:
+                raise InputError(f"{data}: --scenes {spec!r}: the pattern matches none of the dataset's scenes "
+                                 f"({held})")
+            chosen += matches
+        elif spec in available:
+            chosen.append(spec)
+        else:
+            unknown.append(spec)
+    if unknown:
+        raise InputError(f"{data}: scene(s) not in the dataset: {', '.join(unknown)} (it holds {held})")
+    return list(dict.fromkeys(chosen))
 
 
 def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_scenes: bool = False,
@@ -54,7 +110,7 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
                          f"Dice would compare other classes")
     recorded = list(conf.get("info", {}).get("val_scenes") or [])
     if scenes:
-        chosen = list(scenes)
+        chosen = pick_scenes(scenes, list(dataset.scenes), data)
     elif not all_scenes and recorded:
         chosen = [scene for scene in recorded if scene in set(dataset.scenes)]
         if not chosen:
@@ -80,7 +136,12 @@ def evaluate(model_path: str | Path | None, data: str | Path, scenes=None, all_s
     metrics = FrontierMetrics(labels)
     zero_dice, band_dice = GainDice(K, labels["truncation_px"]), GainDice(K, labels["truncation_px"])
     band_counts = torch.zeros(K, dtype=torch.float64)
-    loader = DataLoader(samples, batch_size=batch_size, shuffle=False, num_workers=int(workers))
+    if int(workers) > usable_cores():  # (a legal count, up to 4 per core: one line, not torch's four twice)
+        log.warning("--workers %d: more loader processes than the %d CPU cores this process may use; they share "
+                    "them", int(workers), usable_cores())
+    with warnings.catch_warnings():  # (torch warns as the loader is made and as its workers start)
+        warnings.filterwarnings("ignore", message=TORCH_WORKER_WARNING, category=UserWarning)
+        loader = iter(DataLoader(samples, batch_size=batch_size, shuffle=False, num_workers=int(workers)))
     device = torch.device("cuda" if torch.cuda.is_available() else "cpu")  # the network on the GPU if there is one
     model = model.to(device)
     done = 0

@@ -35,16 +35,18 @@ from omegaconf import OmegaConf
 from frontiernet.allocator import keep_freed_memory
 from frontiernet.errors import InputError
 from frontiernet.frontiers.gain import labels_gain_definition
-from frontiernet.io import input_file, write_json
+from frontiernet.io import write_json
 from frontiernet.model import load_model, save_model
-from frontiernet.model.files import check_finite, model_base
+from frontiernet.model.files import model_base
 from frontiernet.model.network import resolve_pretrained
 
 from .config import check_max_time, plain
 from .cache import check_cache_folder
-from .data import FrontierDataModule, gain_bins_mismatch, open_training_data, view_size, worker_count
+from .data import (FrontierDataModule, check_training_cache, gain_bins_mismatch, open_training_data, view_size,
+                   worker_count)
 from .finetune import freeze, init_file, initial_weights, shared_base
 from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_schedule
+from .resume import claimed_run_folder, resume_checkpoint, resumed_settings
 
 log = logging.getLogger(__name__)
 
@@ -240,79 +242,23 @@ def check_crop(crop, size: int, size_key: str) -> None:
                          f"give at most {size}, or null for no crop")
 
 
-RESUME_KEYS = ("pytorch-lightning_version", "state_dict", "optimizer_states", "lr_schedulers", "loops",
-               "hyper_parameters")
-"""What Lightning reads from a checkpoint to resume a run (``frontiernet train`` writes them all; a
-weights-only save lacks the optimiser's and the loops' state)."""
-
-
-def _check_checkpoint(path: str) -> dict:
-    """The hyperparameters of a checkpoint to resume from, which must load as one (plain data only: no
-    code runs; memory-mapped, so a second look costs little). Refused, naming the file: a file that is no
-    torch checkpoint, one without the state Lightning resumes from (:data:`RESUME_KEYS`), or weights
-    that do not fit the FrontierNet it declares (:func:`load_model`) or are not all finite."""
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
-    except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
-        raise InputError(f"{path}: not a training checkpoint ({type(error).__name__})") from None
-    if not isinstance(state, dict) or "state_dict" not in state:
-        raise InputError(f"{path}: not a training checkpoint (no state_dict)")
-    missing = [key for key in RESUME_KEYS if key not in state]
-    if missing:
-        raise InputError(f"{path}: not a training checkpoint (no {', '.join(missing)}: nothing to resume from)")
-    hyper = state.get("hyper_parameters") or {}
-    if isinstance(hyper.get("model"), dict) and "network" in hyper["model"]:
-        load_model(path)  # a FrontierNet's: its weights fit the network it declares and are finite
-    else:
-        check_finite(state["state_dict"], path)  # a map predictor's (train/mapprediction.py)
-    return hyper
-
-
-def resumed_settings(conf, hyper: dict) -> None:
-    """Set in `conf` what a resumed run takes from its checkpoint (`hyper`: its hyperparameters,
-    :func:`resume_checkpoint`), not from the config: the network it trains and the fine-tuning settings
-    (``init_weights``, ``init_inputs``, ``freeze``) that made it, so that the written model file shares
-    the same layers with the same base."""
-    model, train = hyper.get("model") or {}, hyper.get("train") or {}
-    if "network" in model:
-        conf.model.network = OmegaConf.create(model["network"])
-    for key in ("init_weights", "init_inputs", "freeze"):
-        if key in train:
-            conf[key] = train[key]
-
-
 def run_dir(conf) -> Path:
     return Path(conf.out) / str(conf.name)
 
-
-def resume_checkpoint(out: Path, resume: str | None) -> tuple[str | None, dict]:
-    """(the checkpoint a run in folder `out` resumes from, its hyperparameters): `resume` as given
-    (``"last"``: the run's last checkpoint), checked to be a training checkpoint; (None, {}) for a fresh
-    run. InputError: nothing to resume, a missing or foreign checkpoint, or a fresh run into a folder
-    holding one already."""
-    last = out / "checkpoints" / "last.ckpt"
-    if resume == "last":
-        if not last.is_file():
-            raise InputError(f"{last}: nothing to resume (no last checkpoint in the run folder)")
-        resume = str(last)
-    elif resume is not None:
-        input_file(resume, "checkpoint to resume from")
-    elif last.exists():
-        raise InputError(f"{out} already holds a training run; pass --resume to continue it or change name=")
-    return resume, (_check_checkpoint(resume) if resume is not None else {})
 
 def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     """Train with the resolved config `conf` (``train.config.load_train_config``).
 
     Args:
-        resume: ``"last"`` to continue ``<run>/checkpoints/last.ckpt``, or a checkpoint path.
+        resume: ``"last"`` to continue ``<run>/checkpoints/last.ckpt``, or a checkpoint path (one of a FrontierNet
+            training: :func:`~train.resume.resume_checkpoint`).
     Returns:
-        The run folder.
+        The run folder. A run that does not resume is refused where an earlier run's files would be replaced, and
+        the folder is locked while the run writes there (a second run on it is refused): :mod:`train.resume`.
     """
     check_settings(conf)
     out = run_dir(conf)
     resume, hyper = resume_checkpoint(out, resume)
-    last = out / "checkpoints" / "last.ckpt"
     if resume is not None:
         resumed_settings(conf, hyper)
     init, init_labels = initial_weights(conf) if resume is None else (None, {})
@@ -326,6 +272,15 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
                          "dataset's (model.labels.num_classes: as many), or train on a dataset made with yours")
     datamodule = FrontierDataModule(conf, progress, dataset)
     check_loop_settings(conf, len(datamodule.split()[0]))  # before the training cache is built
+    check_training_cache(conf.data, conf.model, dataset)  # a folder that is not a cache of this training: now
+    with claimed_run_folder(out, resume) as made:  # (a second run on the folder meanwhile: refused here)
+        return _fit(conf, out, resume, init, base, datamodule, progress, made)
+
+
+def _fit(conf, out: Path, resume: str | None, init, base, datamodule, progress: bool, made: Path | None) -> Path:
+    """The training of :func:`main`, its checks passed and its run folder `out` claimed (`made`: the outermost
+    folder the claim made, removed when the run fails before its first checkpoint: :func:`run_folder`)."""
+    last = out / "checkpoints" / "last.ckpt"
     checkpoints = out / "checkpoints"
     best = ModelCheckpoint(dirpath=checkpoints, filename="best", monitor="val/loss", mode="min", save_top_k=1,
                            enable_version_counter=False)
@@ -367,7 +322,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
         part = 1 + len(list(out.glob("metrics-part*.csv")))
         (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
     started = time.time()
-    with run_folder(out, trainer):
+    with run_folder(out, trainer, made):
         (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
         trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code
     checkpoint = best.best_model_path or str(last)
@@ -384,13 +339,14 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
 
 
 @contextmanager
-def run_folder(out: Path, trainer):
+def run_folder(out: Path, trainer, made: Path | None = None):
     """Run folder `out` made (with the folders above it that are missing) for the training in the body, which
     Lightning's `trainer` runs: where the body fails before any checkpoint was saved (it never stepped, or it
-    diverged first: :class:`~train.module.TrainingDiverged`), the folders made here are removed, as nothing
-    could resume from them; Ctrl-C (Lightning turns it into ``sys.exit(1)`` after its ``on_exception``
-    hooks, or only marks the trainer interrupted) ends as KeyboardInterrupt."""
-    made = next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
+    diverged first: :class:`~train.module.TrainingDiverged`), the folders made here, or `made` (the outermost
+    folder that :func:`~train.resume.claimed_run_folder` made for the run), are removed, as nothing could resume
+    from them; Ctrl-C (Lightning turns it into ``sys.exit(1)`` after its ``on_exception`` hooks, or only marks
+    the trainer interrupted) ends as KeyboardInterrupt."""
+    made = made or next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
     out.mkdir(parents=True, exist_ok=True)
     try:
         yield out

@@ -60,12 +60,34 @@ def load_map_train_config(user_file, overrides=()):
     base = OmegaConf.merge({"optim": shipped.optim, "trainer": shipped.trainer}, load_config(f"train_{kind}"))
     conf = merge_user(base, user_file, overrides,
                       layout={"optim": "train.optim", "trainer": "train.trainer", "": f"train_{kind}"})
+    refuse_other_kinds_keys(conf, base, kind)
     if not conf.data.path:
         raise InputError("data.path is not set: give the map dataset folder (data.path=DIR)")
     predictor_spec(conf)  # a bad architecture or schedule fails here, before any data is read
     check_schedule(conf.optim, bool(conf.trainer.max_time))
     check_max_time(conf.trainer.max_time)  # (00:00:00:00 trained nothing and left a run folder)
     return conf
+
+
+KIND_KEYS = {"data.crops_per_snapshot": ("seer", "a seer predictor trains on crops around frontier pieces"),
+             "data.jitter_m": ("seer", "it moves the seer training crops"),
+             "predictor.crop_shape": ("seer", "the size of a seer crop"),
+             "data.topdown_size": ("mapex", "the size of a mapex training window"),
+             "data.anywhere_fraction": ("mapex", "where mapex training windows are placed"),
+             "predictor.band_m": ("mapex", "the height band of the mapex top-down map")}
+"""The keys of the map predictors' training configs that one kind alone reads: key -> (that kind, what it sets)."""
+
+
+def refuse_other_kinds_keys(conf, shipped, kind: str) -> None:
+    """InputError naming a key of :data:`KIND_KEYS` that the user's file or overrides set to other than the
+    shipped `shipped` config's value while the run trains a predictor of another `kind`: it was ignored in silence
+    (``data.crops_per_snapshot=1000000000`` in a mapex training)."""
+    for key, (reader, what) in KIND_KEYS.items():
+        if reader != kind and OmegaConf.select(conf, key) != OmegaConf.select(shipped, key):
+            value = OmegaConf.select(conf, key)
+            raise InputError(f"{key}: a {kind} training does not read it ({reader} only: {what}), got "
+                             f"{OmegaConf.to_container(value) if OmegaConf.is_config(value) else value!r}; "
+                             f"leave it out (or train a {reader} predictor: configs/train_{reader}.yaml)")
 
 
 def predictor_spec(conf) -> PredictorSpec:
@@ -192,22 +214,33 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     Args:
         resume: ``"last"`` (the run's last checkpoint) or a checkpoint path.
     """
-    from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
-    from lightning.pytorch.loggers import CSVLogger
-    from torch.utils.data import DataLoader
-
-    from .main import LastCheckpoint, _trainer_args, check_trainer, resume_checkpoint, run_dir, run_folder
+    from .main import check_trainer, run_dir
     from .mapdata import make_samples
+    from .resume import claimed_run_folder, resume_checkpoint
 
     check_trainer(conf.trainer)
     out = run_dir(conf)
-    resume = resume_checkpoint(out, resume)[0]
-    last = out / "checkpoints" / "last.ckpt"
+    resume = resume_checkpoint(out, resume, predictor_spec(conf))[0]  # (one of another kind: refused now)
     dataset, spec, train, val, train_scenes, val_scenes = open_map_training_data(conf)
     batch = int(conf.data.batch_size)
     train_set, val_set = make_samples(dataset, train, spec, conf, True), make_samples(dataset, val, spec, conf, False)
     if batch < 1 or len(train_set) < batch:
         raise InputError(f"data.batch_size: {batch} must be between 1 and the {len(train_set)} training samples")
+    with claimed_run_folder(out, resume) as made:  # (a second run on the folder meanwhile: refused here)
+        return _fit(conf, out, resume, spec, (train_set, val_set), (train_scenes, val_scenes), progress, made)
+
+
+def _fit(conf, out: Path, resume, spec, samples, scenes, progress: bool, made) -> Path:
+    """The training of :func:`main`, its checks passed and run folder `out` claimed (`made`: what the claim made)."""
+    from lightning.pytorch.callbacks import LearningRateMonitor, ModelCheckpoint
+    from lightning.pytorch.loggers import CSVLogger
+    from torch.utils.data import DataLoader
+
+    from .main import LastCheckpoint, _trainer_args, run_folder
+
+    last = out / "checkpoints" / "last.ckpt"
+    (train_set, val_set), (train_scenes, val_scenes) = samples, scenes
+    batch = int(conf.data.batch_size)
     L.seed_everything(int(conf.seed), workers=True, verbose=False)
     if conf.trainer.threads:
         torch.set_num_threads(int(conf.trainer.threads))
@@ -236,7 +269,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     loaders = [DataLoader(samples, batch_size=batch, shuffle=shuffle, drop_last=shuffle, num_workers=workers,
                           persistent_workers=workers > 0) for samples, shuffle in ((train_set, True), (val_set, False))]
     started = time.time()
-    with run_folder(out, trainer):
+    with run_folder(out, trainer, made):
         (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
         trainer.fit(module, *loaders, ckpt_path=resume, weights_only=True)
     checkpoint = best.best_model_path or str(last)

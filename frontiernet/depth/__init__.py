@@ -70,7 +70,9 @@ def check_depth_files(name: str, conf: Mapping[str, Any] | DictConfig | None = N
     them (:meth:`DepthSource.check_files`)."""
     source = DEPTH_SOURCES.get(depth_source_name(name))
     section = conf.get(source.name) if conf is not None else None
-    source.check_files(section if section is not None else source.options())
+    if section is None:  # (was source.options(), the tuple of its option names: "expected a mapping ..., got tuple")
+        section = source_options().get(source.name, {})
+    source.check_files(section)
 
 
 def monocular_sources() -> list[str]:
