@@ -2,13 +2,16 @@
 # Resume the published benchmark under the paper's protocol (issue 54, "Know the limit"): scene-sized
 # step budgets (configs/bench.yaml `budget`), Vox@25/@50 at the step where the methods on average
 # first reach 25 / 50 % coverage, both depth regimes, the all-knowing bound (omniscient) and NBVP
-# beside classic, random-frontier, frontiernet and oracle. Run from anywhere; finished runs are kept.
+# beside classic, random-frontier, frontiernet and oracle, and the map-predicting seer, mapex and
+# frontiernet-mapex. Run from anywhere; finished runs are kept.
 #   STARTS=1 (the default) is pass 1: every scene from its first start, one repeat (15 scenes x
-#   6 methods x 2 regimes = 180 runs, 24,600 steps a method and regime; about 15 worker-hours on
-#   2 cores). STARTS=3 is pass 2 (the same first poses, two more each); REPEATS=3 pass 3, the full
+#   9 methods x 2 regimes = 270 runs, 24,600 steps a method and regime; the first six methods' 180 took
+#   about 15 worker-hours on 2 cores, the other three planned at about 11 more). STARTS=3 is pass 2 (the same first poses, two more each); REPEATS=3 pass 3, the full
 #   protocol (runs that would repeat exactly are copied, not run). METHODS=classic,random-frontier STARTS=3
 #   runs pass 2 of those two methods alone (a benchmark grows by a command that names only what it adds:
 #   the other methods' runs stay in the plan and the report).
+# seer, mapex and frontiernet-mapex (issue 56) joined on 0f6c59a, which changes no run of the others (the seer
+# section and the shipped predictors; sessions.md).
 # FRONTIERNET: the command (default: the code this folder's runs were made with, pinned with
 # scripts/pinned.sh in a folder beside the checkout, so the checkout can be edited meanwhile;
 # sessions.md logs the code of each invocation: later commits that change no run, checked to the step).
@@ -22,7 +25,7 @@
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
-FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh cfba5e4 ../pinned_scene_budgets_cfba5e4}
+FRONTIERNET=${FRONTIERNET:-scripts/pinned.sh 0f6c59a ../pinned_scene_budgets_0f6c59a}
 OUT_DIR=docs/benchmark/scene_budgets
 mkdir -p runs
 [ -f runs/shipped.onnx ] || $FRONTIERNET export frontiernet/weights/frontiernet_rgbd_resnet18.safetensors \
@@ -30,7 +33,7 @@ mkdir -p runs
 KTH=../shared/data/floorplans/kth
 $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural:1000-1009 \
     "$KTH/50010535_PLAN1" "$KTH/50015847" "$KTH/50037764_PLAN1" "$KTH/50052750" \
-    --methods "${METHODS:-classic,random-frontier,nbvp,omniscient,frontiernet,oracle}" \
+    --methods "${METHODS:-classic,random-frontier,nbvp,omniscient,frontiernet,oracle,seer,mapex,frontiernet-mapex}" \
     --starts "${STARTS:-1}" --repeats "${REPEATS:-1}" --scene-starts --model runs/shipped.onnx \
     --depth gt,emulated --workers "${WORKERS:-2}" --redo-changed --out "$OUT_DIR" || status=$?  # 1: a run failed
 $FRONTIERNET bench --pack --out "$OUT_DIR"
