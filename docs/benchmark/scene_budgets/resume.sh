@@ -6,8 +6,9 @@
 # frontiernet-mapex. Run from anywhere; finished runs are kept.
 #   STARTS=1 (the default) is pass 1: every scene from its first start, one repeat (15 scenes x
 #   9 methods x 2 regimes = 270 runs, 24,600 steps a method and regime; the first six methods' 180 took
-#   about 15 worker-hours on 2 cores, the other three planned at about 11 more). STARTS=3 is pass 2 (the same first poses, two more each); REPEATS=3 pass 3, the full
-#   protocol (runs that would repeat exactly are copied, not run). METHODS=classic,random-frontier STARTS=3
+#   about 15 worker-hours on 2 cores, the other three planned at about 11 more).
+#   STARTS=3 is pass 2 (the same first poses, two more each); REPEATS=3 pass 3, the full protocol
+#   (runs that would repeat exactly are copied, not run). METHODS=classic,random-frontier STARTS=3
 #   runs pass 2 of those two methods alone (a benchmark grows by a command that names only what it adds:
 #   the other methods' runs stay in the plan and the report).
 # seer, mapex and frontiernet-mapex (issue 56) joined on 0f6c59a, which changes no run of the others (the seer
