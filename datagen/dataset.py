@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError, positive_number
+from frontiernet.io import npy_overclaim
 
 from .labels import distance_field, gain_definition
 from .shards import (DEFAULT_TRUNCATION_PX, INFO_NAME, MASK_NAMES, SHARDS_DIR, DatasetError,
@@ -39,7 +40,11 @@ def _decode_sample(read, meta: dict, key: str) -> dict:
         return array
 
     def npy(name: str, dtype, array_shape) -> np.ndarray:
-        array = np.lib.format.read_array(io.BytesIO(read(name)), allow_pickle=False)
+        data = read(name)
+        overclaim = npy_overclaim(io.BytesIO(data), len(data))
+        if overclaim is not None:
+            raise ValueError(f"{name}: {overclaim}")
+        array = np.lib.format.read_array(io.BytesIO(data), allow_pickle=False)
         if array.dtype != dtype or array.shape != array_shape:
             raise ValueError(f"{name} is {array.shape} {array.dtype}, expected {array_shape} "
                              f"{np.dtype(dtype)}")

@@ -1,0 +1,61 @@
+"""Bad input of the tenth probe of issue 55 (docs/bad_input.md): each refusal one line, exit code 2, no
+internal error; each test failed before its fix."""
+
+from __future__ import annotations
+
+import io
+import shutil
+import zipfile
+
+import numpy as np
+
+from frontiernet.cli.main import main
+
+
+def npy_bomb(path, shape=(100_000, 100_000)):
+    """A .npy file whose header claims `shape` float32 over 64 bytes of data (37 GiB for the default)."""
+    buffer = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buffer, {"descr": "<f4", "fortran_order": False, "shape": shape})
+    path.write_bytes(buffer.getvalue() + b"\0" * 64)
+    return path
+
+
+def test_an_npy_header_claiming_more_than_the_file_holds_is_refused_before_numpy_allocates(tmp_path, one_line_error):
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "rgb.png"), np.full((48, 64, 3), 128, np.uint8))
+    bomb = npy_bomb(tmp_path / "depth.npy")
+    assert main(["predict", "--image", str(tmp_path / "rgb.png"), "--depth", str(bomb), "--out", str(tmp_path / "o")]) == 2
+    assert ("depth.npy: not a readable .npy array (its header claims a 100000x100000 float32 array of "
+            "40,000,000,000 bytes, the file holds 64: truncated or corrupt)") in one_line_error()
+    assert not (tmp_path / "o").exists()
+    assert main(["scene", "info", f"floorplan:{bomb}?resolution=0.05"]) == 2
+    assert "its header claims a 100000x100000 float32 array" in one_line_error()
+
+
+def test_a_whole_npy_file_still_reads(tmp_path):
+    from frontiernet.io import npy_overclaim, read_npy
+
+    np.save(tmp_path / "a.npy", np.arange(12, dtype=np.float32).reshape(3, 4))
+    assert read_npy(tmp_path / "a.npy").sum() == 66
+    data = (tmp_path / "a.npy").read_bytes()
+    assert npy_overclaim(io.BytesIO(data), len(data)) is None
+    assert "of 48 bytes, the file holds 47" in npy_overclaim(io.BytesIO(data[:-1]), len(data) - 1)
+
+
+def test_a_dataset_shard_holding_such_a_header_is_refused_as_corrupt(two_scenes, tmp_path, one_line_error):
+    from frontiernet.model import default_model_path
+
+    data = tmp_path / "data"
+    shutil.copytree(two_scenes, data)
+    shard = sorted((data / "shards").glob("*.zip"))[0]
+    with zipfile.ZipFile(shard) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    target = next(name for name in members if name.endswith(".npy"))
+    members[target] = npy_bomb(tmp_path / "bomb.npy").read_bytes()
+    with zipfile.ZipFile(shard, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+    assert main(["evaluate", str(default_model_path()), "--data", str(data), "--all", "--size", "64"]) == 2
+    line = one_line_error()
+    assert "its header claims a 100000x100000 float32 array" in line and shard.name in line
