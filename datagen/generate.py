@@ -24,7 +24,7 @@ from omegaconf import DictConfig, OmegaConf
 from frontiernet import __version__
 from frontiernet.config import first_difference
 from frontiernet.errors import InputError, whole_number
-from frontiernet.io import LOCK_NAME, check_not_dangling, claim_output_folder, write_json
+from frontiernet.io import LOCK_NAME, check_not_dangling, check_output_name, claim_output_folder, write_json
 from frontiernet.scenes.spec import expand_specs, parse_spec
 from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
@@ -215,6 +215,7 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
     conf_dict = OmegaConf.to_container(conf, resolve=True)
     info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed,
             "scenes": specs, "views_per_scene": views_per_scene, "shard_size": shard_size, "config": conf_dict}
+    check_output_name(out / INFO_NAME)  # before the system is asked about it (ENAMETOOLONG)
     created = not (out / INFO_NAME).exists()
     existed = out.exists()
     with claim_output_folder(out, force=True):  # one run at a time writes a dataset (--resume included)

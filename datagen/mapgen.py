@@ -27,7 +27,7 @@ from omegaconf import OmegaConf
 
 from frontiernet import __version__
 from frontiernet.errors import InputError, check_seed, positive_number, whole_number
-from frontiernet.io import claim_output_folder, write_json
+from frontiernet.io import check_output_name, claim_output_folder, write_json
 
 from .generate import _slug, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
@@ -295,6 +295,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
     conf_dict = OmegaConf.to_container(conf, resolve=True)
     info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed, "scenes": specs,
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}
+    check_output_name(out / INFO_NAME)  # before the system is asked about it (ENAMETOOLONG)
     created, existed = not (out / INFO_NAME).exists(), out.exists()
     with claim_output_folder(out, force=True):  # one run at a time writes a dataset (--resume included)
         prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),

@@ -219,12 +219,24 @@ def check_writable_folder(folder: str | Path, what: str) -> Path:
     return folder
 
 
-def _check_name_lengths(path: Path) -> None:
-    """InputError when a name in output `path` is longer than the file system takes (255 bytes)."""
+MAX_PATH_BYTES = 4095
+"""The longest path the system takes (Linux's PATH_MAX, 4,096 bytes with its terminating zero)."""
+
+
+def check_output_name(path: str | Path) -> Path:
+    """InputError when a name in output `path` is longer than the file system takes (255 bytes), or the whole
+    path (made absolute, as the system resolves it) longer than :data:`MAX_PATH_BYTES`: before anything asks
+    the system about it (``Path.exists`` raises ENAMETOOLONG, an internal error, where it says "no" to others)."""
+    path = Path(path)
     for name in path.parts:
         if len(os.fsencode(name)) > 255:
             raise InputError(f"{str(path)[:48]}...: a name of {len(os.fsencode(name))} bytes in the output path; "
                              "file systems take at most 255")
+    whole = len(os.fsencode(os.path.abspath(path)))
+    if whole > MAX_PATH_BYTES:
+        raise InputError(f"{str(path)[:48]}...: an output path of {whole:,} bytes; the system takes at most "
+                         f"{MAX_PATH_BYTES:,}")
+    return path
 
 
 def _check_regular(path: Path) -> None:
@@ -249,7 +261,7 @@ def check_output_file(path: str | Path, force: bool = True, *, writable: str | N
     has a name too long; with `writable` (the option, ``--json``), also when no file can be made in its
     folder (missing, no permission: :func:`check_writable_folder`): an output written after the work."""
     path = Path(path)
-    _check_name_lengths(path)
+    check_output_name(path)
     check_not_dangling(path)
     if path.is_dir():
         raise InputError(f"{path}: is a folder; give the output's file name")
@@ -267,7 +279,7 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
     already holds files and `force` is off (a command's earlier outputs are not replaced unless
     asked: :data:`FORCE`; the lock of :func:`claim_output_folder` is no output), or has a name too long."""
     path = Path(path)
-    _check_name_lengths(path)
+    check_output_name(path)
     check_not_dangling(path)
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: output path exists and is not a folder")

@@ -59,3 +59,17 @@ def test_a_dataset_shard_holding_such_a_header_is_refused_as_corrupt(two_scenes,
     assert main(["evaluate", str(default_model_path()), "--data", str(data), "--all", "--size", "64"]) == 2
     line = one_line_error()
     assert "its header claims a 100000x100000 float32 array" in line and shard.name in line
+
+
+def test_output_names_too_long_for_the_system_are_refused_in_one_line(tmp_path, one_line_error):
+    """A 300-byte name (datagen, mapgen asked the system about it first: ENAMETOOLONG, an internal error) and a
+    path of 5,000 bytes made of legal 200-byte names (explore)."""
+    long_name = str(tmp_path / ("L" * 300))
+    for argv in (["datagen", "--scenes", "procedural:3", "--views-per-scene", "1", "--no-progress", "--out", long_name],
+                 ["mapgen", "--scenes", "procedural:3", "--no-progress", "--out", long_name]):
+        assert main(argv) == 2
+        assert "a name of 300 bytes in the output path; file systems take at most 255" in one_line_error()
+    deep = str(tmp_path.joinpath(*["d" * 200] * 25))
+    assert main(["explore", "--scene", "procedural:3", "--max-steps", "4", "--no-video", "--out", deep]) == 2
+    assert "bytes; the system takes at most 4,095" in one_line_error()
+    assert sorted(tmp_path.iterdir()) == []
