@@ -8,6 +8,7 @@ import shutil
 import zipfile
 
 import numpy as np
+import pytest
 
 from frontiernet.cli.main import main
 
@@ -73,3 +74,26 @@ def test_output_names_too_long_for_the_system_are_refused_in_one_line(tmp_path, 
     assert main(["explore", "--scene", "procedural:3", "--max-steps", "4", "--no-video", "--out", deep]) == 2
     assert "bytes; the system takes at most 4,095" in one_line_error()
     assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option", ["wall_thickness", "exterior_wall_thickness", "door_clearance", "furniture_gap"])
+def test_procedural_lengths_past_any_building_are_refused(option, one_line_error):
+    # 3e38 m overflowed the plan's int64 cells (an internal error); every length now has footprint_max's bound
+    assert main(["scene", "info", f"procedural:3?{option}=3e38"]) == 2
+    assert f"procedural option {option} must be a number in (0, 100], got 3e+38" in one_line_error()
+
+
+@pytest.mark.parametrize("config, override, message", [
+    ("configs/train_tiny.yaml", "optim.lr=3e38", "optim.lr must be a number in (0, 10], got 3e+38"),
+    ("configs/train_tiny.yaml", "optim.weight_decay=1e30", "optim.weight_decay must be a number in [0, 100], got 1e+30"),
+    ("configs/train_seer.yaml", "optim.lr=1e38", "optim.lr must be a number in (0, 10], got 1e+38"),
+])
+def test_training_rates_that_overflow_are_refused_before_the_trainer(config, override, message, tmp_path,
+                                                                      one_line_error):
+    # 3e38 overflowed torch's Adam after the trainer's setup; 1e30 decay diverged, blamed on optim.lr
+    from conftest import REPO_ROOT
+
+    assert main(["train", "--no-progress", "--config", str(REPO_ROOT / config), f"data.path={tmp_path / 'none'}",
+                 f"out={tmp_path / 'runs'}", override]) == 2
+    assert message in one_line_error()
+    assert not (tmp_path / "runs").exists()
