@@ -97,3 +97,12 @@ def test_training_rates_that_overflow_are_refused_before_the_trainer(config, ove
                  f"out={tmp_path / 'runs'}", override]) == 2
     assert message in one_line_error()
     assert not (tmp_path / "runs").exists()
+
+
+def test_nbvp_draws_past_memory_are_refused_before_the_scene(tmp_path, one_line_error):
+    # each key at its maximum, the product asked for 54 GiB (an internal error); the default draws 201,000
+    assert main(["explore", "--scene", "procedural:3", "--max-steps", "4", "--no-video", "--method", "nbvp",
+                 "--out", str(tmp_path / "o"), "nbvp.attempts_per_node=10000", "nbvp.cutoff_iterations=2000",
+                 "nbvp.init_iterations=2000", "nbvp.yaw_samples=360"]) == 2
+    assert "nbvp.yaw_samples <= 50000000 must hold (a planning call draws" in one_line_error()
+    assert not (tmp_path / "o").exists()
