@@ -106,3 +106,12 @@ def test_nbvp_draws_past_memory_are_refused_before_the_scene(tmp_path, one_line_
                  "nbvp.init_iterations=2000", "nbvp.yaw_samples=360"]) == 2
     assert "nbvp.yaw_samples <= 50000000 must hold (a planning call draws" in one_line_error()
     assert not (tmp_path / "o").exists()
+
+
+def test_a_seer_crop_of_too_many_voxels_is_refused_before_training(tmp_path, one_line_error):
+    # 512 x 512 x 512 (each side in range) trained for minutes before its first step: a hang to the user
+    from conftest import REPO_ROOT
+
+    assert main(["train", "--no-progress", "--config", str(REPO_ROOT / "configs/train_seer.yaml"),
+                 f"data.path={tmp_path / 'none'}", f"out={tmp_path / 'runs'}", "predictor.crop_shape=[512,512,512]"]) == 2
+    assert "predictor.crop_shape[2] <= 2000000 must hold" in one_line_error()
