@@ -198,7 +198,7 @@ def magnitude_note(value, integer: bool = False) -> str:
 
 
 def _number(value: float) -> str:
-    return str(int(value)) if float(value).is_integer() else str(value)
+    return str(int(value)) if float(value).is_integer() and abs(value) < 1e16 else str(value)
 
 
 def parse_range(spec, where: str) -> Range:

@@ -324,7 +324,7 @@ def test_a_camera_too_large_to_render_is_refused_before_the_scene_loads(tmp_path
 
 @pytest.mark.parametrize("overrides, message", [
     (["trainer.max_epochs=-1"], "trainer.max_epochs (-1: no limit, with trainer.max_steps > 0) must be an integer"),
-    (["augment.crop_size=0"], "augment.crop_size must be an integer in [8, 2048] (or null), got 0"),
+    (["augment.crop_size=0"], "augment.crop_size must be an integer in [33, 2048] (or null), got 0"),
     (["augment.hflip=1.5"], "augment.hflip must be a number in [0, 1], got 1.5"),
     (["trainer.threads=99999"], "trainer.threads must be an integer in [1, 1024] (or null), got 99999"),
     (["seed=-1"], "seed must be an integer in [0, 4294967295], got -1"),  # issue 55's second probe: an internal error

@@ -58,7 +58,7 @@ def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Pa
                                        "'procedural:3'; write one scene as a one-element list, e.g. "
                                        "'data.val_scenes=[procedural:3]'"),
     # numbers float32 cannot hold: an internal error (torch's overflow) or a whole run trained on NaN
-    (["optim.lr=1e300"], "optim.lr must be a number > 0, got 1e+300: beyond the 32-bit floats it is computed in"),
+    (["optim.lr=1e300"], "optim.lr must be a number in (0, 1e+30], got 1e+300: beyond the 32-bit floats it is computed in"),
     (["model.input.rgb_std=[0.1,0.1,1e-300]"], "model.input.rgb_std must be a list of 3 numbers > 0, got "
                                               "[0.1, 0.1, 1e-300]: beyond the 32-bit floats"),
     (["model.labels.truncation_px=1e300"], "model.labels.truncation_px must be a number > 0, got 1e+300: beyond"),
