@@ -107,13 +107,10 @@ def npy_overclaim(stream, size: int) -> str | None:
     found out (issue 55's tenth probe)."""
     from numpy.lib import format as npy_format
 
+    readers = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0}
     try:
-        version = npy_format.read_magic(stream)
-        reader = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0}.get(version)
-        if reader is None:
-            return None
-        shape, _, dtype = reader(stream)
-    except (ValueError, OSError, EOFError):
+        shape, _, dtype = readers[npy_format.read_magic(stream)](stream)
+    except (KeyError, ValueError, OSError, EOFError):
         return None
     claimed, held = int(np.prod(shape, dtype=object)) * dtype.itemsize, size - stream.tell()
     return (f"its header claims a {'x'.join(map(str, shape)) or 'scalar'} {dtype} array of {claimed:,} bytes, "
@@ -219,8 +216,7 @@ def check_writable_folder(folder: str | Path, what: str) -> Path:
     return folder
 
 
-MAX_PATH_BYTES = 4095
-"""The longest path the system takes (Linux's PATH_MAX, 4,096 bytes with its terminating zero)."""
+MAX_PATH_BYTES = 4095  # the longest path the system takes (Linux's PATH_MAX, 4,096 bytes with its terminating zero)
 
 
 def check_output_name(path: str | Path) -> Path:
