@@ -229,3 +229,30 @@ def test_a_long_region_of_few_far_apart_cells_is_split_into_single_cells_not_emp
     cells = np.array([[0, 0], [0, 10], [0, 20], [5, 20]], np.int64)
     pieces = _split_long(np.arange(4), cells, max_extent_cells=3.0)
     assert sorted(np.concatenate(pieces).tolist()) == [0, 1, 2, 3] and all(len(p) == 1 for p in pieces)
+
+
+def test_regions_dropped_as_noise_are_proposed_once_a_run_would_stop_and_only_while_nothing_larger_is():
+    # a door the monocular map half-shuts leaves a frontier of 2-3 cells, below min_cells (5): classic stopped
+    # with a quarter of procedural:1003 behind one (issue 54); min_cells_before_stop proposes such regions then
+    from frontiernet.exploration.sources import MapSource
+    from frontiernet.timing import Stopwatch
+
+    free, occupied = np.zeros((20, 20), bool), np.zeros((20, 20), bool)
+    free[:, :15], occupied[:, 15] = True, True
+    occupied[8:11, 15], free[8:11, 15] = False, True  # the door's open part: 3 free cells, unknown beyond
+    frame = SimpleNamespace(rgb=np.zeros((8, 8, 3), np.uint8), K=np.array([[8.0, 0, 4], [0, 8, 4], [0, 0, 1]]),
+                            T_world_cam=pose_from_heading(1.0, 1.0, Z, 0.0), depth=np.ones((8, 8), np.float32))
+
+    def proposed(source) -> list:
+        return source(frame, frame.depth, Stopwatch())[0]
+
+    source = MapSource("uniform", stub_map(free, occupied), OmegaConf.create(conf()))
+    assert proposed(source) == []  # a run would stop here
+    assert source.widen() and not source.widen()  # once
+    (door,) = proposed(source)
+    assert door.num_pixels == 3 and door.position[0] == pytest.approx(0.95) and door.direction[1] == 1.0
+    free[0, 2:9] = False  # unknown cells along x = 0 too: a region of 9 frontier cells beside them ...
+    (larger,) = proposed(source)
+    assert larger.num_pixels == 9 and larger.position[0] < 0.3  # ... and the door's is held back again
+    off = MapSource("uniform", stub_map(free, occupied), OmegaConf.create(conf(min_cells_before_stop=None)))
+    assert not off.widen()  # as before the key: the run stops

@@ -3,7 +3,7 @@ holds one): the keys added to the configs after it was planned, read as the code
 (:data:`KEYS_ADDED_AFTER_PLANS`) or as this run's config has them where they change none of its runs
 (:data:`KEYS_IDLE_WHEN`); the settings in which the two differ (:func:`differences`); and which of its
 runs a difference reaches (:func:`runs_changed`: those of some depth sources, of some methods, or
-those that collided), so that ``--redo-changed`` runs those again and keeps the rest.
+those that collided or stopped with no frontier left), so that ``--redo-changed`` runs those again and keeps the rest.
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ KEYS_ADDED_AFTER_PLANS = {
     "planner.start_failure": "blame",  # issue 54: a route's failed first increment always blames its goal, as before
     "planner.monocular_traversed_is_free": False,  # issue 54: monocular maps alone decide what is traversable, as before
     "planner.bumps_are_obstacles": False,  # issue 54: a collision leaves the robot's map as it was, as before
+    "map_frontiers.min_cells_before_stop": None,  # issue 54: a run with no frontier left stops, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "attempts_per_node": 1000,
@@ -154,25 +155,35 @@ METHOD_SECTIONS = {
 (the factories of :mod:`frontiernet.exploration.methods` that parse them)."""
 
 
+FINISHED_WHEN = {"collided": lambda metrics: bool(metrics.get("collisions")),
+                 "stopped": lambda metrics: metrics.get("stop_reason") == "no frontiers left"}
+"""Conditions on a finished run's metrics under which a setting reaches it (:class:`Readers`' `when`): one
+that acts only on a collision, or only where a run would stop with no frontier left."""
+
+
 @dataclass(frozen=True)
 class Readers:
     """The runs of a benchmark that read one setting: those of depth sources `sources` and methods
-    `methods` (None: every source, every method); with `collided`, only finished ones that collided."""
+    `methods` (None: every source, every method); with `when` (a key of :data:`FINISHED_WHEN`), only
+    finished ones that meet it (those that collided, or that stopped with no frontier left)."""
 
     sources: frozenset | None = None
     methods: frozenset | None = None
-    collided: bool = False
+    when: str | None = None
 
-    def reads(self, run: dict, single_source: str, collided: bool = True) -> bool:
-        """Whether the planned `run` (a plan's ``runs`` entry; `collided`: whether it finished with a
-        collision) is one of them; `single_source`: the source of a plan whose runs carry none."""
+    def reads(self, run: dict, single_source: str, metrics: dict | None = None) -> bool:
+        """Whether the planned `run` (a plan's ``runs`` entry; `metrics`: its finished record, None when
+        unknown) is one of them; `single_source`: the source of a plan whose runs carry none."""
         return ((self.sources is None or (run.get("depth") or single_source) in self.sources)
-                and (self.methods is None or run["method"] in self.methods) and (collided or not self.collided))
+                and (self.methods is None or run["method"] in self.methods)
+                and (self.when is None or metrics is None or FINISHED_WHEN[self.when](metrics)))
 
-    def __str__(self) -> str:  # "emulated-depth runs", "nbvp runs", "emulated-depth nbvp runs", "collided runs"
+    def __str__(self) -> str:  # "emulated-depth runs", "nbvp runs", "collided runs", "classic runs that stopped"
         words = [] if self.sources is None else [" and ".join(sorted(self.sources)) + "-depth"]
         words += [] if self.methods is None else [" and ".join(sorted(self.methods))]
-        return " ".join(words + ["collided runs" if self.collided else "runs"])
+        if self.when == "collided":
+            return " ".join(words + ["collided runs"])
+        return " ".join(words + ["runs"] + (["that stopped with no frontier left"] if self.when == "stopped" else []))
 
 
 def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None = None) -> Readers | None:
@@ -184,8 +195,11 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     this run's `settings` (the others keep their traversed cells either way); a source's own ``depth``
     section only to it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs;
     ``planner.bumps_are_obstacles`` only to runs that collided (a run without a collision is the same to
-    the step either way); None for every other setting (read by every run)."""
+    the step either way), ``map_frontiers.min_cells_before_stop`` only to the map-frontier methods' runs
+    that stopped with no frontier left (the same to the step before); None for every other setting (read
+    by every run)."""
     from ..depth import SOURCES
+    from ..exploration.methods import MAP_METHODS
 
     parts = dotted.split(".")
     section, key = (parts[1], parts[2]) if len(parts) > 2 and parts[0] == "conf" else (None, "")
@@ -196,7 +210,9 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
             "planner", {}).get("monocular_traversed_is_free")) for side in (stored, settings)):
         return Readers(sources=frozenset(SOURCES) - flying)
     if (section, key) == ("planner", "bumps_are_obstacles"):
-        return Readers(collided=True)
+        return Readers(when="collided")
+    if (section, key) == ("map_frontiers", "min_cells_before_stop"):
+        return Readers(methods=frozenset(MAP_METHODS), when="stopped")
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
         return Readers(sources=frozenset({parts[2]}))
     if len(parts) > 1 and parts[0] == "conf" and parts[1] in METHOD_SECTIONS:
@@ -219,7 +235,8 @@ def runs_changed(plan: dict, settings: dict, finished=None) -> tuple[list[str], 
     keys, in plan order; the readers of the changed settings). Empty keys: the change reaches none of
     its runs (a monocular key of a ground-truth plan, the section of a method it does not run). None
     when a setting that every run reads differs (another benchmark). `finished`: the folder's finished runs
-    (:class:`~frontiernet.benchmark.store.FinishedRuns`) for a setting read by collided runs (None: all read it)."""
+    (:class:`~frontiernet.benchmark.store.FinishedRuns`) for a setting read only by runs that collided or
+    stopped (None: all read it)."""
     from omegaconf import OmegaConf
 
     stored = plan["settings"]
@@ -231,15 +248,15 @@ def runs_changed(plan: dict, settings: dict, finished=None) -> tuple[list[str], 
         if reader is None:
             return None
         reader = Readers(None if reader.sources is None else reader.sources & frozenset(sources),
-                         None if reader.methods is None else reader.methods & frozenset(methods), reader.collided)
+                         None if reader.methods is None else reader.methods & frozenset(methods), reader.when)
         if reader.sources != frozenset() and reader.methods != frozenset() and reader not in readers:
             readers.append(reader)  # (as described: the plan's own sources and methods among them)
-    collided = {run["key"]: finished is None or bool((finished.metrics(run["key"]) or {}).get("collisions"))
-                for run in plan["runs"]} if any(reader.collided for reader in readers) else {}
+    metrics = {run["key"]: finished.metrics(run["key"]) or {} for run in plan["runs"]} \
+        if finished is not None and any(reader.when for reader in readers) else {}
     keys = [run["key"] for run in plan["runs"]
-            if any(reader.reads(run, sources[0], collided.get(run["key"], True)) for reader in readers)]
+            if any(reader.reads(run, sources[0], metrics.get(run["key"])) for reader in readers)]
     return keys, readers
 
 
-__all__ = ["KEYS_ADDED_AFTER_PLANS", "KEYS_IDLE_WHEN", "METHOD_SECTIONS", "Readers", "with_idle_keys",
+__all__ = ["KEYS_ADDED_AFTER_PLANS", "KEYS_IDLE_WHEN", "METHOD_SECTIONS", "FINISHED_WHEN", "Readers", "with_idle_keys",
            "with_keys_added_after", "differences", "blocking_difference", "runs_changed"]

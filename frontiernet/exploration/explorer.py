@@ -72,6 +72,7 @@ class ExplorationResult:
     reconstruction: dict = field(default_factory=dict)  # GLEAM's Chamfer distance and completeness
     account: dict = field(default_factory=dict)  # where the steps go (:func:`.steps.run_account`)
     forgiven: int = 0  # times the goals given up on had another chance before a stop (planner.forgive_before_stop)
+    widened_at_step: int | None = None  # the step the frontier source widened at, before a stop (FrontierSource.widen)
 
 
 class Explorer:
@@ -335,6 +336,17 @@ class Explorer:
         self.result.forgiven += 1
         return True
 
+    def _widen(self) -> bool:
+        """Before the run stops with no frontier left (and nothing to forgive): the method's
+        source proposes what it held back as noise (:meth:`~.sources.FrontierSource.widen`), and
+        the loop looks around again. A run is the same up to the step it would have stopped at.
+        Returns whether the source widened."""
+        if self.method.source is None or not self.method.source.widen():
+            return False
+        self.look_around_left = np.radians(float(self.conf.motion.look_around_deg))
+        self.result.widened_at_step = int(self.agent.steps)
+        return True
+
     def _start_turn(self) -> np.ndarray | None:
         """The next increment of the turn on the spot at the start (``motion.start_turn_deg``), or
         None once it is done: the first goal is chosen from what the camera saw all around, not
@@ -390,7 +402,7 @@ class Explorer:
                 target = self.next_pose()
             if target is None:
                 if self.route is None and not len(self.tracker) and self.look_around_left <= 0:
-                    if self._forgive():
+                    if self._forgive() or self._widen():
                         continue
                     self.result.stop_reason = "no frontiers left"
                     break

@@ -62,7 +62,7 @@ def metrics(result: ExplorationResult, budget: int, info: dict, tracker=None) ->
             "explorable_m3": round(result.explorable_m3, 3),
             "known_m3": round(result.records[-1].known_m3, 3) if result.records else 0.0,
             "path_length_m": round(result.path_length_m, 3), "collisions": int(result.collisions),
-            "goals": len(result.goals), "frontiers_left": result.records[-1].frontiers if result.records else 0,
+            "goals": len(result.goals), "widened_at_step": result.widened_at_step, "frontiers_left": result.records[-1].frontiers if result.records else 0,
             "frontiers_removed": dict(tracker.removed) if tracker is not None else {},
             "surface_coverage": float(surface[-1]), "surface_auc": round(coverage_auc(surface, budget), 5),
             "chamfer_m": _finite_or_none(result.reconstruction.get("chamfer_m")),

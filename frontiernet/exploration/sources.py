@@ -31,6 +31,12 @@ class FrontierSource:
     def __call__(self, frame, depth: np.ndarray, stopwatch) -> tuple[list, PerceptionResult]:
         raise NotImplementedError
 
+    def widen(self) -> bool:
+        """Called when the run would stop with no frontier left: from now on, propose what was held
+        back as noise when nothing else is proposed. Returns whether anything changes (the loop then
+        looks around again); the default holds nothing back."""
+        return False
+
 
 class ImageSource(FrontierSource):
     """Frontier pixels from a perception, lifted to 3D by anchoring (paper III-E).
@@ -70,6 +76,7 @@ class MapSource(FrontierSource):
         if occupancy is None:
             raise ValueError("map frontiers need the run's map (a MethodContext with voxels)")
         self.gain, self.map, self.conf = gain, occupancy, conf
+        self.widened_conf = None  # the config of the small regions, once widened
 
     def __call__(self, frame, depth, stopwatch):
         from ..frontiers.map_frontiers import map_frontiers
@@ -77,7 +84,23 @@ class MapSource(FrontierSource):
         z = float(frame.T_world_cam[2, 3])  # the camera height the robot keeps
         with stopwatch("anchoring"):
             observations = map_frontiers(self.map, z, self.conf, frame.T_world_cam, self.gain)
+            if not observations and self.widened_conf is not None:
+                observations = map_frontiers(self.map, z, self.widened_conf, frame.T_world_cam, self.gain)
         return observations, plain_view(frame, depth)
+
+    def widen(self) -> bool:
+        """``map_frontiers.min_cells_before_stop``: frames with no region of ``min_cells`` propose
+        the regions down to that many cells from now on (once; null: never). A door the monocular
+        map half-shuts shows a frontier of two or three cells, dropped as noise, and the run stopped
+        with a quarter of the building behind it
+        (docs/results/2026-12-07-small-frontiers-before-stop.md)."""
+        from omegaconf import OmegaConf
+
+        smallest, regular = self.conf.map_frontiers.get("min_cells_before_stop"), self.conf.map_frontiers.min_cells
+        if self.widened_conf is not None or smallest is None or int(smallest) >= int(regular):
+            return False
+        self.widened_conf = OmegaConf.merge(self.conf, {"map_frontiers": {"min_cells": int(smallest)}})
+        return True
 
 
 @dataclass
