@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from frontiernet.benchmark.plan import scene_key
-from frontiernet.benchmark.report import add_shared_vox, coverage_at, ratio_interval, table_markdown, write_report
+from frontiernet.benchmark.comparisons import ratio_interval
+from frontiernet.benchmark.report import add_shared_vox, coverage_at, table_markdown, write_report
 from frontiernet.config import load_config
 
 INTERVAL = load_config("bench").report.interval  # the shipped report's bootstrap

@@ -3,7 +3,7 @@
 One Markdown table, rows methods per depth source: each method's mean Vox@25 / @50 / @100 over
 the finished runs, its share of the all-knowing bound (``omniscient``) and its ratios to
 ``classic`` (the paper's Table I baseline) and to ``nbvp`` (its strongest), of the means over
-paired runs, with the bootstrap interval of :func:`.report.ratio_interval` at Vox@50. The
+paired runs, with the bootstrap interval of :func:`.comparisons.ratio_interval` at Vox@50. The
 figures are those of the folder's report (``table.md``: its summary, "Against classic" and
 "Share of the bound" sections compute the same means and ratios from the same rows).
 
@@ -22,7 +22,8 @@ import numpy as np
 
 from ..config import load_config
 from ..io import write_text
-from .report import BOUND, REFERENCE, VOX_FIELDS, add_shared_vox, common_starts, ratio_interval
+from .comparisons import BOUND, REFERENCE, VOX_FIELDS, ratio_interval
+from .report import add_shared_vox, common_starts
 from .runner import finished_row, with_copies
 from .store import FinishedRuns, read_plan
 
@@ -64,7 +65,7 @@ def _paired(done: list[dict], method: str, reference: str) -> list[tuple[dict, d
 def ratios_cell(pairs: list[tuple[dict, dict]], interval) -> str:
     """Ratios of the mean Vox@25, Vox@50 and Vox@100 of the first rows of `pairs` to the second's,
     ``a / b [lo, hi] / c``: Vox@50's with its bootstrap interval over (scene, start) clusters
-    (:func:`~.report.ratio_interval`, the paper's headline column); ``--`` without pairs."""
+    (:func:`~.comparisons.ratio_interval`, the paper's headline column); ``--`` without pairs."""
     cells = []
     for field in VOX_FIELDS:
         ours = np.array([float(a[field]) for a, _ in pairs])

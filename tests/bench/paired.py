@@ -1,6 +1,6 @@
 """Paired ratios between benchmark runs made in different folders from the same starts (docs/benchmark.md,
 issue 27 steps 4 and 5): each variant's Vox@25 / @50 / @100 and its ratio to two references, with the
-report's bootstrap interval over (scene, start) clusters (``frontiernet.benchmark.report.paired_ratio_cell``).
+report's bootstrap interval over (scene, start) clusters (``frontiernet.benchmark.comparisons.paired_ratio_cell``).
 
 A run is named ``FOLDER_OR_CSV:METHOD[@SOURCE][=LABEL]``; runs pair by (scene, start, repeat). Folders
 joined by ``+`` pool their runs (``runs/procedural+runs/house:classic``, e.g. one scene set run in two
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frontiernet.benchmark.report import paired_ratio_cell
+from frontiernet.benchmark.comparisons import paired_ratio_cell
 from frontiernet.config import load_config
 
 FIELDS = ("vox25", "vox50", "vox100")
