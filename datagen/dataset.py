@@ -18,7 +18,7 @@ from frontiernet.io import npy_overclaim
 
 from .labels import distance_field, gain_definition
 from .shards import (DEFAULT_TRUNCATION_PX, INFO_NAME, MASK_NAMES, SHARDS_DIR, DatasetError,
-                     _corrupt, read_dataset_info, read_shard_meta)
+                     _corrupt, read_dataset_info, read_shard_meta, regular_file)
 
 _MAX_OPEN_SHARDS = 32
 
@@ -222,15 +222,19 @@ def open_dataset(path: str | Path, truncation_px: float | None = None) -> Fronti
         shards = [path]
         root = path.parent.parent
         info = read_dataset_info(root) if path.parent.name == SHARDS_DIR and \
-            (root / INFO_NAME).is_file() else {}
+            os.path.lexists(root / INFO_NAME) else {}
     elif path.is_dir():
         shard_dir = path / SHARDS_DIR
-        if not (path / INFO_NAME).is_file() and not shard_dir.is_dir():
+        if not os.path.lexists(path / INFO_NAME) and not shard_dir.is_dir():
             raise DatasetError(f"{path}: not a FrontierNet dataset (no {INFO_NAME} and no "
                                f"{SHARDS_DIR}/ folder)")
-        info = read_dataset_info(path) if (path / INFO_NAME).is_file() else {}
-        shards = sorted((p for p in shard_dir.glob("*.zip") if p.is_file()), key=lambda p: p.name) \
+        info = read_dataset_info(path) if os.path.lexists(path / INFO_NAME) else {}  # (a folder there: refused)
+        # every *.zip: one that is a pipe, a device or a folder is refused as such (it was left out, then "missing")
+        shards = sorted((regular_file(p, "dataset shard") for p in shard_dir.glob("*.zip")), key=lambda p: p.name) \
             if shard_dir.is_dir() else []
+    elif path.exists():  # (a pipe, a device: "no such" sent one looking for a missing folder)
+        raise DatasetError(f"{path}: not a regular file nor a folder (a device or a pipe?), expected a dataset folder "
+                           "or one of its shards (.zip)")
     else:
         raise DatasetError(f"{path}: no such dataset folder or shard")
     metas = [read_shard_meta(shard) for shard in shards]

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError
-from frontiernet.io import ensure_dir, write_json
+from frontiernet.io import ensure_dir, input_file, write_json
 
 DATASET_FORMAT = "frontiernet-dataset"
 DATASET_FORMAT_VERSION = 1
@@ -98,12 +98,22 @@ def read_info_file(root: str | Path, not_found: str) -> tuple[Path, object]:
     naming the file when it is missing (`not_found` says what the folder then is not) or is no
     readable JSON. The caller checks its format."""
     path = Path(root) / INFO_NAME
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise DatasetError(f"{path}: not found ({not_found})")
+    regular_file(path, "dataset description")  # (a folder there was taken for none: the shards' metas stood in)
     try:
         return path, json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as error:
         raise DatasetError(f"{path}: not a readable JSON file ({error.__class__.__name__})") from None
+
+
+def regular_file(path: Path, what: str) -> Path:
+    """`path` if it is a regular file; DatasetError in :func:`~frontiernet.io.input_file`'s words otherwise (``is a
+    folder, expected a file``, ``not a regular file``: a pipe, a device, ``not found: a symbolic link to ...``)."""
+    try:
+        return input_file(path, what)
+    except InputError as error:
+        raise DatasetError(str(error)) from None
 
 
 def read_dataset_info(root: str | Path) -> dict:

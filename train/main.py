@@ -242,6 +242,18 @@ def check_crop(crop, size: int, size_key: str) -> None:
                          f"give at most {size}, or null for no crop")
 
 
+def check_view_size(size: int, conf) -> None:
+    """configs/ranges/train.yaml's relation of ``data.image_size``, ``data.batch_size`` and the network's
+    ``pad_multiple`` for the dataset's own `size` px views (``data.image_size: null``, which it skips): the encoder's
+    last stage, at 1/32 of the padded view, holds one value a channel at 32 px, which BatchNorm cannot train on in a
+    batch of 1 (a ValueError after the trainer's setup)."""
+    multiple = int(conf.model.network.pad_multiple)
+    if int(conf.data.batch_size) == 1 and -(-size // multiple) * multiple <= 32:
+        raise InputError(f"data.image_size: null keeps the dataset's {size} px views, within the encoder's 32 px "
+                         "stride: its last stage holds one value a channel, which BatchNorm cannot train on in a "
+                         "batch of 1; give data.image_size above 32 or data.batch_size=2 or more")
+
+
 def run_dir(conf) -> Path:
     return Path(conf.out) / str(conf.name)
 
@@ -266,6 +278,8 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     dataset = open_training_data(conf.data.path)
     if conf.data.image_size is None and conf.augment.crop_size is not None:
         check_crop(conf.augment.crop_size, view_size(dataset), "data.image_size: null keeps the dataset's size")
+    elif conf.data.image_size is None:
+        check_view_size(view_size(dataset), conf)
     resolve_gain_definition(conf, dataset.gain_definition, init_labels)
     if differs := gain_bins_mismatch(conf.model.labels, dataset):  # (else an internal error at the first validation)
         raise InputError(f"model.labels.bin_edges: gain classes of {differs} (datagen ground_truth.gain); give the "

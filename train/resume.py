@@ -7,6 +7,7 @@ predictors' (:mod:`train.mapprediction`)."""
 from __future__ import annotations
 
 import os
+import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -73,6 +74,9 @@ def check_checkpoint(path: str, spec=None) -> dict:
     than the run's (`spec`: the :class:`PredictorSpec` a map predictor's run trains, None for a FrontierNet
     training), of another architecture (a map predictor's: a FrontierNet run takes its network from the
     checkpoint), or weights that do not fit the network it declares (:func:`load_model`) or are not all finite."""
+    if not zipfile.is_zipfile(path):  # (torch: a RuntimeError or an OSError, neither naming the cause)
+        raise InputError(f"{path}: not a training checkpoint (not a PyTorch zip archive, the format frontiernet train "
+                         "writes: truncated, or another kind of file)")
     try:
         state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
     except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
@@ -171,8 +175,8 @@ def resume_checkpoint(out: Path, resume: str | None, spec=None) -> tuple[str | N
         if not last.is_file():
             raise InputError(f"{last}: nothing to resume (no last checkpoint in the run folder)")
         resume = str(last)
-    elif resume is not None:
-        input_file(resume, "checkpoint to resume from")
+    if resume is not None:  # (a 0-byte one was "not a training checkpoint (RuntimeError)")
+        input_file(resume, "checkpoint to resume from", empty_ok=False)
     check_fresh_run(out, resume)
     return resume, (check_checkpoint(resume, spec) if resume is not None else {})
 

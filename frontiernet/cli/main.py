@@ -12,7 +12,9 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
+import threading
 
 from .. import __version__
 from ..errors import InputError
@@ -37,6 +39,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    finally:  # (an exit code, or argparse's SystemExit)
+        if argv is None and threading.current_thread() is threading.main_thread():
+            ignore_late_signals()
+
+
+def ignore_late_signals() -> None:
+    """Ignore SIGINT and SIGTERM for the rest of the process: the command has its exit code, and what is left is
+    the interpreter's teardown, where a Ctrl-C raised KeyboardInterrupt inside torch's atexit finaliser
+    ("Exception ignored in atexit callback" and a traceback after the command's last line). Only for the process's
+    own command line (``sys.exit(main())``, `argv` None): a caller of ``main([...])`` keeps its handlers."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,

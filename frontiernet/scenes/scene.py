@@ -93,7 +93,8 @@ class Scene:
     vertex_colors: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float32).reshape(-1, 3)
+        with np.errstate(over="ignore"):  # past float32's range: inf, which validate refuses in one line (numpy's
+            self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float32).reshape(-1, 3)  # warning came first)
         self.triangles = np.ascontiguousarray(self.triangles, dtype=np.int32).reshape(-1, 3)
         self.triangle_material = np.ascontiguousarray(self.triangle_material, dtype=np.int32).reshape(-1)
         if self.triangle_uvs is not None:
