@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError, positive_number
-from frontiernet.io import npy_overclaim
+from frontiernet.array_files import npy_overclaim
 
 from .labels import distance_field, gain_definition
 from .shards import (DEFAULT_TRUNCATION_PX, INFO_NAME, MASK_NAMES, SHARDS_DIR, DatasetError,

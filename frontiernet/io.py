@@ -1,5 +1,5 @@
 """Reading inputs and writing outputs: an input file or folder checked for what it is
-(:func:`input_file`, :func:`input_folder`, :func:`read_npy`), an output folder claimed for one run
+(:func:`input_file`, :func:`input_folder`; arrays and images: :mod:`.array_files`), an output folder claimed for one run
 (:func:`claim_output_folder`) and outputs written atomically, so an interrupted run never leaves a
 half-written file."""
 
@@ -91,99 +91,6 @@ def input_folder(path: str | Path, what: str = "input") -> Path:
     if not path.is_dir():
         raise InputError(f"{path}: {what} folder not found{_why_missing(path)}")
     return path
-
-
-NPY_MAGIC = b"\x93NUMPY"
-"""The first bytes of every .npy file."""
-OTHER_FORMATS = {b"\x89PNG": "a PNG image", b"\xff\xd8\xff": "a JPEG image", b"PK\x03\x04": "a zip archive (.npz?)",
-                 b"II*\x00": "a TIFF image", b"MM\x00*": "a TIFF image"}
-"""Signatures of files that are named .npy by mistake, and what they are."""
-
-
-def npy_overclaim(stream, size: int) -> str | None:
-    """Why the .npy bytes of binary `stream` (at their start; `size` bytes from there) cannot hold the array
-    their header describes, or None when they can (or the header is not one this reads: numpy says so then).
-    A header is a promise: (100000, 100000) float32 over 64 bytes of data made numpy allocate 37 GiB before it
-    found out (issue 55's tenth probe)."""
-    from numpy.lib import format as npy_format
-
-    readers = {(1, 0): npy_format.read_array_header_1_0, (2, 0): npy_format.read_array_header_2_0}
-    try:
-        shape, _, dtype = readers[npy_format.read_magic(stream)](stream)
-    except (KeyError, ValueError, OSError, EOFError):
-        return None
-    claimed, held = int(np.prod(shape, dtype=object)) * dtype.itemsize, size - stream.tell()
-    return (f"its header claims a {'x'.join(map(str, shape)) or 'scalar'} {dtype} array of {claimed:,} bytes, "
-            f"the file holds {held:,}") if claimed > held else None
-
-
-def read_npy(path: str | Path, mmap_mode: str | None = None) -> np.ndarray:
-    """The array of .npy file `path` (memory-mapped with `mmap_mode`; never unpickled); InputError
-    naming the file when it is missing, empty, another format named .npy (a PNG renamed) or an
-    array of Python objects."""
-    path = input_file(path, ".npy array")
-    with open(path, "rb") as handle:
-        head = handle.read(len(NPY_MAGIC))
-    if not head.startswith(NPY_MAGIC):
-        kind = next((name for magic, name in OTHER_FORMATS.items() if head.startswith(magic)), None)
-        reason = ("empty file" if not head else f"the file is {kind}, named .npy" if kind
-                  else "no .npy header: another format named .npy?")
-        raise InputError(f"{path}: not a readable .npy array ({reason})")
-    with open(path, "rb") as handle:
-        overclaim = npy_overclaim(handle, path.stat().st_size)
-    if overclaim is not None:
-        raise InputError(f"{path}: not a readable .npy array ({overclaim}: truncated or corrupt)")
-    try:
-        return np.load(path, mmap_mode=mmap_mode, allow_pickle=False)
-    except ValueError as error:
-        if "pickle" in str(error):  # numpy's advice is to unpickle it: code could run
-            raise InputError(f"{path}: not a readable .npy array (it holds Python objects, not numbers)") from None
-        raise InputError(f"{path}: not a readable .npy array ({error})") from None
-    except (OSError, EOFError) as error:  # EOFError: a truncated file
-        raise InputError(f"{path}: not a readable .npy array ({error or 'truncated file'})") from None
-
-
-def cv_max_image_pixels() -> int:
-    """The most pixels OpenCV decodes of one image (``CV_IO_MAX_IMAGE_PIXELS``, 2**30 unless the environment
-    sets it): it refuses a larger header before it decodes anything."""
-    try:
-        return int(os.environ.get("CV_IO_MAX_IMAGE_PIXELS", 2**30))
-    except ValueError:
-        return 2**30
-
-
-def _check_jpeg_complete(path: Path, what: str) -> None:
-    """InputError naming JPEG file `path` when it ends before its image does: no end-of-image marker
-    (FF D9) after its last start-of-scan (FF DA; entropy-coded data never holds FF DA, and a thumbnail's
-    end marker comes before the main image's scans). libjpeg would decode what is there and print its
-    own "Premature end of JPEG file" line to stderr beside ours; other formats pass untouched."""
-    with open(path, "rb") as file:
-        if file.read(3) != b"\xff\xd8\xff":
-            return
-        data = file.read()
-    if data.rfind(b"\xff\xd9") < data.rfind(b"\xff\xda"):
-        raise InputError(f"{path}: a truncated JPEG (the file ends inside its image data) ({what})")
-
-
-def read_image(path: str | Path, flags: int, what: str = "image") -> np.ndarray:
-    """``cv2.imread(path, flags)`` of input file `path` (:func:`input_file`, `what`: what the file is to the
-    user); InputError naming it when OpenCV cannot read it, or when its header claims more pixels than OpenCV
-    decodes (:func:`cv_max_image_pixels`: a PNG whose header says 100,000 px a side, refused before any
-    pixel is decoded)."""
-    import cv2
-
-    path = input_file(path, what)
-    _check_jpeg_complete(path, what)
-    try:
-        image = cv2.imread(str(path), flags)
-    except cv2.error as error:
-        if "CV_IO_MAX_IMAGE_PIXELS" in str(error):
-            raise InputError(f"{path}: its header claims more than {cv_max_image_pixels():,} pixels, the most "
-                             f"OpenCV decodes (CV_IO_MAX_IMAGE_PIXELS); refused before decoding ({what})") from None
-        raise InputError(f"{path}: not a readable {what} (OpenCV: {str(error).strip().splitlines()[-1]})") from None
-    if image is None:
-        raise InputError(f"{path}: not a readable {what}")
-    return image
 
 
 def check_yaml_mapping(root, path: str | Path) -> None:
@@ -331,8 +238,7 @@ def claim_output_folder(path: str | Path, force: bool = False) -> Iterator[Path]
             handle.seek(0)
             owner = handle.read().strip()
             handle.close()
-            raise InputError(f"{path}: another run{f' (process {owner})' if owner else ''} is writing there; "
-                             f"wait for it to end, or choose another --out") from None
+            raise InputError(in_use_message(path, owner, "--out")) from None
         if lock.exists() and os.path.samestat(os.fstat(handle.fileno()), lock.stat()):
             break
         handle.close()  # the holder ended and removed the file between our open and lock: lock the new one
@@ -350,6 +256,32 @@ def claim_output_folder(path: str | Path, force: bool = False) -> Iterator[Path]
         raise
     lock.unlink(missing_ok=True)
     handle.close()
+
+
+def in_use_message(path: Path, owner: str, option: str) -> str:
+    """The refusal of folder `path` while another run holds its lock (`owner`: the pid its lock file names, or
+    ''; `option`: how the user names another folder)."""
+    return (f"{path}: another run{f' (process {owner})' if owner else ''} is writing there; wait for it to end, "
+            f"or choose another {option}")
+
+
+def check_not_locked(path: str | Path, option: str = "--out") -> None:
+    """InputError naming folder `path` while another process holds the lock :func:`claim_output_folder` takes
+    there (a probe: this process takes it and lets go at once, and never creates the lock file). For the checks
+    a command makes before it claims the folder: a run in progress there has written some files already,
+    which would otherwise read as an earlier run's."""
+    import fcntl
+
+    try:
+        handle = open(Path(path) / LOCK_NAME)
+    except OSError:  # no lock file: no run there (or not one this can read)
+        return
+    with handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise InputError(in_use_message(Path(path), handle.read().strip(), option)) from None
+        fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def remove_if_empty(folder: str | Path) -> None:

@@ -125,7 +125,7 @@ def test_a_truncated_jpeg_is_one_line_of_ours_not_libjpegs_too(files, capfd):
     assert main(argv) == 2
     err = capfd.readouterr().err.strip()
     assert err.endswith("cut.jpg: a truncated JPEG (the file ends inside its image data) (image)") and "\n" not in err
-    from frontiernet.io import read_image
+    from frontiernet.array_files import read_image
 
     assert read_image(files / "thumb.jpg", cv2.IMREAD_COLOR).shape == (48, 64, 3)
     assert capfd.readouterr().err == ""

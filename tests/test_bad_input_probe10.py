@@ -35,7 +35,7 @@ def test_an_npy_header_claiming_more_than_the_file_holds_is_refused_before_numpy
 
 
 def test_a_whole_npy_file_still_reads(tmp_path):
-    from frontiernet.io import npy_overclaim, read_npy
+    from frontiernet.array_files import npy_overclaim, read_npy
 
     np.save(tmp_path / "a.npy", np.arange(12, dtype=np.float32).reshape(3, 4))
     assert read_npy(tmp_path / "a.npy").sum() == 66

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -199,12 +201,29 @@ def test_a_second_training_on_a_run_folder_in_use_is_refused(two_scenes, tmp_pat
         assert main(train_args(two_scenes, tmp_path / "runs", "name=tiny")) == 2
         assert f"{run}: another run (process " in one_line_error()
     assert not (run / ".frontiernet.lock").exists()
-    # what a run in progress wrote is not taken for an earlier run's files (the second run was told so)
-    (run / "metrics.csv").write_text("rows of the run in progress")
-    (run / ".frontiernet.lock").write_text("1\n")  # (a process that runs: init)
+    # what a run in progress in another process wrote is not taken for an earlier run's files (the second run is
+    # told so), and a lock file left by a run that ended (its lock gone with its process) is no run in progress
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_THE_FOLDER, str(run)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        assert main(train_args(two_scenes, tmp_path / "runs", "name=tiny")) == 2
+        assert one_line_error().endswith(f"error: {run}: another run (process {holder.pid}) is writing there; wait for "
+                                         "it to end, or choose another out= or name=")
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (run / ".frontiernet.lock").read_text().strip() == str(holder.pid)  # (killed: its file was left)
     assert main(train_args(two_scenes, tmp_path / "runs", "name=tiny")) == 2
-    assert one_line_error().endswith(f"error: {run}: another run (process 1) is writing there; wait for it to end, or "
-                                     "choose another out= or name=")
+    assert f"{run}: holds an earlier training run's files" in one_line_error()
+
+
+HOLD_THE_FOLDER = """import sys, time
+from frontiernet.io import claim_output_folder
+with claim_output_folder(sys.argv[1], force=True) as run:
+    (run / "metrics.csv").write_text("rows of the run in progress")
+    print("held", flush=True)
+    time.sleep(120)
+"""
 
 
 def test_claimed_run_folder_takes_the_lock_and_removes_what_it_made(tmp_path):

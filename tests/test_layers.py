@@ -17,8 +17,8 @@ LIBRARY = REPO_ROOT / "frontiernet"
 
 # docs/design.md, "Module map": layer of each top-level module or package of frontiernet/
 LAYERS = {
-    "errors": 1, "config_ranges": 1, "config": 1, "io": 1, "geometry": 1, "workers": 1, "registry": 1, "timing": 1,
-    "allocator": 1,
+    "errors": 1, "config_ranges": 1, "config": 1, "io": 1, "array_files": 1, "geometry": 1, "workers": 1, "registry": 1,
+    "timing": 1, "allocator": 1,
     "model": 2, "depth": 2, "planning": 2, "scenes": 2,
     "simulator": 3,
     "mapping": 4,

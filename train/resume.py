@@ -16,7 +16,7 @@ import torch
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
-from frontiernet.io import LOCK_NAME, claim_output_folder, input_file
+from frontiernet.io import check_not_locked, claim_output_folder, input_file
 from frontiernet.model import load_model
 from frontiernet.model.files import check_finite
 
@@ -143,33 +143,13 @@ def check_fresh_run(out: Path, resume: str | None) -> None:
     raise InputError(f"{out}: holds an earlier training run's files ({shown}), which a new run would replace; {advice}")
 
 
-def check_not_in_use(out: Path) -> None:
-    """InputError naming run folder `out` when a live process holds its lock (:func:`claimed_run_folder`: the pid
-    its lock file names is running), before its files are judged: a run in progress there has written some already,
-    which would otherwise read as an earlier run's. (The lock itself decides, when the run claims the folder.)"""
-    try:
-        owner = int((out / LOCK_NAME).read_text().strip())
-    except (OSError, ValueError):  # no lock file, or no pid in it
-        return
-    try:
-        if owner > 0:
-            os.kill(owner, 0)
-    except ProcessLookupError:  # its process is gone (killed: the file was left)
-        return
-    except OSError:  # (another user's process: running)
-        pass
-    if owner > 0 and owner != os.getpid():
-        raise InputError(f"{out}: another run (process {owner}) is writing there; wait for it to end, or choose "
-                         "another out= or name=")
-
-
 def resume_checkpoint(out: Path, resume: str | None, spec=None) -> tuple[str | None, dict]:
     """(the checkpoint a run in folder `out` resumes from, its hyperparameters): `resume` as given
     (``"last"``: the run's last checkpoint), checked to be a training checkpoint of the run's kind (`spec`:
     :func:`check_checkpoint`); (None, {}) for a fresh run. InputError: nothing to resume, a missing or foreign
-    checkpoint, a folder another run is writing in (:func:`check_not_in_use`), or a fresh run into a folder holding
+    checkpoint, a folder another run is writing in (:func:`~frontiernet.io.check_not_locked`), or a fresh run into a folder holding
     an earlier run (:func:`check_fresh_run`)."""
-    check_not_in_use(out)
+    check_not_locked(out, "out= or name=")  # before its files are judged: a run in progress wrote some
     last = out / "checkpoints" / "last.ckpt"
     if resume == "last":
         if not last.is_file():

@@ -19,7 +19,8 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError, positive_number
-from ..io import input_file, read_image, read_npy
+from ..array_files import read_image, read_npy
+from ..io import input_file
 from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata

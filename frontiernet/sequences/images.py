@@ -21,7 +21,8 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..io import input_file, read_image, read_npy
+from ..array_files import read_image, read_npy
+from ..io import input_file
 
 DEPTH_ENCODINGS = ("scale", "sun", "nyu")
 PLAUSIBLE_DEPTH_M = (0.05, 100.0)  # median depths outside this mean a wrong unit (indoor and outdoor sensors)

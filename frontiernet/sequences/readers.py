@@ -22,7 +22,8 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
 from ..geometry import quaternion_rotations, rigid_pose
-from ..io import input_file, input_folder, read_npy
+from ..array_files import read_npy
+from ..io import input_file, input_folder
 from .frames import Camera, Sequence, SequenceFrame
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm", ".webp")
