@@ -97,3 +97,17 @@ def test_a_bump_marks_what_the_camera_never_saw_in_the_map_for_good(on):
         explorer.move(explorer.motion.turn_by(explorer.agent.pose, -np.radians(30.0)))
         explorer.sense()
     assert (explorer.map.state_at(contact)[0] == OCCUPIED) == on
+
+
+def test_before_a_stop_the_map_frontiers_widen_once_and_the_robot_looks_around_again():
+    # map_frontiers.min_cells_before_stop (issue 54): a door the monocular map half-shuts is a region of 2-3 cells
+    explorer = explorer_in_a_room()
+    explorer.sense()
+    explorer.look_around_left = 0.0
+    assert explorer.method.source.widened_conf is None
+    assert explorer._widen() and explorer.look_around_left > 0 and explorer.result.widened_at_step == 0
+    assert explorer.method.source.widened_conf.map_frontiers.min_cells == 1
+    assert not explorer._widen()  # once: the next stop is the run's end
+    off = explorer_in_a_room()
+    off.method.source.conf = OmegaConf.merge(off.conf, {"map_frontiers": {"min_cells_before_stop": None}})
+    assert not off._widen() and off.result.widened_at_step is None  # as before the key

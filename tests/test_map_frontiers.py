@@ -231,7 +231,7 @@ def test_a_long_region_of_few_far_apart_cells_is_split_into_single_cells_not_emp
     assert sorted(np.concatenate(pieces).tolist()) == [0, 1, 2, 3] and all(len(p) == 1 for p in pieces)
 
 
-def test_regions_dropped_as_noise_are_proposed_once_a_run_would_stop_and_only_while_nothing_larger_is():
+def test_regions_dropped_as_noise_are_proposed_once_a_run_would_stop():
     # a door the monocular map half-shuts leaves a frontier of 2-3 cells, below min_cells (5): classic stopped
     # with a quarter of procedural:1003 behind one (issue 54); min_cells_before_stop proposes such regions then
     from frontiernet.exploration.sources import MapSource
@@ -251,8 +251,8 @@ def test_regions_dropped_as_noise_are_proposed_once_a_run_would_stop_and_only_wh
     assert source.widen() and not source.widen()  # once
     (door,) = proposed(source)
     assert door.num_pixels == 3 and door.position[0] == pytest.approx(0.95) and door.direction[1] == 1.0
-    free[0, 2:9] = False  # unknown cells along x = 0 too: a region of 9 frontier cells beside them ...
-    (larger,) = proposed(source)
-    assert larger.num_pixels == 9 and larger.position[0] < 0.3  # ... and the door's is held back again
+    free[0, 2:9] = False  # unknown cells along x = 0 too: a region of 9 frontier cells beside them, which the
+    # tracker may drop as seen (the stop came with regions the robot had looked at): the door's is proposed too
+    assert sorted(f.num_pixels for f in proposed(source)) == [3, 9]
     off = MapSource("uniform", stub_map(free, occupied), OmegaConf.create(conf(min_cells_before_stop=None)))
     assert not off.widen()  # as before the key: the run stops

@@ -83,17 +83,15 @@ class MapSource(FrontierSource):
 
         z = float(frame.T_world_cam[2, 3])  # the camera height the robot keeps
         with stopwatch("anchoring"):
-            observations = map_frontiers(self.map, z, self.conf, frame.T_world_cam, self.gain)
-            if not observations and self.widened_conf is not None:
-                observations = map_frontiers(self.map, z, self.widened_conf, frame.T_world_cam, self.gain)
+            observations = map_frontiers(self.map, z, self.widened_conf or self.conf, frame.T_world_cam, self.gain)
         return observations, plain_view(frame, depth)
 
     def widen(self) -> bool:
-        """``map_frontiers.min_cells_before_stop``: frames with no region of ``min_cells`` propose
-        the regions down to that many cells from now on (once; null: never). A door the monocular
-        map half-shuts shows a frontier of two or three cells, dropped as noise, and the run stopped
-        with a quarter of the building behind it
-        (docs/results/2026-12-07-small-frontiers-before-stop.md)."""
+        """``map_frontiers.min_cells_before_stop``: from now on, every frame proposes the regions down
+        to that many cells (once; null: never). A door the monocular map half-shuts shows a frontier of
+        two or three cells, dropped as noise, and the run stopped with a quarter of the building behind
+        it (docs/results/2026-12-07-small-frontiers-before-stop.md). (The regions of ``min_cells``
+        may still be proposed then, every one of them a view the robot has had: the tracker drops them.)"""
         from omegaconf import OmegaConf
 
         smallest, regular = self.conf.map_frontiers.get("min_cells_before_stop"), self.conf.map_frontiers.min_cells
