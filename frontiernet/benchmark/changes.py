@@ -159,6 +159,7 @@ FINISHED_WHEN = {"collided": lambda metrics: bool(metrics.get("collisions")),
                  "stopped": lambda metrics: metrics.get("stop_reason") == "no frontiers left"}
 """Conditions on a finished run's metrics under which a setting reaches it (:class:`Readers`' `when`): one
 that acts only on a collision, or only where a run would stop with no frontier left."""
+_RUNS_WHEN = {None: "runs", "collided": "collided runs", "stopped": "runs that stopped with no frontier left"}
 
 
 @dataclass(frozen=True)
@@ -178,12 +179,10 @@ class Readers:
                 and (self.methods is None or run["method"] in self.methods)
                 and (self.when is None or metrics is None or FINISHED_WHEN[self.when](metrics)))
 
-    def __str__(self) -> str:  # "emulated-depth runs", "nbvp runs", "collided runs", "classic runs that stopped"
+    def __str__(self) -> str:  # "emulated-depth runs", "nbvp runs", "collided runs", "classic runs that stopped ..."
         words = [] if self.sources is None else [" and ".join(sorted(self.sources)) + "-depth"]
         words += [] if self.methods is None else [" and ".join(sorted(self.methods))]
-        if self.when == "collided":
-            return " ".join(words + ["collided runs"])
-        return " ".join(words + ["runs"] + (["that stopped with no frontier left"] if self.when == "stopped" else []))
+        return " ".join(words + [_RUNS_WHEN[self.when]])
 
 
 def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None = None) -> Readers | None:

@@ -33,8 +33,8 @@ class FrontierSource:
 
     def widen(self) -> bool:
         """Called when the run would stop with no frontier left: from now on, propose what was held
-        back as noise when nothing else is proposed. Returns whether anything changes (the loop then
-        looks around again); the default holds nothing back."""
+        back as noise too. Returns whether anything changes (the loop then looks around again); the
+        default holds nothing back."""
         return False
 
 
@@ -83,7 +83,8 @@ class MapSource(FrontierSource):
 
         z = float(frame.T_world_cam[2, 3])  # the camera height the robot keeps
         with stopwatch("anchoring"):
-            observations = map_frontiers(self.map, z, self.widened_conf or self.conf, frame.T_world_cam, self.gain)
+            conf = self.conf if self.widened_conf is None else self.widened_conf
+            observations = map_frontiers(self.map, z, conf, frame.T_world_cam, self.gain)
         return observations, plain_view(frame, depth)
 
     def widen(self) -> bool:
