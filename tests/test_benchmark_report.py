@@ -36,6 +36,27 @@ def test_runs_of_other_comparisons_do_not_share_thresholds():
     assert rows[0]["vox25_shared"] == pytest.approx(0.25) and rows[1]["vox25_shared"] == pytest.approx(0.3)
 
 
+def test_a_method_still_running_moves_no_other_methods_vox():
+    """The shared steps are those of the methods with every planned run finished: a method joining a
+    folder (seer's first scenes) is read at them, and the others' Vox@k stay what they were until all
+    its runs are in; with no finished method among a comparison's runs, all of them set the steps."""
+    from frontiernet.benchmark.report import unfinished_methods
+
+    runs = [{"scene": scene, "method": method, "start": 0, "repeat": 0}
+            for scene in ("s", "t") for method in ("a", "b", "seer")]
+    rows = [{"scene": scene, "start": 0, "repeat": 0, "method": method, "status": "done"}
+            for scene, method in (("s", "a"), ("s", "b"), ("s", "seer"), ("t", "a"), ("t", "b"))]
+    assert unfinished_methods(runs, rows) == {"seer": (1, 2)}
+    slow, fast = np.linspace(0, 1, 101), np.concatenate([np.linspace(0, 1, 11), np.ones(90)])
+    curves = {0: slow, 1: slow, 2: fast, 3: slow, 4: slow}
+    add_shared_vox(rows, curves, "coverage", {"a", "b"})
+    assert [row["vox25_shared"] for row in rows] == pytest.approx([0.25, 0.25, 1.0, 0.25, 0.25])
+    add_shared_vox(rows, curves, "coverage")  # every run: seer's fast curve pulls the step on s forward
+    assert rows[0]["vox25_shared"] == pytest.approx(0.18) and rows[3]["vox25_shared"] == pytest.approx(0.25)
+    add_shared_vox(rows[2:3], {0: fast}, "coverage", {"a", "b"})  # none of them in the comparison
+    assert rows[2]["vox25_shared"] == pytest.approx(0.3)
+
+
 def test_the_summary_gives_table_one_per_scene_source_and_over_all_scenes():
     scenes = ["procedural:1", "procedural:2", "house.glb"]
     coverage = {"procedural:1": 0.3, "procedural:2": 0.5, "house.glb": 0.9}

@@ -20,7 +20,7 @@ from ..workers import check_backend
 from .changes import blocking_difference, runs_changed, with_idle_keys, with_keys_added_after
 from .plan import MIN_BUDGET, depth_sources, plan_runs
 from .budget import BudgetRule
-from .report import common_starts, write_report
+from .report import common_starts, unfinished_methods, write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, discard_runs, plan_file, read_plan, write_plan
 
@@ -249,7 +249,8 @@ def report(out: str | Path) -> dict:
     depths = list(dict.fromkeys(run["depth"] for run in runs if run.get("depth"))) or None
     written = write_report(out, reported, scenes, methods, pending, finished, depths,
                            interval=load_config("bench").report.interval,
-                           vox_steps=plan["settings"].get("vox_steps", "budget"), starts=common_starts(runs))
+                           vox_steps=plan["settings"].get("vox_steps", "budget"), starts=common_starts(runs),
+                           defining=set(methods) - set(unfinished_methods(runs, reported)))
     return {"rows": reported, **written, "pending": pending}
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from ..config import load_config
 from ..io import write_text
 from .comparisons import BOUND, REFERENCE, VOX_FIELDS, ratio_interval
-from .report import add_shared_vox, common_starts
+from .report import add_shared_vox, common_starts, unfinished_methods
 from .runner import finished_row, with_copies
 from .store import FinishedRuns, read_plan
 
@@ -43,7 +43,8 @@ def published_folder(root: str | Path | None = None) -> Path:
 
 def folder_rows(out: str | Path) -> list[dict]:
     """The finished runs' rows of benchmark folder `out` with their shared Vox@25 / @50, as
-    ``bench --report`` computes them (:func:`~frontiernet.benchmark.report`), nothing written."""
+    ``bench --report`` computes them (:func:`~frontiernet.benchmark.report`: the steps set by the
+    methods with every planned run finished), nothing written."""
     out = Path(out)
     plan, finished = read_plan(out), FinishedRuns(out)
     own = (finished_row(run, finished) for run in plan["runs"] if not run.get("copy_of"))
@@ -51,7 +52,9 @@ def folder_rows(out: str | Path) -> list[dict]:
             if row is not None]
     curves = {index: np.asarray(finished.metrics(row.get("copy_of") or row["key"])["coverage_per_step"], np.float64)
               for index, row in enumerate(rows) if row["status"] == "done"}
-    add_shared_vox(rows, curves, plan["settings"].get("vox_steps", "budget"))
+    methods = set(run["method"] for run in plan["runs"])
+    add_shared_vox(rows, curves, plan["settings"].get("vox_steps", "budget"),
+                   methods - set(unfinished_methods(plan["runs"], rows)))
     return rows
 
 
@@ -85,8 +88,9 @@ def readme_markdown(rows: list[dict], out: str | Path, source: str | None = None
     sources) from its finished `rows` (with shared Vox@k: :func:`folder_rows` or the rows
     ``bench --report`` returns); `source`: how the caption names the folder (default `out`).
 
-    Per depth source and method: the mean Vox@25 / @50 / @100 over the finished runs of the starts
-    every method has (:func:`~.report.common_starts`; the other starts are in the report's ``table.md``), then, over
+    Per depth source and method whose planned runs are all finished (the others are named under the
+    table with their counts, so that no row rests on the scenes a method happened to reach first):
+    the mean Vox@25 / @50 / @100 over the finished runs of the starts every method has (:func:`~.report.common_starts`; the other starts are in the report's ``table.md``), then, over
     paired runs (:func:`ratios_cell`), the share of the all-knowing bound (:data:`~.report.BOUND`),
     the ratio to ``classic`` and to ``nbvp``, each column only when that method is in the folder.
     None when ``classic`` is not among the methods."""
@@ -100,7 +104,7 @@ def readme_markdown(rows: list[dict], out: str | Path, source: str | None = None
     depths = list(dict.fromkeys(run.get("depth") for run in plan["runs"]))
     interval = load_config("bench").report.interval
     common, more = common_starts(plan["runs"])
-    planned = [run for run in plan["runs"] if (run["start"], run["repeat"]) in common]
+    unfinished = unfinished_methods(plan["runs"], rows)
     done = [row for row in rows if row["status"] == "done" and (row["start"], row["repeat"]) in common]
     lines = ["| method | depth | runs | Vox@25 (%) | Vox@50 (%) | Vox@100 (%) | " +
              " | ".join(f"{title}, Vox@25 / @50 / @100" for _, title in references) + " |",
@@ -108,7 +112,7 @@ def readme_markdown(rows: list[dict], out: str | Path, source: str | None = None
     for depth in depths:
         own = [row for row in done if row.get("depth") == depth]
         name = (depth or str(plan["settings"].get("depth") or "--")).replace("_", " ")
-        for method in methods:
+        for method in (method for method in methods if method not in unfinished):
             runs = [row for row in own if row["method"] == method]
             means = [f"{100 * np.mean([float(r[field]) for r in runs]):.1f}" if runs else "--" for field in VOX_FIELDS]
             ratios = ["1.00x" if method == reference else ratios_cell(_paired(own, method, reference), interval)
@@ -119,7 +123,8 @@ def readme_markdown(rows: list[dict], out: str | Path, source: str | None = None
         ", scene-sized step budgets (configs/bench.yaml)" if isinstance(protocol, dict) else ""
     vox = ("the coverage at 25 / 50 / 100 % of each run's budget" if plan["settings"].get("vox_steps", "budget") ==
            "budget" else "the coverage at the step where the methods on average first reach 25 / 50 %, and at the end")
-    interim = f"Interim: {len(done)} of {len(planned)} runs finished. " if len(done) < len(planned) else ""
+    interim = ("Not yet in the table, their runs not all finished: " + ", ".join(
+        f"{method} ({ran} of {of} runs)" for method, (ran, of) in unfinished.items()) + ". ") if unfinished else ""
     which = "its first start" if common == {(0, 0)} else f"the {len(common)} (start, repeat) pairs every method ran"
     starts = f" Each scene from {which} ({' and '.join(more)} ran more: the report's `table.md`)." if more else ""
     caption = (f"{interim}`{Path(source or out).as_posix()}`: {len(scenes)} scenes{budget}.{starts} Vox@k: {vox}, mean over "

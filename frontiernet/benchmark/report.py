@@ -67,7 +67,7 @@ def first_step_at(curve: np.ndarray, level: float) -> int:
     return int(reached[0]) if len(reached) else len(curve) - 1
 
 
-def add_shared_vox(rows: list[dict], curves: dict, vox_steps: str = "budget") -> None:
+def add_shared_vox(rows: list[dict], curves: dict, vox_steps: str = "budget", defining: set | None = None) -> None:
     """Set ``vox25_shared`` and ``vox50_shared`` of every finished row: each run's coverage at a step
     shared by the runs of one comparison (same scene, start, repeat and depth source).
 
@@ -83,6 +83,10 @@ def add_shared_vox(rows: list[dict], curves: dict, vox_steps: str = "budget") ->
         rows: result rows (:data:`~frontiernet.benchmark.runner.ROW_FIELDS`; ``depth`` when the
             benchmark has several sources: a comparison is one source's runs).
         curves: row index -> (S + 1,) coverage per step of the finished runs.
+        defining: the methods whose runs set the shared steps (:func:`unfinished_methods`: those with
+            every planned run finished, so that a method joining a folder moves no other method's
+            Vox@k until all its runs are in); the other runs are read at those steps. None, or a
+            comparison without any of them: every run of the comparison.
     """
     if vox_steps not in VOX_STEPS:
         raise InputError(f"vox_steps must be one of {', '.join(VOX_STEPS)}, got {vox_steps!r}")
@@ -91,11 +95,12 @@ def add_shared_vox(rows: list[dict], curves: dict, vox_steps: str = "budget") ->
         if index in curves:
             groups[(row["scene"], row["start"], row["repeat"], row.get("depth"))].append(index)
     for members in groups.values():
+        setting = [i for i in members if defining is None or rows[i]["method"] in defining] or members
         for k in (25, 50):
             if vox_steps == "coverage":
-                step = float(np.mean([first_step_at(curves[i], k / 100) for i in members]))
+                step = float(np.mean([first_step_at(curves[i], k / 100) for i in setting]))
             else:
-                step = float(np.mean([k / 100 * (len(curves[i]) - 1) for i in members]))
+                step = float(np.mean([k / 100 * (len(curves[i]) - 1) for i in setting]))
             for i in members:
                 rows[i][f"vox{k}_shared"] = coverage_at(curves[i], step)
 
@@ -121,6 +126,18 @@ def common_starts(runs: list[dict]) -> tuple[set, list[str]]:
         planned.setdefault(run["method"], set()).add((run["start"], run["repeat"]))
     common = set.intersection(*planned.values()) if planned else set()
     return common, [method for method, pairs in planned.items() if pairs != common]
+
+
+def unfinished_methods(runs: list[dict], rows: list[dict]) -> dict[str, tuple[int, int]]:
+    """Method -> (finished, planned) for each method of the plan's `runs` with a run not finished
+    (no row among `rows`, the finished runs: done or failed), counted over the :func:`common_starts`
+    (a method given more starts counts only the starts every method has)."""
+    common, _ = common_starts(runs)
+    planned = [run for run in runs if (run["start"], run["repeat"]) in common]
+    finished = [row for row in rows if (row["start"], row["repeat"]) in common]
+    counts = {method: (sum(row["method"] == method for row in finished), sum(run["method"] == method for run in planned))
+              for method in dict.fromkeys(run["method"] for run in planned)}
+    return {method: (ran, of) for method, (ran, of) in counts.items() if ran < of}
 
 
 def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
@@ -268,7 +285,8 @@ def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], s
 
 def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[str], pending: int = 0,
                  finished: FinishedRuns | None = None, depths: list[str] | None = None, *, interval,
-                 vox_steps: str = "budget", starts: tuple[set, list[str]] | None = None) -> dict:
+                 vox_steps: str = "budget", starts: tuple[set, list[str]] | None = None,
+                 defining: set | None = None) -> dict:
     """Write ``results.csv``, ``table.md``, ``coverage_<scene>.png`` and, with several scenes,
     ``coverage_summary_<source>.png`` (see :func:`_plot_sets`) into `out`; returns paths.
     `rows`: the finished (done or failed) runs; `pending`: how many of the plan's runs are not;
@@ -277,7 +295,8 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     ``depth`` column after ``method``), else None; `interval`: ``report.interval`` of
     ``configs/bench.yaml``; `vox_steps`: how Vox@25 / @50's shared steps are set (:func:`add_shared_vox`;
     a plan's ``settings.vox_steps``, ``budget`` for plans made before the scene-sized protocol); `starts`:
-    the plan's :func:`common_starts` (:func:`table_markdown`)."""
+    the plan's :func:`common_starts` (:func:`table_markdown`); `defining`: the methods whose runs set the
+    shared steps (:func:`add_shared_vox`; the bench command's: those with no :func:`unfinished_methods`)."""
     out = Path(out)
     finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
@@ -286,7 +305,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
             metrics = finished.metrics(row.get("copy_of") or row["key"])
             curves[index] = np.asarray(metrics["coverage_per_step"], np.float64)
             row.update(account_fields(metrics))  # where the steps went, when the record has it
-    add_shared_vox(rows, curves, vox_steps)
+    add_shared_vox(rows, curves, vox_steps, defining)
     fields = [*ROW_FIELDS, "vox25_shared", "vox50_shared", *account_columns(rows)]
     if depths:
         fields.insert(fields.index("method") + 1, "depth")
@@ -304,7 +323,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "common_starts", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
+__all__ = ["write_report", "common_starts", "unfinished_methods", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
            "ratio_interval",
            "paired_ratio_cell", "penalty_markdown", "metric_markdown", "compute_markdown", "coverage_at",
            "SUCCESS_COVERAGE"]
