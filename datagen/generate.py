@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 import re
 import shutil
 import time
@@ -22,17 +23,18 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from frontiernet import __version__
-from frontiernet.config import first_difference
+from frontiernet.config import first_difference, setting_text
 from frontiernet.errors import InputError, whole_number
-from frontiernet.io import LOCK_NAME, check_not_dangling, check_output_name, claim_output_folder, write_json
+from frontiernet.io import (LOCK_NAME, check_not_dangling, check_output_files, check_output_name, claim_output_folder,
+                            input_folder, write_json)
 from frontiernet.scenes.spec import expand_specs, parse_spec
 from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
 from frontiernet.workers import check_backend
 
 from .config import config_hash, hashed_settings
-from .shards import (CACHE_DIR, INFO_NAME, SHARDS_DIR, read_dataset_info, remove_stale_temporaries, shard_complete,
-                     write_dataset_info)
+from .shards import (CACHE_DIR, INFO_NAME, SHARDS_DIR, read_dataset_info, regular_file, remove_stale_temporaries,
+                     shard_complete, write_dataset_info)
 
 GENERATOR_VERSION = f"frontiernet-datagen/{__version__}/gt1"
 """Names the ground-truth algorithm; bump the ``gt`` number when the labels change."""
@@ -134,6 +136,8 @@ def check_dataset_kind(out: Path, read_info, command: str) -> None:
     try:
         read_info(out)
     except InputError:
+        if not (out / INFO_NAME).is_file():  # a folder, a pipe, a device (/dev/zero): refused as such by `read_info`,
+            raise  # and never read here (a pipe blocked, /dev/zero filled the memory)
         try:
             found = json.loads((out / INFO_NAME).read_text()).get("format")
         except (OSError, ValueError, AttributeError):
@@ -146,17 +150,60 @@ def check_dataset_kind(out: Path, read_info, command: str) -> None:
                          "resume it; choose another --out") from None
 
 
+def check_output_paths(out: Path, shard_kind: str) -> None:
+    """Before any work or deletion: InputError naming the path when what a run writes in dataset folder `out` cannot
+    go there: ``shards`` not a folder (a file, a dangling link: the refusal came per scene, after the work and after
+    the training caches were removed), a ``*.zip`` there that is no regular file (a folder taken for no shard and the
+    dataset declared complete, a pipe waited on for ever: :func:`~datagen.shards.regular_file`, `shard_kind` as its
+    kind), or a folder or a device where ``summary.json`` goes (:func:`~frontiernet.io.check_output_files`)."""
+    shards = out / SHARDS_DIR
+    if os.path.lexists(shards):
+        input_folder(shards, f"{shard_kind}s")
+        for path in shards.glob("*.zip"):
+            regular_file(path, shard_kind)
+    check_output_files(out, ("summary.json",))
+
+
+class drop_stale_caches:  # noqa: N801 - used as a function: `with drop_stale_caches(out, paths):`
+    """A context for a run that makes the shards `paths` of dataset folder `out`: when it ends (interrupted too), the
+    training caches (``cache/``) are removed if one of those shards was added or changed: they were built from the
+    dataset as it was and no longer match it (training would refuse them; the next ``train`` rebuilds its own). A run
+    that added nothing keeps them."""
+
+    def __init__(self, out: Path, paths) -> None:
+        self.cache, self.paths = out / CACHE_DIR, [Path(path) for path in paths]
+        self.before = self._signatures() if self.cache.is_dir() else None
+
+    def _signatures(self) -> list:
+        def signature(path: Path):
+            try:
+                stat = path.stat()
+            except OSError:
+                return None
+            return stat.st_size, stat.st_mtime_ns, stat.st_ino
+
+        return [signature(path) for path in self.paths]
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.before is not None and self.cache.is_dir() and self._signatures() != self.before:
+            log.warning("removing %s: the training caches of the dataset before this run", self.cache)
+            shutil.rmtree(self.cache, ignore_errors=True)
+
+
 def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "seed", "scenes", "views_per_scene",
                                                                "generator_version"),
                    read_info=read_dataset_info, write_info=write_dataset_info, command: str = "datagen",
-                   settings=hashed_settings) -> None:
+                   settings=hashed_settings, shard_kind: str = "dataset shard") -> None:
     """Create `out` with its dataset.json (`write_info`), or check that it matches when resuming: the
     `keys` of the one `read_info` reads there must equal `info`'s (nothing written on a refusal; for the
     ``config_hash``, the first of the `settings` it hashes that differs is named, ``camera.width: 64 in the
-    dataset, 32 now``). Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys, files and
-    settings (and `command`, which starts the note of a `resume` with no dataset to resume: a new one is
-    started, and that is said on stdout, ``<command>: note: --resume: ...``; an error would still be the one
-    line on stderr)."""
+    dataset, 32 now``; None written null). Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys,
+    files, settings and `shard_kind` (and `command`, which starts the note of a `resume` with no dataset to resume:
+    a new one is started, and that is said on stdout, ``<command>: note: --resume: ...``; an error would still be
+    the one line on stderr). The paths the run writes are checked too (:func:`check_output_paths`)."""
     if (out / INFO_NAME).exists():
         check_dataset_kind(out, read_info, command)
         if not resume:
@@ -171,13 +218,15 @@ def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "se
                     raise InputError(f"{out}: cannot resume, the dataset was made with other settings ({setting}); "
                                      "use another --out")
             raise InputError(f"{out}: cannot resume, the dataset was made with a different {key} "
-                             f"({previous.get(key)!r}, now {info[key]!r}); use another --out")
+                             f"({setting_text(previous.get(key))}, now {setting_text(info[key])}); use another --out")
+        check_output_paths(out, shard_kind)
         return
     check_not_dangling(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
     if out.is_dir() and any(entry.name != LOCK_NAME for entry in out.iterdir()) and not (out / SHARDS_DIR).is_dir():
         raise InputError(f"{out}: folder is not empty and holds no dataset; choose another --out")
+    check_output_paths(out, shard_kind)
     if resume:  # (a typo in --out would otherwise start a second dataset without a word)
         print(f"{command}: note: --resume: {out} holds no dataset yet (no {INFO_NAME}), so there is nothing to "
               "resume; starting a new one")
@@ -225,14 +274,10 @@ def generate(scenes: list[str], views_per_scene: int, out: str | Path, conf: Dic
             log.info("removed %d unfinished shard file(s) of an interrupted run", removed)
         tasks = plan_shards(specs, views_per_scene, shard_size, seed, out)
         todo = [task for task in tasks if not shard_complete(task.path)]
-        if todo and (out / CACHE_DIR).is_dir():
-            # the training caches were built from the dataset as it was: once shards are added they no
-            # longer match it (training would refuse them), so they go; the next `train` rebuilds its own
-            log.warning("removing %s: the training caches of the dataset before this run", out / CACHE_DIR)
-            shutil.rmtree(out / CACHE_DIR)
         start = time.perf_counter()
-        results = run_tasks([asdict(task) for task in todo], conf_dict, info, backend=backend, workers=workers,
-                            progress=progress, total_views=sum(task.num_views for task in todo))
+        with drop_stale_caches(out, [task.path for task in todo]):  # once a shard is added
+            results = run_tasks([asdict(task) for task in todo], conf_dict, info, backend=backend, workers=workers,
+                                progress=progress, total_views=sum(task.num_views for task in todo))
         elapsed = time.perf_counter() - start
         remove_stale_temporaries(out / SHARDS_DIR)  # left by workers that died (their shards were redone)
         from .summary import summarise

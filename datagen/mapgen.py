@@ -29,7 +29,7 @@ from frontiernet import __version__
 from frontiernet.errors import InputError, check_seed, positive_number, whole_number
 from frontiernet.io import check_output_name, claim_output_folder, write_json
 
-from .generate import _slug, prepare_output, shard_seed
+from .generate import _slug, drop_stale_caches, prepare_output, shard_seed
 from .mapshards import (map_shard_complete, read_map_dataset_info, read_map_shard_meta, write_map_dataset_info,
                         write_map_shard)
 from .shards import INFO_NAME, SHARDS_DIR, remove_stale_temporaries
@@ -76,10 +76,14 @@ def hashed_settings(conf) -> dict:
     """The settings of a config (resolved, or the plain dict dataset.json stores) that :func:`config_hash`
     hashes: all but :data:`RUNTIME_KEYS` and the method sections (:data:`~frontiernet.benchmark.changes.
     METHOD_SECTIONS`, e.g. ``nbvp``) that no run of ``mapgen.runs`` reads, so a change to another method
-    leaves the dataset resumable (a resume names the first setting that differs)."""
-    from frontiernet.benchmark.changes import METHOD_SECTIONS
+    leaves the dataset resumable (a resume names the first setting that differs); a key added to the configs after
+    the dataset was made (:data:`~frontiernet.benchmark.changes.KEYS_ADDED_AFTER_PLANS`, e.g.
+    ``map_frontiers.min_cells_before_stop``) that its stored config lacks is read with the value under which the code
+    ran before the key (:func:`~frontiernet.benchmark.changes.with_keys_added_after`), so the dataset resumes with
+    that value (and is refused, naming it, with another)."""
+    from frontiernet.benchmark.changes import METHOD_SECTIONS, with_keys_added_after
 
-    settings = OmegaConf.to_container(OmegaConf.create(conf), resolve=True)
+    settings = with_keys_added_after(OmegaConf.to_container(OmegaConf.create(conf), resolve=True))
     for section, key in RUNTIME_KEYS:
         settings.get(section, {}).pop(key, None)
     methods_run = {run.get("method") for run in settings.get("mapgen", {}).get("runs") or [] if isinstance(run, dict)}
@@ -91,7 +95,8 @@ def hashed_settings(conf) -> dict:
 
 def _read_info_rehashed(out: Path) -> dict:
     """The dataset.json of `out` with its ``config_hash`` recomputed from its stored config by today's
-    :func:`config_hash`: a dataset made before a method section was left out of the hash still resumes."""
+    :func:`config_hash`: a dataset made before a method section was left out of the hash, or before a key was added
+    (:func:`hashed_settings`), still resumes."""
     info = read_map_dataset_info(out)
     if isinstance(info.get("config"), dict):
         info = {**info, "config_hash": config_hash(OmegaConf.create(info["config"]))}
@@ -299,12 +304,11 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
     created, existed = not (out / INFO_NAME).exists(), out.exists()
     with claim_output_folder(out, force=True):  # one run at a time writes a dataset (--resume included)
         prepare_output(out, info, resume, ("config_hash", "seed", "scenes", "runs", "voxel_size", "generator_version"),
-                       _read_info_rehashed, write_map_dataset_info, command="mapgen", settings=hashed_settings)
+                       _read_info_rehashed, write_map_dataset_info, command="mapgen", settings=hashed_settings,
+                       shard_kind="map shard")
         remove_stale_temporaries(out / SHARDS_DIR)
         tasks = plan_map_tasks(specs, runs, seed, out)
         todo = [task for task in tasks if not map_shard_complete(task.path)]
-        if todo and (out / "cache").is_dir():
-            shutil.rmtree(out / "cache")  # derived from the dataset as it was
         bar = _Progress(len(todo), progress)
         start = time.perf_counter()
         threads = max(1, (os.cpu_count() or 1) // workers)
@@ -314,10 +318,11 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
                     "bad_input": False, "seconds": 0.0}
 
         try:
-            results = run_parallel(run_map_task, [(asdict(task), conf_dict, info) for task in todo], backend=backend,
-                                   workers=workers, on_result=lambda index, result: bar.done(result), died=died,
-                                   retries=1, initializer=_init_worker if workers > 1 else None,
-                                   initargs=(None, threads))
+            with drop_stale_caches(out, [task.path for task in todo]):  # derived from the dataset as it was
+                results = run_parallel(run_map_task, [(asdict(task), conf_dict, info) for task in todo],
+                                       backend=backend, workers=workers, died=died, retries=1,
+                                       on_result=lambda index, result: bar.done(result),
+                                       initializer=_init_worker if workers > 1 else None, initargs=(None, threads))
         finally:
             bar.close()
         remove_stale_temporaries(out / SHARDS_DIR)

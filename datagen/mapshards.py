@@ -36,7 +36,8 @@ import numpy as np
 from frontiernet.errors import InputError
 from frontiernet.io import ensure_dir, input_folder, write_json
 
-from .shards import INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, read_info_file, write_zip
+from .shards import (INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, read_info_file, regular_file,
+                     write_zip)
 
 MAP_DATASET_FORMAT = "frontiernet-map-dataset"
 MAP_DATASET_VERSION = 1
@@ -122,8 +123,9 @@ def _corrupt(shard: Path, what: str) -> DatasetError:
 
 
 def read_map_shard_meta(shard: str | Path) -> dict:
-    """The checked meta.json of a map shard; DatasetError naming the shard otherwise."""
-    shard = Path(shard)
+    """The checked meta.json of a map shard; DatasetError naming the shard otherwise (one that is no regular file:
+    :func:`~datagen.shards.regular_file`'s words; a pipe was opened and waited on for ever)."""
+    shard = regular_file(Path(shard), "map shard")
     try:
         with zipfile.ZipFile(shard) as archive:
             meta = json.loads(archive.read(META_NAME))
@@ -166,7 +168,8 @@ class MapDataset:
         if not self.root.is_dir():
             raise InputError(f"{self.root}: map dataset folder not found (make one with frontiernet mapgen)")
         self.info = read_map_dataset_info(self.root)
-        self.shards = sorted((self.root / SHARDS_DIR).glob("*.zip"))
+        # every *.zip: one that is a pipe, a device, a folder or a dangling link is refused as such (a pipe blocked)
+        self.shards = sorted(regular_file(path, "map shard") for path in (self.root / SHARDS_DIR).glob("*.zip"))
         self.metas = [read_map_shard_meta(path) for path in self.shards]
         for path, meta in zip(self.shards, self.metas):
             if not np.isclose(float(meta["voxel_size"]), float(self.info["voxel_size"]), rtol=1e-6, atol=0.0):

@@ -163,7 +163,8 @@ def check_ranges(conf, layout: Layout) -> None:
     """InputError naming the first key of `conf` (a DictConfig or plain dict) whose value is outside
     its range declared in ``configs/ranges/`` (:mod:`frontiernet.config_ranges`), e.g.
     ``planner.gain_exponent must be a number >= 0, got -2``, or breaks a declared relation between keys
-    (``map.occupied_threshold < map.log_odds_max must hold (...)``). `layout` says where each shipped file's
+    (``map.occupied_threshold < map.log_odds_max must hold (...)``; a relation that computes a product or sum
+    also shows the numbers compared, ``...: 228,757,340,160 > 10,000,000``). `layout` says where each shipped file's
     keys sit in `conf` (``{"": "explore", "scenes": "scenes"}``); keys `conf` lacks are skipped."""
     tree = OmegaConf.to_container(conf, resolve=True) if isinstance(conf, DictConfig) else conf
     for key, spec in layout_ranges(layout).items():
@@ -178,7 +179,9 @@ def check_ranges(conf, layout: Layout) -> None:
             values[key] = parent.get(leaf) if parent is not None else None
         if relation.holds(values) is False:
             got = ", ".join(f"{key}={_shown(value)}" for key, value in values.items())
-            raise InputError(f"{relation.text()} must hold ({relation.reason}), got {got}")
+            computed = relation.broken(values)
+            raise InputError(f"{relation.text()} must hold ({relation.reason}), got {got}"
+                             + (f": {computed}" if computed else ""))
 
 
 def _refuse_values_set_inside(overrides: list[str]) -> None:
@@ -240,21 +243,34 @@ def dotted_parent(tree: dict, dotted: str) -> tuple[dict | None, str]:
     return (tree if isinstance(tree, dict) else None), key
 
 
+def setting_text(value) -> str:
+    """A setting's value as a message names it: repr, with None written as a config file writes it,
+    ``null`` (Python's ``None`` is no value a user gives), inside lists and dicts too."""
+    if value is None:
+        return "null"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(setting_text(item) for item in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{key!r}: {setting_text(item)}" for key, item in value.items()) + "}"
+    return repr(value)
+
+
 def differences(old, new, prefix: str = "", before: str = "before"):
     """Every dotted key whose value differs between two nested dicts of settings, in sorted key order, as
-    ``(key, "key: OLD in <before>, NEW now")`` (``absent`` for a missing key); `before` names where the
-    old settings are kept (``the plan`` of a benchmark, ``the dataset`` of datagen)."""
+    ``(key, "key: OLD in <before>, NEW now")`` (``absent`` for a missing key, :func:`setting_text` for a
+    value); `before` names where the old settings are kept (``the plan`` of a benchmark, ``the dataset`` of
+    datagen)."""
     if isinstance(old, dict) and isinstance(new, dict):
         for key in sorted(set(old) | set(new), key=str):
             name = f"{prefix}{key}"
             if key not in old or key not in new:
-                shown = [repr(side[key]) if key in side else "absent" for side in (old, new)]
+                shown = [setting_text(side[key]) if key in side else "absent" for side in (old, new)]
                 yield name, f"{name}: {shown[0]} in {before}, {shown[1]} now"
             else:
                 yield from differences(old[key], new[key], f"{name}.", before)
     elif old != new:
         name = prefix.rstrip(".")
-        yield name, f"{name}: {old!r} in {before}, {new!r} now"
+        yield name, f"{name}: {setting_text(old)} in {before}, {setting_text(new)} now"
 
 
 def first_difference(old, new, before: str = "before") -> str | None:

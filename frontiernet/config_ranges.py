@@ -27,11 +27,12 @@ A key holding a comparison declares a *relation* between keys, its value the rea
     "map.max_range_m <= sim:camera.max_depth": rays beyond the sensor's range
     "tracking.height_window_m[0] <= 0 <= tracking.height_window_m[1]": the window holds the camera's height
 
-A chain of ``<``, ``<=``, ``==``, ``>=``, ``>`` between terms, each a sum (``+``) of products (``*``) of
-numbers, keys of the file, ``len(key)``, ``key[i]`` (item i of a list key: a pair's min ``[0]``, max ``[1]``)
-and ``file:key`` (a key of another shipped file: the relation holds where the layout holds both). A relation
-with a null or absent key is not checked (null turns a rule off). Composite configs (a run's config holds
-``sim`` and ``scenes`` as sections) say where each file's keys sit with a *layout*,
+A chain of ``<``, ``<=``, ``==``, ``>=``, ``>`` between terms, each a sum (``+``) of products (``*``, and
+``/`` by a factor: ``a * 360 / b`` is ``a * (360 / b)``; a zero divisor leaves the relation unchecked, the key's
+own range refuses it) of numbers, keys of the file, ``len(key)``, ``key[i]`` (item i of a list key: a pair's min
+``[0]``, max ``[1]``) and ``file:key`` (a key of another shipped file: the relation holds where the layout holds
+both). A relation with a null or absent key is not checked (null turns a rule off). Composite configs (a run's
+config holds ``sim`` and ``scenes`` as sections) say where each file's keys sit with a *layout*,
 ``{"": "explore", "scenes": "scenes", "ground_truth": "datagen.ground_truth"}``: a section prefix
 of the composite, then the file, or the file and its section, whose declarations apply there.
 """
@@ -58,6 +59,7 @@ _COMPARISON = re.compile(r"\s+(<=|>=|==|<|>)\s+")
 _OPERATORS = {"<": operator.lt, "<=": operator.le, "==": operator.eq, ">=": operator.ge, ">": operator.gt}
 _LENGTH = re.compile(r"^len\((?P<key>[\w.:]+)\)$")
 _ITEM = re.compile(r"^(?P<key>[\w.:]+)\[(?P<index>\d+)\]$")
+_PRODUCT = re.compile(r" ([*/]) ")
 
 Layout = Mapping[str, str | Sequence[str]]
 """Where a composite config's shipped files sit: section prefix ("" for the top) -> file name(s) or
@@ -244,7 +246,8 @@ def ranges_folder() -> Path:
 @dataclass(frozen=True)
 class Relation:
     """A declared relation (module docstring): ``terms[0] operators[0] terms[1] ...``, each term a sum of
-    parts, each a product (``" * "``) of factors (a number text, a dotted key, ``len(key)``); `reason` is what the message says it is for."""
+    parts, each a product (``" * "``, ``" / "``) of factors (a number text, a dotted key, ``len(key)``); `reason` is
+    what the message says it is for."""
 
     terms: tuple[tuple[str, ...], ...]
     operators: tuple[str, ...]
@@ -252,7 +255,7 @@ class Relation:
 
     def keys(self) -> list[str]:
         """The dotted keys the relation reads, in order."""
-        return [key for term in self.terms for part in term for factor in part.split(" * ")
+        return [key for term in self.terms for part in term for _, factor in _factors(part)
                 if (key := _factor_key(factor)) is not None]
 
     def renamed(self, names: Mapping[str, str]) -> "Relation":
@@ -260,29 +263,65 @@ class Relation:
         def rename(factor: str) -> str:
             key = _factor_key(factor)
             return factor if key is None else factor.replace(key, names[key])
-        return Relation(tuple(tuple(" * ".join(rename(factor) for factor in part.split(" * ")) for part in term)
-                              for term in self.terms), self.operators, self.reason)
+        def product(part: str) -> str:
+            return "".join((f" {op} " if at else "") + rename(factor) for at, (op, factor) in enumerate(_factors(part)))
+        return Relation(tuple(tuple(product(part) for part in term) for term in self.terms), self.operators,
+                        self.reason)
 
     def text(self) -> str:
         terms = [" + ".join(term) for term in self.terms]
         return " ".join(item for pair in zip(terms, self.operators + ("",)) for item in pair).strip()
 
-    def holds(self, values: Mapping[str, object]) -> bool | None:
-        """Whether the relation holds for `values` (key -> plain value); None when a key is absent or null,
-        or a value no number (its own range refuses that)."""
+    def sums(self, values: Mapping[str, object]) -> list[float] | None:
+        """Each term's value for `values` (key -> plain value); None when a key is absent or null, a value
+        no number (its own range refuses that) or a divisor 0."""
         sums = []
         for term in self.terms:
             total = 0.0
             for part in term:
                 product = 1.0
-                for factor in part.split(" * "):
+                for op, factor in _factors(part):
                     value = _factor_value(factor, values)
-                    if value is None:
+                    if value is None or (op == "/" and value == 0):
                         return None
-                    product *= value
+                    product = product / value if op == "/" else product * value
                 total += product
             sums.append(total)
+        return sums
+
+    def holds(self, values: Mapping[str, object]) -> bool | None:
+        """Whether the relation holds for `values` (key -> plain value); None where :meth:`sums` is."""
+        sums = self.sums(values)
+        if sums is None:
+            return None
         return all(_OPERATORS[op](a, b) for op, a, b in zip(self.operators, sums, sums[1:]))
+
+    def broken(self, values: Mapping[str, object]) -> str:
+        """The first comparison that fails for `values` as the numbers compared (``"228,757,340,160 > 10,000,000"``)
+        where a term computes something (a sum or product: the keys' values alone do not show it); else ""."""
+        sums = self.sums(values)
+        if sums is None or all(len(term) == 1 and len(_factors(term[0])) == 1 for term in self.terms):
+            return ""
+        for op, a, b in zip(self.operators, sums, sums[1:]):
+            if not _OPERATORS[op](a, b):
+                return f"{_computed(a)} {_NEGATED[op]} {_computed(b)}"
+        return ""
+
+
+_NEGATED = {"<": ">=", "<=": ">", "==": "!=", ">=": "<", ">": "<="}
+
+
+def _computed(value: float) -> str:
+    """`value` as a message shows a computed number: an integer with thousands separators, else 4 digits."""
+    if math.isfinite(value) and abs(value) < 1e15 and abs(value - round(value)) <= 1e-9 * max(1.0, abs(value)):
+        return f"{round(value):,}"
+    return f"{value:.4g}"
+
+
+def _factors(part: str) -> list[tuple[str, str]]:
+    """The (operator, factor) pairs of a product ``a * b / c``: ``[("*", "a"), ("*", "b"), ("/", "c")]``."""
+    pieces = _PRODUCT.split(part)
+    return list(zip(["*"] + pieces[1::2], pieces[0::2]))
 
 
 def _factor_key(factor: str) -> str | None:
@@ -318,7 +357,7 @@ def parse_relation(text: str, reason, where: str) -> Relation:
     pieces = _COMPARISON.split(text.strip())
     terms = tuple(tuple(part.strip() for part in term.split(" + ")) for term in pieces[0::2])
     if len(pieces) < 3 or any(not factor or " " in factor for term in terms for part in term
-                              for factor in part.split(" * ")):
+                              for _, factor in _factors(part)):
         raise ValueError(f"{where}: not a relation: {text!r}")
     if not isinstance(reason, str) or not reason.strip():
         raise ValueError(f"{where}: a relation's value says what it is for, got {reason!r}")

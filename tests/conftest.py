@@ -31,6 +31,22 @@ TWO_ROOM = {
 TWO_ROOM_FREE_VOLUME = 6.0 * 4.0 * 2.5 - (0.2 * 4.0 * 2.5 - 0.2 * 0.9 * 2.0)  # 58.36 m^3
 
 
+def copy_tracked(folder: str, target: Path) -> Path:
+    """Copy the git-tracked files of repository `folder` (e.g. a small published benchmark) to `target`, never
+    writing to the original; returns `target`. Skips the test without git or a repository."""
+    import subprocess
+
+    if shutil.which("git") is None or not (REPO_ROOT / ".git").exists():
+        pytest.skip("needs git and the repository's history")
+    listed = subprocess.run(["git", "ls-files", folder], cwd=REPO_ROOT, capture_output=True, text=True,
+                            check=True).stdout.split()
+    for name in listed:
+        copied = target / (REPO_ROOT / name).relative_to(REPO_ROOT / folder)
+        copied.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(REPO_ROOT / name, copied)
+    return target
+
+
 @pytest.fixture(scope="session", autouse=True)
 def raycast_engine() -> str:
     """The shipped sim.yaml's ray-cast engine, selected for the tests that cast without a world

@@ -197,7 +197,7 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
     one_rule = ("sim.voxels.storey_floor_share=null", "sim.voxels.storey_slab_share=null",
                 "map.monocular_log_odds_miss=null", "map.monocular_max_incidence_deg=null",
                 "planner.monocular_traversed_is_free=false")
-    with pytest.raises(InputError, match=r"\(conf.sim.voxels.storey_floor_share: None in the plan, 0.5 now\)"):
+    with pytest.raises(InputError, match=r"\(conf.sim.voxels.storey_floor_share: null in the plan, 0.5 now\)"):
         resumable_plan(regimes, protocol())
     assert resumable_plan(regimes, protocol(*one_rule))["start_poses"] == resumable_plan(
         record, protocol("planner.gain_exponent=1.0", *one_rule))["start_poses"]  # the same starts: they pair

@@ -4,12 +4,10 @@ the folder that ``readme.source`` of configs/bench.yaml names, and ``bench --rep
 
 from __future__ import annotations
 
-import shutil
-import subprocess
 
 import pytest
 
-from conftest import REPO_ROOT, needs_git
+from conftest import REPO_ROOT, copy_tracked, needs_git
 from frontiernet.benchmark.readme_table import (BEGIN, END, FILE, folder_rows, marked_block, published_folder,
                                                 readme_markdown, with_block)
 from frontiernet.cli.main import main
@@ -66,13 +64,7 @@ def test_the_block_is_replaced_whole():
 def test_bench_report_writes_the_table(tmp_path, capsys):
     """``frontiernet bench --report`` on a copy of a small tracked folder writes table_readme.md,
     the same table the module builds from the folder."""
-    listed = subprocess.run(["git", "ls-files", SMALL], cwd=REPO_ROOT, capture_output=True, text=True,
-                            check=True).stdout.split()
-    folder = tmp_path / "bench"
-    for name in listed:
-        target = folder / (REPO_ROOT / name).relative_to(REPO_ROOT / SMALL)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(REPO_ROOT / name, target)
+    folder = copy_tracked(SMALL, tmp_path / "bench")
     assert main(["bench", "--report", "--out", str(folder)]) == 0
     assert FILE in capsys.readouterr().out
     written = (folder / FILE).read_text()

@@ -301,12 +301,23 @@ def check_cache_folder(cache, path: Path | None = None) -> None:
     folder it goes in is missing (a cache is made only in a folder that is there, so a typo makes none)
     or cannot be written in (:func:`~frontiernet.io.check_writable_folder`); or when it is a folder that holds
     files but is no training cache (no readable ``cache.json`` of this format: it was refused only after the
-    trainer's setup). An empty folder is taken: the cache is built in it."""
+    trainer's setup). An empty folder is taken: the cache is built in it. For ``auto``, the dataset's ``cache``
+    folder that holds its caches is made with the first: something else there is refused (a file was, only once
+    the trainer was set up: "cannot create the training cache folder")."""
     from frontiernet.io import check_writable_folder
 
     if not cache or (str(cache) == "auto" and path is None):
         return
     path = Path(str(cache)) if path is None else path
+    if str(cache) == "auto" and not path.parent.is_dir():  # <dataset>/cache, beside the shards
+        where = path.parent
+        if os.path.lexists(where):
+            kind = "is a file" if where.is_file() else "a symbolic link to nothing" if not where.exists() else \
+                "not a regular file nor a folder (a device or a pipe?)"
+            raise InputError(f"{where}: {kind}, expected the folder of the dataset's training caches (data.cache="
+                             "auto); remove it, or set data.cache=FOLDER to put the cache elsewhere")
+        check_writable_folder(where.parent, "data.cache=auto")
+        return
     if path.exists() and not path.is_dir():
         raise InputError(f"data.cache={cache}: is a file, expected the training cache's folder")
     if path.is_dir():
@@ -333,9 +344,12 @@ def _cache_path(dataset_root: str | Path, cache, size: int, labels_conf) -> Path
 def existing_cache(dataset_root: str | Path, cache, size: int, labels_conf) -> TrainingCache | None:
     """The cache that ``data.cache`` (`cache`) names, opened and checked against the dataset, `size` and
     `labels_conf` (:func:`open_cache`: InputError naming the file otherwise), when one is there; None when it is
-    still to be built (no folder, or an empty one)."""
+    still to be built (no folder, or an empty one), where it can be (:func:`check_cache_folder`)."""
     path = _cache_path(dataset_root, cache, size, labels_conf)
-    return open_cache(path, dataset_root, size, labels_conf) if _holds_cache(path) else None
+    if _holds_cache(path):
+        return open_cache(path, dataset_root, size, labels_conf)
+    check_cache_folder(cache, path)  # where it is to be built (auto's too: a file at <dataset>/cache is refused now)
+    return None
 
 
 def ensure_cache(dataset_root: str | Path, cache, size: int, labels_conf, workers: int = 0,

@@ -7,18 +7,16 @@ predictors' (:mod:`train.mapprediction`)."""
 from __future__ import annotations
 
 import os
-import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-import torch
 from omegaconf import OmegaConf
 
 from frontiernet.errors import InputError
 from frontiernet.io import check_not_locked, claim_output_folder, input_file
 from frontiernet.model import load_model
-from frontiernet.model.files import check_finite
+from frontiernet.model.files import check_finite, load_checkpoint
 
 RESUME_KEYS = ("pytorch-lightning_version", "state_dict", "optimizer_states", "lr_schedulers", "loops",
                "hyper_parameters")
@@ -74,13 +72,7 @@ def check_checkpoint(path: str, spec=None) -> dict:
     than the run's (`spec`: the :class:`PredictorSpec` a map predictor's run trains, None for a FrontierNet
     training), of another architecture (a map predictor's: a FrontierNet run takes its network from the
     checkpoint), or weights that do not fit the network it declares (:func:`load_model`) or are not all finite."""
-    if not zipfile.is_zipfile(path):  # (torch: a RuntimeError or an OSError, neither naming the cause)
-        raise InputError(f"{path}: not a training checkpoint (not a PyTorch zip archive, the format frontiernet train "
-                         "writes: truncated, or another kind of file)")
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True, mmap=True)
-    except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
-        raise InputError(f"{path}: not a training checkpoint ({type(error).__name__})") from None
+    state = load_checkpoint(path, "training checkpoint", mmap=True)
     if not isinstance(state, dict) or "state_dict" not in state:
         raise InputError(f"{path}: not a training checkpoint (no state_dict)")
     missing = [key for key in RESUME_KEYS if key not in state]

@@ -14,13 +14,13 @@ from ..depth import check_depth_files
 from ..errors import InputError, check_seed, whole_number
 from ..exploration.methods import check_method, method_names
 from ..exploration.run import MAX_STEPS, RUN_SECTIONS, check_sections, load_run_config
-from ..io import LOCK_NAME, check_output_folder, claim_output_folder
+from ..io import LOCK_NAME, check_output_files, check_output_folder, claim_output_folder
 from ..scenes.spec import expand_specs
 from ..workers import check_backend
 from .changes import blocking_difference, runs_changed, with_idle_keys, with_keys_added_after
 from .plan import MIN_BUDGET, depth_sources, plan_runs
 from .budget import BudgetRule
-from .report import common_starts, unfinished_methods, write_report
+from .report import common_starts, report_files, unfinished_methods, write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, discard_runs, plan_file, read_plan, write_plan
 
@@ -86,6 +86,9 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     for name in depths:  # weights missing: refused now, not as every run failing
         check_depth_files(name, conf.get("depth"))
     scenes = expand_specs(scenes)
+    # the report's files, before the runs and before --redo-changed discards any (refused after them, it lost them)
+    stored = list(read_plan(out)["start_poses"]) if plan_file(out) is not None else []
+    check_output_files(out, report_files([*stored, *(scene for scene in scenes if scene not in stored)]))
     valid = method_names()
     if not methods:
         raise InputError(f"--methods names no method; valid: {', '.join(valid)}")
@@ -240,6 +243,7 @@ def report(out: str | Path) -> dict:
     """
     out = Path(out)
     plan = read_plan(out)
+    check_output_files(out, report_files(list(plan["start_poses"])))  # before any is written over
     runs, finished = plan["runs"], FinishedRuns(out)
     own = (finished_row(run, finished) for run in runs if not run.get("copy_of"))
     rows = with_copies(runs, {row["key"]: row for row in own if row is not None})

@@ -275,6 +275,12 @@ def plot_curves(rows: list[dict], curves: dict, scenes: list[str], title: str, p
     plt.close(figure)
 
 
+def report_files(scenes: list[str]) -> list[str]:
+    """The names of the files :func:`write_report` may write for a benchmark of `scenes`: results.csv,
+    table.md and every coverage plot's (:func:`~frontiernet.io.check_output_files` checks them before the work)."""
+    return ["results.csv", "table.md", *(f"coverage_{stem}.png" for stem, _, _ in _plot_sets(scenes, set(scenes)))]
+
+
 def _plot_sets(scenes: list[str], reported: set) -> list[tuple[str, list[str], str]]:
     """(file stem, scenes, title) of each coverage plot: one per scene with finished runs, and
     with several scenes one per scene source (as the summary) and, if several sources, all."""
@@ -323,7 +329,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "common_starts", "unfinished_methods", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
+__all__ = ["write_report", "report_files", "common_starts", "unfinished_methods", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
            "ratio_interval",
            "paired_ratio_cell", "penalty_markdown", "metric_markdown", "compute_markdown", "coverage_at",
            "SUCCESS_COVERAGE"]

@@ -38,13 +38,14 @@ from __future__ import annotations
 import gzip
 import itertools
 import json
+import os
 import re
 import zlib
 from collections import defaultdict
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import write_bytes
+from ..io import input_file, write_bytes
 
 PACK_SUFFIX = ".jsonl.gz"
 PLAN = "plan.json"
@@ -95,11 +96,25 @@ def decode_curves(record: dict) -> dict:
 
 def plan_file(out: str | Path) -> Path | None:
     """The plan of benchmark folder `out`: ``plan.json`` (as a benchmark writes it; it wins where
-    both are, being what a run wrote since), else ``plan.json.gz`` (as a pack leaves it), else None."""
+    both are, being what a run wrote since), else ``plan.json.gz`` (as a pack leaves it), else None.
+
+    Raises:
+        InputError: something other than a regular file has the plan's name (a folder, a pipe, a link
+            to nothing: :func:`~frontiernet.io.input_file`'s words), which was taken for no plan.
+    """
     for name in (PLAN, PACKED_PLAN):
-        if (Path(out) / name).is_file():
-            return Path(out) / name
+        if os.path.lexists(Path(out) / name):
+            return input_file(Path(out) / name, "benchmark plan")
     return None
+
+
+def check_runs_folder(out: str | Path) -> None:
+    """InputError when something other than a folder has the name of the ``runs`` folder of benchmark
+    folder `out` (its finished runs were read as none: a pack rewrote the plan as packed, a report failed)."""
+    runs = Path(out) / "runs"
+    if os.path.lexists(runs) and not runs.is_dir():
+        raise InputError(f"{runs}: {'is a file' if runs.is_file() else 'not a folder'}, expected the benchmark's "
+                         "runs folder")
 
 
 def read_plan(out: str | Path, resume: bool = False) -> dict:
@@ -108,7 +123,8 @@ def read_plan(out: str | Path, resume: bool = False) -> dict:
     settings hold the ``conf`` and the ``budget`` it ran with).
 
     Raises:
-        InputError: `out` holds no benchmark, or its plan is not JSON (or not gzip) or not of a plan's shape.
+        InputError: `out` holds no benchmark, or its plan is not a regular file, not JSON (or not gzip) or
+            not of a plan's shape, or its ``runs`` is no folder (:func:`check_runs_folder`).
     """
     path = plan_file(out)
     if path is None and Path(out).exists() and not Path(out).is_dir():
@@ -124,6 +140,7 @@ def read_plan(out: str | Path, resume: bool = False) -> dict:
     if wrong:
         raise InputError(f"{path}: not a benchmark plan ({wrong}); frontiernet bench writes it: restore it, or "
                          "give another --out")
+    check_runs_folder(out)
     return plan
 
 
@@ -179,11 +196,20 @@ def pack_path(out: str | Path, key: str) -> Path:
 
 
 def read_metrics(path: Path) -> dict:
-    """A per-run ``metrics.json``; InputError naming it when it is not a JSON object."""
+    """A per-run ``metrics.json``; InputError naming it when it is not a regular file holding a JSON
+    object (a folder, a pipe, a file in the way: ``runs/<scene key>`` a file). FileNotFoundError when it is
+    not there (the run is not finished, or packed: :class:`FinishedRuns`)."""
+    path = Path(path)
+    if path.exists() and not path.is_file():  # (a pipe's read would wait for a writer)
+        kind = "a folder" if path.is_dir() else "not a regular file"
+        raise InputError(f"{path}: not a run's metrics ({kind}); remove the run's folder to run it again")
     try:
-        record = json.loads(Path(path).read_text())
-    except (ValueError, UnicodeDecodeError) as error:
-        raise InputError(f"{path}: not a run's metrics ({error}); remove the run's folder to run it again") from None
+        record = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise
+    except (ValueError, UnicodeDecodeError, OSError) as error:
+        why = error.strerror if isinstance(error, OSError) and error.strerror else error
+        raise InputError(f"{path}: not a run's metrics ({why}); remove the run's folder to run it again") from None
     if not isinstance(record, dict):
         raise InputError(f"{path}: not a run's metrics (not a JSON object); remove the run's folder to run it again")
     return record
@@ -352,5 +378,5 @@ def pack(out: str | Path) -> dict:
             "packed": sum(packed.values()), "plan": _pack_plan(out)}
 
 
-__all__ = ["FinishedRuns", "discard_runs", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",
+__all__ = ["FinishedRuns", "check_runs_folder", "discard_runs", "pack", "plan_file", "read_plan", "write_plan", "read_pack", "write_pack", "read_metrics",
            "pack_path", "PACK_SUFFIX", "encode_curves", "decode_curves"]

@@ -191,10 +191,9 @@ def _read(path: Path) -> tuple[dict, dict, dict]:
             return state, json.loads(metadata["spec"]), json.loads(metadata.get("info", "{}"))
         except (KeyError, ValueError):
             raise InputError(f"{path}: the predictor description in the file is missing or not JSON") from None
-    try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as error:  # noqa: BLE001 - torch raises many kinds for a file that is no checkpoint
-        raise InputError(f"{path}: not a predictor file or training checkpoint ({type(error).__name__})") from None
+    from ..model.files import load_checkpoint
+
+    checkpoint = load_checkpoint(path, "predictor file or training checkpoint")
     hyper = checkpoint.get("hyper_parameters", {}) if isinstance(checkpoint, dict) else {}
     if "predictor" not in hyper or "state_dict" not in checkpoint:
         raise InputError(f"{path}: not a map predictor checkpoint (no predictor description; a FrontierNet one?)")
@@ -218,7 +217,7 @@ def load_predictor(path: str | Path | None = None, kind: str | None = None) -> M
         if not path.is_file():
             raise InputError(f"{path}: no {kind} predictor is shipped yet; train one (docs/mapprediction.md) "
                              f"and give its predictor.safetensors")
-    path = input_file(path, "predictor file")
+    path = input_file(path, "predictor file", empty_ok=False)
     state, spec_dict, info = _read(path)
     try:
         spec = PredictorSpec.from_dict(spec_dict)

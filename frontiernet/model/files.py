@@ -197,14 +197,17 @@ def _read_safetensors(path: Path) -> tuple[dict, dict]:
     return state, metadata
 
 
-def _read_checkpoint(path: Path) -> tuple[dict, dict]:
-    """Weights and model config of a Lightning checkpoint written by ``frontiernet train`` (a
-    PyTorch zip archive; anything else, a bare pickle included, is refused unopened)."""
-    if not zipfile.is_zipfile(path):
-        raise InputError(f"{path}: not a readable checkpoint (not a PyTorch zip archive, the format "
-                         "frontiernet train writes)")
+def load_checkpoint(path: str | Path, what: str = "readable checkpoint", *, mmap: bool = False):
+    """What ``torch.load`` reads from the training checkpoint `path` (plain data only: no code runs); InputError
+    ``<path>: not a <what> (...)`` saying why otherwise: not a PyTorch zip archive (truncated, or another kind of
+    file: refused unopened, a bare pickle included), a zip archive but not PyTorch's, objects other than weights
+    and plain data, or torch's error. The one reader of ``.ckpt`` files: models (:func:`read_model_file`), a
+    training to resume (:mod:`train.resume`), map predictors (:mod:`frontiernet.mapprediction.predictor`)."""
+    if not zipfile.is_zipfile(path):  # (torch: a RuntimeError, an EOFError or an OSError, none naming the cause)
+        raise InputError(f"{path}: not a {what} (not a PyTorch zip archive, the format frontiernet train writes: "
+                         "truncated, or another kind of file)")
     try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+        return torch.load(path, map_location="cpu", weights_only=True, mmap=mmap)
     except pickle.UnpicklingError as error:
         raise InputError(f"{path}: refused: the checkpoint holds objects other than weights and plain "
                          f"data (opening it could run code): {str(error).splitlines()[0][:160]}") from None
@@ -214,7 +217,13 @@ def _read_checkpoint(path: Path) -> tuple[dict, dict]:
             reason = "a zip archive, but not PyTorch's; a dataset shard?"  # mid-sentence, asked to report a bug)
         else:
             reason = f"{error.__class__.__name__}: {text[:120] if text else 'truncated?'}"
-        raise InputError(f"{path}: not a readable checkpoint ({reason})") from None
+        raise InputError(f"{path}: not a {what} ({reason})") from None
+
+
+def _read_checkpoint(path: Path) -> tuple[dict, dict]:
+    """Weights and model config of a Lightning checkpoint written by ``frontiernet train``
+    (:func:`load_checkpoint`)."""
+    checkpoint = load_checkpoint(path)
     if not isinstance(checkpoint, dict) or "state_dict" not in checkpoint:
         raise InputError(f"{path}: not a frontiernet training checkpoint (no state_dict)")
     hyper = checkpoint.get("hyper_parameters") or {}
@@ -281,5 +290,5 @@ def save_model(path: str | Path, model, model_conf: dict, info: dict | None = No
 
 
 __all__ = ["BASE_KEY", "CONFIG_KEY", "DEFAULT_MODEL", "INFO_KEY", "RUNTIME_GROUP", "SharedBase", "check_finite",
-           "is_export", "default_model_path", "init_weights_file",
+           "is_export", "default_model_path", "init_weights_file", "load_checkpoint",
            "model_base", "read_model_file", "save_model", "shipped_weights_folder", "tensors_digest", "torch_model_file"]
