@@ -17,6 +17,7 @@ import os
 import re
 import shutil
 import time
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -164,33 +165,32 @@ def check_output_paths(out: Path, shard_kind: str) -> None:
     check_output_files(out, ("summary.json",))
 
 
-class drop_stale_caches:  # noqa: N801 - used as a function: `with drop_stale_caches(out, paths):`
+def _signatures(paths: list[Path]) -> list:
+    """(size, mtime, inode) of each of `paths`, None for one that is not there."""
+    def signature(path: Path):
+        try:
+            stat = path.stat()
+        except OSError:
+            return None
+        return stat.st_size, stat.st_mtime_ns, stat.st_ino
+
+    return [signature(path) for path in paths]
+
+
+@contextmanager
+def drop_stale_caches(out: Path, paths):
     """A context for a run that makes the shards `paths` of dataset folder `out`: when it ends (interrupted too), the
     training caches (``cache/``) are removed if one of those shards was added or changed: they were built from the
     dataset as it was and no longer match it (training would refuse them; the next ``train`` rebuilds its own). A run
     that added nothing keeps them."""
-
-    def __init__(self, out: Path, paths) -> None:
-        self.cache, self.paths = out / CACHE_DIR, [Path(path) for path in paths]
-        self.before = self._signatures() if self.cache.is_dir() else None
-
-    def _signatures(self) -> list:
-        def signature(path: Path):
-            try:
-                stat = path.stat()
-            except OSError:
-                return None
-            return stat.st_size, stat.st_mtime_ns, stat.st_ino
-
-        return [signature(path) for path in self.paths]
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self.before is not None and self.cache.is_dir() and self._signatures() != self.before:
-            log.warning("removing %s: the training caches of the dataset before this run", self.cache)
-            shutil.rmtree(self.cache, ignore_errors=True)
+    cache, paths = out / CACHE_DIR, [Path(path) for path in paths]
+    before = _signatures(paths) if cache.is_dir() else None
+    try:
+        yield
+    finally:
+        if before is not None and cache.is_dir() and _signatures(paths) != before:
+            log.warning("removing %s: the training caches of the dataset before this run", cache)
+            shutil.rmtree(cache, ignore_errors=True)
 
 
 def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "seed", "scenes", "views_per_scene",
