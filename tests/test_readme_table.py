@@ -52,6 +52,19 @@ def test_the_table_holds_the_reports_own_figures(published_table):
         assert f"| {row[3]} +- " in report and f"| {row[4]} +- " in report, row  # the summary's means
 
 
+def test_the_readmes_figures_with_an_interval_are_the_tables(published_table):
+    """Every ratio with an interval that README.md's text around the table quotes (``1.25x [1.17, 1.35]``) is a
+    cell of the published table: a re-published folder cannot leave the prose behind its table."""
+    import re
+
+    text = (REPO_ROOT / "README.md").read_text()
+    prose = text.replace(marked_block(text), "")
+    quoted = re.findall(r"\d+\.\d\dx \[\d+\.\d\d, \d+\.\d\d\]", prose)
+    assert quoted, "the README quotes the table's headline ratios"
+    missing = [figure for figure in quoted if figure not in published_table]
+    assert not missing, f"README.md quotes {missing}, which the published table does not hold: update the text"
+
+
 def test_the_block_is_replaced_whole():
     page = f"intro\n\n{BEGIN}\n\n| old |\n\n{END}\n\nafter\n"
     assert marked_block(page) == "| old |\n"
