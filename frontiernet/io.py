@@ -229,7 +229,7 @@ def claim_output_folder(path: str | Path, force: bool = False) -> Iterator[Path]
     path = check_output_folder(path, force)
     made = [folder for folder in (path, *path.parents) if not folder.exists()]
     ensure_dir(path)
-    lock = path / LOCK_NAME
+    lock = _lock_file(path)
     while True:
         handle = open(lock, "a+")
         try:
@@ -258,6 +258,16 @@ def claim_output_folder(path: str | Path, force: bool = False) -> Iterator[Path]
     handle.close()
 
 
+def _lock_file(folder: Path) -> Path:
+    """The path of :data:`LOCK_NAME` in `folder`; InputError naming it when something other than a regular file
+    has its name (a folder could not be opened, a pipe would block the open)."""
+    lock = folder / LOCK_NAME
+    if os.path.lexists(lock) and not lock.is_file():
+        raise InputError(f"{lock}: {'is a folder' if lock.is_dir() else 'not a regular file'}, expected the lock "
+                         "file frontiernet keeps while a run writes there; remove it")
+    return lock
+
+
 def in_use_message(path: Path, owner: str, option: str) -> str:
     """The refusal of folder `path` while another run holds its lock (`owner`: the pid its lock file names, or
     ''; `option`: how the user names another folder)."""
@@ -273,7 +283,7 @@ def check_not_locked(path: str | Path, option: str = "--out") -> None:
     import fcntl
 
     try:
-        handle = open(Path(path) / LOCK_NAME)
+        handle = open(_lock_file(Path(path)))
     except OSError:  # no lock file: no run there (or not one this can read)
         return
     with handle:

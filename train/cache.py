@@ -118,7 +118,7 @@ class TrainingCache:
 def _map_arrays(path: Path, size: int, count: int, mode: str = "r") -> dict[str, np.ndarray]:
     arrays = {}
     for name, (shape, dtype) in array_specs(size).items():
-        file = path / f"{name}.npy"
+        file = _cache_file(path / f"{name}.npy", path)
         try:
             array = np.load(file, mmap_mode=mode)
         except FileNotFoundError:
@@ -132,8 +132,18 @@ def _map_arrays(path: Path, size: int, count: int, mode: str = "r") -> dict[str,
     return arrays
 
 
+def _cache_file(file: Path, path: Path) -> Path:
+    """`file` of training cache `path`; InputError naming it when something other than a regular file has its
+    name (a pipe's read would wait for ever, a folder's fail inside numpy). FileNotFoundError passes: the
+    caller says what a missing file means."""
+    if os.path.lexists(file) and not file.is_file():
+        raise InputError(f"{file}: {'is a folder' if file.is_dir() else 'not a regular file'}, expected a file of the "
+                         f"training cache; delete {path} to rebuild it")
+    return file
+
+
 def _read_info(path: Path) -> dict:
-    file = path / INFO_NAME
+    file = _cache_file(path / INFO_NAME, path)
     try:
         info = json.loads(file.read_text())
     except FileNotFoundError:
@@ -256,8 +266,8 @@ def _open_partial(partial: Path, info: dict, size: int, count: int) -> tuple[dic
     description = partial / "partial.json"
     if partial.is_dir():
         try:
-            same = json.loads(description.read_text()) == info
-            done = np.load(partial / PROGRESS_NAME)
+            same = json.loads(_cache_file(description, partial).read_text()) == info
+            done = np.load(_cache_file(partial / PROGRESS_NAME, partial))
             arrays = _map_arrays(partial, size, count, mode="r+")
             if same and done.shape == (count,) and done.dtype == bool:
                 return arrays, done.copy()

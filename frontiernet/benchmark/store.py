@@ -220,7 +220,7 @@ def read_pack(path: Path, data: bytes | None = None) -> dict[str, dict]:
     they are in hand (read from `path` otherwise).
 
     Raises:
-        InputError: the file is not a pack (not gzip, truncated, a line that is not
+        InputError: the file is not a pack (not a regular file, not gzip, truncated, a line that is not
             ``{"key", "metrics"}`` JSON, a key of another scene or method, a key twice).
     """
     group = f"{Path(path).parent.name}/{Path(path).name[:-len(PACK_SUFFIX)]}"  # <scene key>/<method>
@@ -230,6 +230,8 @@ def read_pack(path: Path, data: bytes | None = None) -> dict[str, dict]:
         return InputError(f"{path}: not a packed benchmark file ({reason}); restore it (git checkout, a copy) "
                           "or remove it to run its runs again")
 
+    if data is None:  # a folder or a pipe with a pack's name: refused, not read (a pipe's read waits for ever)
+        input_file(path, "packed benchmark file")
     try:
         text = gzip.decompress(Path(path).read_bytes() if data is None else data).decode("utf-8")
     except (OSError, EOFError, zlib.error, UnicodeDecodeError) as error:  # BadGzipFile is an OSError
@@ -351,7 +353,7 @@ def pack(out: str | Path) -> dict:
     for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")):  # packs in an older form: rewritten in today's
         if path in fresh:  # (written below with its new runs)
             continue
-        records = read_pack(path, old := path.read_bytes())
+        records = read_pack(path, old := input_file(path, "packed benchmark file").read_bytes())
         packed[path] = len(records)
         if old == (data := _pack_bytes(records)):
             continue
@@ -360,7 +362,7 @@ def pack(out: str | Path) -> dict:
         write_bytes(path, data)  # checked before the old pack is replaced
         rewritten.append(path)
     for path, records in fresh.items():
-        merged = {**(read_pack(path) if path.is_file() else {}), **records}
+        merged = {**(read_pack(path) if os.path.lexists(path) else {}), **records}
         write_pack(path, merged)
         if set(read_pack(path)) != set(merged):  # read back before anything is removed
             raise InputError(f"{path}: the pack written does not read back; per-run files kept")

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import ensure_dir
+from ..io import check_output_files, ensure_dir
 from .gravity import rotation_between
 
 MARKERS, POSES, OVERLAY, OVERLAY_INFO, MAP, TF_TOPIC = ("/frontiernet/frontiers", "/frontiernet/frontier_poses",
@@ -180,6 +180,8 @@ class RosWriter:
 
     def __init__(self, out: Path, *, mcap: bool = True, rosbag2: bool = False, name: str = "frontiers.mcap") -> None:
         out = ensure_dir(out)
+        if mcap:  # a folder or a pipe where the file or its scratch goes: refused before the frames, not after
+            check_output_files(out, (name, f".{name}.partial"))
         self.sinks = [_McapSink(out / name, typestore())] if mcap else []
         if rosbag2:
             self.sinks.append(_Rosbag2Sink(out / "rosbag2", typestore()))
