@@ -203,8 +203,10 @@ def prepare_output(out: Path, info: dict, resume: bool, keys=("config_hash", "se
     dataset, 32 now``; None written null). Datagen's dataset by default; :mod:`datagen.mapgen` passes its own keys,
     files, settings and `shard_kind` (and `command`, which starts the note of a `resume` with no dataset to resume:
     a new one is started, and that is said on stdout, ``<command>: note: --resume: ...``; an error would still be
-    the one line on stderr). The paths the run writes are checked too (:func:`check_output_paths`)."""
-    if (out / INFO_NAME).exists():
+    the one line on stderr). The paths the run writes are checked too (:func:`check_output_paths`). Anything at
+    ``dataset.json``, a symbolic link to nothing too, is a description `read_info` must read (a dangling one was taken
+    for none: a new description of today's settings written, the shards there adopted unchecked)."""
+    if os.path.lexists(out / INFO_NAME):
         check_dataset_kind(out, read_info, command)
         if not resume:
             raise InputError(f"{out}: already holds a dataset; pass --resume to continue it or choose another --out")

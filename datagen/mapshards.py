@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import zipfile
 import zlib
 from collections import OrderedDict
@@ -168,6 +169,8 @@ class MapDataset:
         if not self.root.is_dir():
             raise InputError(f"{self.root}: map dataset folder not found (make one with frontiernet mapgen)")
         self.info = read_map_dataset_info(self.root)
+        if os.path.lexists(self.root / SHARDS_DIR):  # (a dangling link or a file there read as "no snapshots yet")
+            input_folder(self.root / SHARDS_DIR, "map shards")
         # every *.zip: one that is a pipe, a device, a folder or a dangling link is refused as such (a pipe blocked)
         self.shards = sorted(regular_file(path, "map shard") for path in (self.root / SHARDS_DIR).glob("*.zip"))
         self.metas = [read_map_shard_meta(path) for path in self.shards]

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError
-from frontiernet.io import colorize_depth, ensure_dir, remove_if_empty, write_image
+from frontiernet.io import check_not_dangling, colorize_depth, ensure_dir, remove_if_empty, write_image
 from frontiernet.simulator.preview import contact_sheet
 
 FRONTIER_COLOUR = (255, 0, 255)  # F tile
@@ -167,6 +167,7 @@ def write_previews(dataset, out_dir: str | Path, n: int = 16, seed: int = 0, *, 
         The written paths, in dataset order.
     """
     out_dir = Path(out_dir)
+    check_not_dangling(out_dir)  # (was "cannot create output folder (File exists)", after a sample was read)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"{out_dir}: output path exists and is not a folder")
     length = len(dataset)

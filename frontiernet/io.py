@@ -19,8 +19,11 @@ from .errors import InputError
 
 
 def ensure_dir(path: str | Path) -> Path:
-    """Create output folder `path` (and parents); fail with a clear message if impossible."""
+    """Create output folder `path` (and parents); fail with a clear message if impossible (a symbolic link to
+    nothing there or on the way named as such: :func:`check_not_dangling`, not "cannot create ... (File exists)")."""
     path = Path(path)
+    for folder in (path, *path.parents):
+        check_not_dangling(folder)
     if path.exists() and not path.is_dir():
         raise InputError(f"{path}: output path exists and is not a folder")
     try:
@@ -200,9 +203,11 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
 def check_output_files(folder: str | Path, names) -> None:
     """Before the work: InputError when something other than a regular file stands where one of the files
     `names` that a run writes in output folder `folder` goes (a folder named ``metrics.json``: the run was
-    refused after its work, when it wrote its results)."""
+    refused after its work, when it wrote its results; a symbolic link to nothing, which the file written
+    would replace: :func:`check_not_dangling`)."""
     for name in names:
         path = Path(folder) / name
+        check_not_dangling(path)
         if path.is_dir():
             raise InputError(f"{path}: a folder is where the run writes its {name}; remove it, or choose another --out")
         _check_regular(path)

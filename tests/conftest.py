@@ -31,6 +31,23 @@ TWO_ROOM = {
 TWO_ROOM_FREE_VOLUME = 6.0 * 4.0 * 2.5 - (0.2 * 4.0 * 2.5 - 0.2 * 0.9 * 2.0)  # 58.36 m^3
 
 
+def folder_files(folder: Path) -> dict:
+    """Relative path -> bytes of every file under `folder` (to assert that a refused run changed nothing)."""
+    return {path.relative_to(folder): path.read_bytes() for path in sorted(Path(folder).rglob("*")) if path.is_file()}
+
+
+def python_in_subprocess(code: str, timeout: float = 240):
+    """``python -c CODE`` in its own process (a read of a pipe would wait for ever): its CompletedProcess; a run
+    past `timeout` fails the test."""
+    import subprocess
+    import sys
+
+    try:
+        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"still running after {timeout} s (blocked on a pipe?)")
+
+
 def copy_tracked(folder: str, target: Path) -> Path:
     """Copy the git-tracked files of repository `folder` (e.g. a small published benchmark) to `target`, never
     writing to the original; returns `target`. Skips the test without git or a repository."""

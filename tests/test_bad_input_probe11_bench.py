@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from conftest import REPO_ROOT, copy_tracked
+from conftest import copy_tracked, folder_files
 from frontiernet.cli.main import main
 from test_benchmark import bench
 
@@ -34,19 +34,15 @@ def small(tmp_path):
     return folder
 
 
-def files(folder) -> dict:
-    return {path.relative_to(folder): path.read_bytes() for path in sorted(folder.rglob("*")) if path.is_file()}
-
-
 @pytest.mark.parametrize("action", ["--report", "--pack"])
 def test_a_runs_file_is_refused_and_the_plan_kept(action, small, one_line_error):
     # Q5: --report an internal error (NotADirectoryError); Q10: --pack "packed 0 run(s)", exit 0, the plan gzipped
     shutil.rmtree(small / "runs")
     (small / "runs").write_text("not the runs\n")
-    before = files(small)
+    before = folder_files(small)
     assert refused(action, "--out", small)
     assert one_line_error().endswith(f"{small / 'runs'}: is a file, expected the benchmark's runs folder")
-    assert files(small) == before  # the plan not packed, no report written
+    assert folder_files(small) == before  # the plan not packed, no report written
 
 
 def test_a_file_in_the_way_of_a_runs_metrics_is_named_not_an_internal_error(small, one_line_error):
@@ -76,20 +72,20 @@ def test_a_plan_that_is_a_folder_is_named_not_missing(action, small, one_line_er
     # Q14: "no benchmark here (no plan.json)"
     (small / "plan.json").unlink()
     (small / "plan.json").mkdir()
-    before = files(small)
+    before = folder_files(small)
     assert refused(action, "--out", small)
     assert one_line_error().endswith(f"{small / 'plan.json'}: is a folder, expected a file (benchmark plan)")
-    assert files(small) == before and (small / "plan.json").is_dir()
+    assert folder_files(small) == before and (small / "plan.json").is_dir()
 
 
 def test_a_resume_on_a_plan_that_is_a_folder_names_it(small, one_line_error):
     # (Q14 for a benchmark run: "holds files but no benchmark (no plan.json)")
     (small / "plan.json").unlink()
     (small / "plan.json").mkdir()
-    before = files(small)
+    before = folder_files(small)
     assert refused("--scenes", "procedural:3", "--methods", "classic", "--max-steps", "4", "--out", small)
     assert one_line_error().endswith(f"{small / 'plan.json'}: is a folder, expected a file (benchmark plan)")
-    assert files(small) == before
+    assert folder_files(small) == before
 
 
 def test_a_plan_that_is_a_pipe_is_named_not_missing(small):
@@ -114,12 +110,12 @@ def test_report_files_are_checked_before_redo_changed_discards_runs(plan_spec, t
     assert code == 0, stderr
     (out / "results.csv").unlink()
     (out / "results.csv").mkdir()
-    before = files(out)
+    before = folder_files(out)
     caplog.clear()
     assert refused(*args, "--set", "map.monocular_log_odds_miss=-1.2", "--redo-changed")
     assert one_line_error().endswith(f"{out / 'results.csv'}: a folder is where the run writes its results.csv; "
                                      "remove it, or choose another --out")
     assert "discarded" not in caplog.text
-    assert files(out) == before  # the emulated run's metrics kept, the plan as it was
+    assert folder_files(out) == before  # the emulated run's metrics kept, the plan as it was
     assert refused("--report", "--out", out)  # and --report before it writes table.md, plots
-    assert "results.csv: a folder is where the run writes" in one_line_error() and files(out) == before
+    assert "results.csv: a folder is where the run writes" in one_line_error() and folder_files(out) == before

@@ -7,29 +7,16 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
-from conftest import copy_tracked
+from conftest import copy_tracked, folder_files, python_in_subprocess
 from frontiernet.cli.main import main
 from frontiernet.errors import InputError
 
 SMALL = "docs/benchmark/loop_fixes/base"
 """A small tracked benchmark folder (packed runs), copied, never written to."""
-
-
-def files(folder: Path) -> dict:
-    return {path.relative_to(folder): path.read_bytes() for path in sorted(folder.rglob("*")) if path.is_file()}
-
-
-def in_subprocess(code: str, timeout: float = 240) -> subprocess.CompletedProcess:
-    try:
-        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"still running after {timeout} s (blocked on a pipe?)")
 
 
 @pytest.fixture
@@ -47,10 +34,10 @@ def test_a_pack_that_is_a_folder_is_named_not_an_internal_error(action, small, o
     pack = a_pack(small)
     pack.unlink()
     pack.mkdir()
-    before = files(small)
+    before = folder_files(small)
     assert main(["bench", action, "--out", str(small)]) == 2
     assert one_line_error().endswith(f"{pack}: is a folder, expected a file (packed benchmark file)")
-    assert files(small) == before
+    assert folder_files(small) == before
 
 
 def test_a_pack_that_is_a_pipe_is_refused_not_waited_on(small):
@@ -58,7 +45,7 @@ def test_a_pack_that_is_a_pipe_is_refused_not_waited_on(small):
     pack = a_pack(small)
     pack.unlink()
     os.mkfifo(pack)
-    result = in_subprocess("import sys; from frontiernet.cli.main import main; "
+    result = python_in_subprocess("import sys; from frontiernet.cli.main import main; "
                            f"sys.argv = ['frontiernet', 'bench', '--report', '--out', {str(small)!r}]; sys.exit(main())")
     assert result.returncode == 2, result.stderr
     assert result.stderr.strip().endswith(f"{pack}: not a regular file, expected a file (packed benchmark file)")
@@ -70,20 +57,20 @@ def test_a_lock_that_is_a_folder_is_named(two_scenes, tmp_path, one_line_error):
     data = tmp_path / "data"
     shutil.copytree(two_scenes, data)
     (data / ".frontiernet.lock").mkdir()
-    before = files(data)
+    before = folder_files(data)
     assert main(["datagen", "--scenes", "procedural:3", "procedural:4", "--views-per-scene", "2", "--no-progress",
                  "--out", str(data), "--resume", "--set", "camera.width=64", "camera.height=64", "camera.focal_px=40",
                  "writer.shard_size=2"]) == 2
     assert one_line_error().endswith(f"{data / '.frontiernet.lock'}: is a folder, expected the lock file frontiernet "
                                      "keeps while a run writes there; remove it")
-    assert files(data) == before
+    assert folder_files(data) == before
 
 
 def test_a_lock_that_is_a_pipe_is_refused_not_opened(tmp_path):
     from frontiernet.io import LOCK_NAME
 
     os.mkfifo(tmp_path / LOCK_NAME)
-    result = in_subprocess("from frontiernet.io import check_not_locked, claim_output_folder\n"
+    result = python_in_subprocess("from frontiernet.io import check_not_locked, claim_output_folder\n"
                            "from frontiernet.errors import InputError\n"
                            "for call in (lambda: check_not_locked(%r), lambda: claim_output_folder(%r, True).__enter__()):\n"
                            "    try:\n        call()\n    except InputError as error:\n        print(error)\n"
@@ -100,7 +87,7 @@ def test_a_training_cache_file_that_is_a_pipe_is_refused_not_waited_on(name, tmp
     cache.mkdir(parents=True)
     os.mkfifo(cache / name)
     reader = "_read_info(path)" if name == "cache.json" else "_map_arrays(path, 64, 2)"
-    result = in_subprocess("from pathlib import Path\nfrom train.cache import _read_info, _map_arrays\n"
+    result = python_in_subprocess("from pathlib import Path\nfrom train.cache import _read_info, _map_arrays\n"
                            "from frontiernet.errors import InputError\n"
                            f"path = Path({str(cache)!r})\ntry:\n    {reader}\nexcept InputError as error:\n"
                            "    print(error)\n")

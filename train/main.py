@@ -339,17 +339,34 @@ def _fit(conf, out: Path, resume: str | None, init, base, datamodule, progress: 
     with run_folder(out, trainer, made):
         (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
         trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code
-    checkpoint = best.best_model_path or str(last)
-    if trainer.global_step > module.validated_at_step:
-        # Lightning skips the validation due at the last step when max_steps ends the run, so the
-        # final weights (often the best: the learning rate has decayed) would never be judged
-        final = trainer.validate(module, datamodule=datamodule, verbose=False)[0]
-        if best.best_model_score is None or final["val/loss"] < float(best.best_model_score):
-            checkpoint = str(last)
-    elapsed = time.time() - started
-    if trainer.is_global_zero:
-        _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
+    with lightning_interrupts(trainer):  # a signal in the final validation ends the run as one in the fit
+        checkpoint = best.best_model_path or str(last)
+        if trainer.global_step > module.validated_at_step:
+            # Lightning skips the validation due at the last step when max_steps ends the run, so the
+            # final weights (often the best: the learning rate has decayed) would never be judged
+            final = trainer.validate(module, datamodule=datamodule, verbose=False)[0]
+            if best.best_model_score is None or final["val/loss"] < float(best.best_model_score):
+                checkpoint = str(last)
+        elapsed = time.time() - started
+        if trainer.is_global_zero:
+            _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
     return out
+
+
+@contextmanager
+def lightning_interrupts(trainer):
+    """Ctrl-C or SIGTERM in Lightning's `trainer` (``fit``, ``validate``) ends the body as KeyboardInterrupt, which
+    ``frontiernet`` ends as every command's interrupt (exit 130, "interrupted"): Lightning turns it into
+    ``sys.exit(1)`` after its ``on_exception`` hooks (an exit 1 with no word of the signal), or only marks the
+    trainer interrupted."""
+    try:
+        yield
+    except SystemExit:
+        if trainer.interrupted:
+            raise KeyboardInterrupt from None
+        raise
+    if trainer.interrupted:
+        raise KeyboardInterrupt
 
 
 @contextmanager
@@ -358,24 +375,20 @@ def run_folder(out: Path, trainer, made: Path | None = None):
     Lightning's `trainer` runs: where the body fails before any checkpoint was saved (it never stepped, or it
     diverged first: :class:`~train.module.TrainingDiverged`), the folders made here, or `made` (the outermost
     folder that :func:`~train.resume.claimed_run_folder` made for the run), are removed, as nothing could resume
-    from them; Ctrl-C (Lightning turns it into ``sys.exit(1)`` after its ``on_exception`` hooks, or only marks
-    the trainer interrupted) ends as KeyboardInterrupt."""
+    from them; Ctrl-C ends as KeyboardInterrupt (:func:`lightning_interrupts`)."""
     made = made or next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
     out.mkdir(parents=True, exist_ok=True)
-    try:
-        yield out
-    except SystemExit:
-        if trainer.interrupted:
-            raise KeyboardInterrupt from None
-        raise
-    except BaseException:
-        if made is not None and not any((out / "checkpoints").glob("*.ckpt")):
-            import shutil
+    with lightning_interrupts(trainer):
+        try:
+            yield out
+        except SystemExit:
+            raise
+        except BaseException:
+            if made is not None and not any((out / "checkpoints").glob("*.ckpt")):
+                import shutil
 
-            shutil.rmtree(made, ignore_errors=True)
-        raise
-    if trainer.interrupted:
-        raise KeyboardInterrupt
+                shutil.rmtree(made, ignore_errors=True)
+            raise
 
 
 def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapsed: float, resume) -> None:

@@ -236,7 +236,7 @@ def _fit(conf, out: Path, resume, spec, samples, scenes, progress: bool, made) -
     from lightning.pytorch.loggers import CSVLogger
     from torch.utils.data import DataLoader
 
-    from .main import LastCheckpoint, _trainer_args, run_folder
+    from .main import LastCheckpoint, _trainer_args, lightning_interrupts, run_folder
 
     last = out / "checkpoints" / "last.ckpt"
     (train_set, val_set), (train_scenes, val_scenes) = samples, scenes
@@ -274,7 +274,8 @@ def _fit(conf, out: Path, resume, spec, samples, scenes, progress: bool, made) -
         trainer.fit(module, *loaders, ckpt_path=resume, weights_only=True)
     checkpoint = best.best_model_path or str(last)
     if trainer.global_step > module.validated_at_step:
-        final = trainer.validate(module, loaders[1], verbose=False)[0]
+        with lightning_interrupts(trainer):  # a signal here ends the run as one in the fit: exit 130, "interrupted"
+            final = trainer.validate(module, loaders[1], verbose=False)[0]
         if best.best_model_score is None or final["val/miou"] > float(best.best_model_score):
             checkpoint = str(last)  # LastCheckpoint saved the final weights when training ended
     metrics = {key: float(value) for key, value in trainer.callback_metrics.items() if value.numel() == 1}

@@ -120,9 +120,8 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         if plan_file(out) is not None:  # resuming: the same settings, the same start poses and budgets
             previous = resumable_plan(out, settings, redo_changed)
             poses, budgets = previous["start_poses"], previous.get("budgets")
-            redo = previous.get("redo_runs")
-            if redo:  # before the plan takes the new settings: a run stopped between redoes the rest
-                keys, readers = redo
+            keys, readers = previous.get("redo_runs") or ([], [])
+            if keys:  # before the plan takes the new settings: a run stopped between redoes the rest
                 log.warning("%s: the settings of its %s changed; %d finished runs of them discarded, to run again",
                             out, ", ".join(map(str, readers)), discard_runs(out, keys))
         clock = time.perf_counter()

@@ -197,9 +197,11 @@ def pack_path(out: str | Path, key: str) -> Path:
 
 def read_metrics(path: Path) -> dict:
     """A per-run ``metrics.json``; InputError naming it when it is not a regular file holding a JSON
-    object (a folder, a pipe, a file in the way: ``runs/<scene key>`` a file). FileNotFoundError when it is
-    not there (the run is not finished, or packed: :class:`FinishedRuns`)."""
+    object (a folder, a pipe, a link to nothing, a file in the way: ``runs/<scene key>`` a file).
+    FileNotFoundError when it is not there (the run is not finished, or packed: :class:`FinishedRuns`)."""
     path = Path(path)
+    if path.is_symlink() and not path.exists():  # a link to nothing: named, not taken for a run not finished
+        input_file(path, "run's metrics")
     if path.exists() and not path.is_file():  # (a pipe's read would wait for a writer)
         kind = "a folder" if path.is_dir() else "not a regular file"
         raise InputError(f"{path}: not a run's metrics ({kind}); remove the run's folder to run it again")
@@ -279,10 +281,9 @@ class FinishedRuns:
         self._packs: dict[Path, tuple] = {}  # pack path -> (its stat when read, key -> record)
 
     def _pack(self, path: Path) -> dict[str, dict]:
-        try:
-            stamp = path.stat()
-        except FileNotFoundError:
+        if not os.path.lexists(path):  # no pack: its runs are not finished (or not packed)
             return {}
+        stamp = input_file(path, "packed benchmark file").stat()  # a link to nothing, a folder, a pipe: named
         stamp = (stamp.st_mtime_ns, stamp.st_size)
         if path not in self._packs or self._packs[path][0] != stamp:  # new, or repacked since (a --pack beside)
             self._packs[path] = (stamp, read_pack(path))
@@ -340,15 +341,23 @@ def pack(out: str | Path) -> dict:
         ``{"runs": runs packed now, "packs": [pack paths written], "rewritten": [older-form pack paths
         rewritten], "packed": runs in packs in all, "plan": the packed plan}``.
     Raises:
-        InputError: no benchmark in `out`, or a corrupt metrics.json or pack (nothing removed then).
+        InputError: no benchmark in `out`, or a corrupt metrics.json or pack, or something other than a
+            regular file where a planned run's metrics.json goes (a folder, a pipe, its method's folder a
+            file: :func:`read_metrics`), which was taken for a run not finished (nothing written or removed then).
     """
     out = Path(out)
     plan = read_plan(out)
     fresh = defaultdict(dict)  # pack path -> key -> record, of the per-run files
-    for run in plan["runs"]:
-        path = out / "runs" / run["key"] / "metrics.json"
-        if not run.get("copy_of") and path.is_file():
-            fresh[pack_path(out, run["key"])][run["key"]] = read_metrics(path)
+    for run in plan["runs"]:  # all read before anything is written: a folder, a pipe, a file in the way refused
+        if run.get("copy_of"):
+            continue
+        try:
+            fresh[pack_path(out, run["key"])][run["key"]] = read_metrics(out / "runs" / run["key"] / "metrics.json")
+        except FileNotFoundError:  # not finished (or packed)
+            continue
+    for path in fresh:  # the packs they go into, where something has their name: regular files (a link to nothing)
+        if os.path.lexists(path):
+            input_file(path, "packed benchmark file")
     written, rewritten, packed = [], [], {}  # packed: pack path -> its number of runs
     for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")):  # packs in an older form: rewritten in today's
         if path in fresh:  # (written below with its new runs)

@@ -17,11 +17,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import input_folder
+from ..io import input_file, input_folder
 from .colmap import find_model, read_colmap, sequence_from_reconstruction
 from .frames import Camera, Sequence, SequenceFrame
 from .images import DEPTH_ENCODINGS, read_depth, read_rgb
-from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, read_redwood, read_tum
+from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, TUM_LISTS, present, read_redwood, read_tum
 from .ros_extract import is_recording
 
 FORMATS = ("tum", "redwood", "colmap", "images")
@@ -53,7 +53,8 @@ def detect_format(path: str | Path) -> str:
     if path.is_file():
         raise InputError(f"{path}: a file; a sequence is a folder, or a recording (.bag, .mcap, .db3)")
     input_folder(path, "sequence")  # missing, or a device or a pipe
-    if (path / "rgb.txt").is_file():
+    if present(path / "rgb.txt"):  # a pipe or a dangling link too: named, not taken for absent
+        input_file(path / "rgb.txt", TUM_LISTS["rgb.txt"])
         return "tum"
     if any(path.glob("*.log")) and any((path / name).is_dir() for name in REDWOOD_COLOUR_FOLDERS):
         return "redwood"

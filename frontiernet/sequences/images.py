@@ -26,6 +26,10 @@ from ..io import input_file
 
 DEPTH_ENCODINGS = ("scale", "sun", "nyu")
 PLAUSIBLE_DEPTH_M = (0.05, 100.0)  # median depths outside this mean a wrong unit (indoor and outdoor sensors)
+MAX_DEPTH_M = PLAUSIBLE_DEPTH_M[1]
+"""The farthest depth pixel read, metres: no indoor camera sees past 100 m (the bound of the simulated camera's
+``camera.max_depth``, configs/ranges/sim.yaml, and of ``tracking.gain_view.max_depth_m``); a pixel beyond is no
+reading (a float32 depth of 3e38 m overflowed the median to infinity), refused as an infinite one is."""
 _NYU_BASELINE, _NYU_OFFSET = 351.3, 1092.5  # Open3D RGBDImageFactory.cpp (NYU raw Kinect disparity)
 
 
@@ -118,7 +122,20 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
                          "millimetres) or save it as integer millimetres (uint16)")
     elif encoding != "scale":  # (integer depth of the scale encoding: judged above)
         check_depth_unit(depth, path, f"read with the {encoding} encoding")
+    check_depth_range(depth, path)  # after the unit: depth in another unit is said so, stray far pixels here
     return depth
+
+
+def check_depth_range(depth: np.ndarray, path) -> None:
+    """InputError naming `path`, how many pixels and the farthest, when depth pixels (metres) are infinite or
+    beyond :data:`MAX_DEPTH_M` (as an infinite pixel is, not read as invalid: a far pixel is a reading, and a
+    wrong one is said so); NaN, 0 and negative pixels are invalid ones (no reading), left to the caller."""
+    with np.errstate(invalid="ignore"):
+        far = depth > MAX_DEPTH_M  # (NaN: False) +inf too
+    if far.any():
+        largest = float(depth[far].max())
+        raise InputError(f"{path}: depth has {int(far.sum())} pixel(s) beyond {MAX_DEPTH_M:g} m (the farthest "
+                         f"{largest:.4g} m), which no indoor camera sees; mark invalid pixels with 0 or NaN")
 
 
 def check_depth_unit(depth: np.ndarray, path, decoding: str, advice: str | None = None) -> None:
@@ -129,7 +146,7 @@ def check_depth_unit(depth: np.ndarray, path, decoding: str, advice: str | None 
     valid = depth[depth > 0]
     if not len(valid):
         return
-    median = float(np.median(valid))
+    median = float(np.median(valid.astype(np.float64)))  # (float32: two values near 3e38 averaged to inf)
     low, high = PLAUSIBLE_DEPTH_M
     if not low <= median <= high:
         advice = advice or "check the depth scale (1000 for millimetres, 5000 for TUM, 1 for metres)"

@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import InputError, whole_number
 from ..io import claim_output_folder, ensure_dir, write_json
 from .gravity import gravity_alignment
-from .outputs import write_arrows, write_frontiers
+from .outputs import check_run_outputs, write_arrows, write_frontiers
 from .perceive import perceive_frames
 from .stream import FrontierStream, load_sequence_config
 from .tracking import track_frontiers
@@ -202,17 +202,19 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         camera: a :class:`~frontiernet.sequences.Camera` overriding the sequence's intrinsics.
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
-    The frames, the outputs (:func:`check_outputs`), ``network.size``, the depth and `out` are checked
-    before any work; a run refused after (an :class:`InputError`: a recording without depth, a
-    reconstruction that fails, ...) removes the `out` folder if it made it, else the work folders it
-    made there (``cache``, ``recording``, ``colmap``), while an interrupted run keeps them to resume; a
-    second run on `out` while this one writes there is refused (:func:`~frontiernet.io.claim_output_folder`).
+    The frames, the outputs (:func:`check_outputs`), ``network.size``, the depth, `out` and the paths the run
+    writes there (:func:`~.outputs.check_run_outputs`) are checked before any work; a run refused after (an
+    :class:`InputError`: a recording without depth, a reconstruction that fails, ...) removes the `out` folder
+    if it made it, else the work folders it made there (``cache``, ``recording``, ``colmap``), while an
+    interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
+    (:func:`~frontiernet.io.claim_output_folder`).
     """
     conf = load_sequence_config() if conf is None else conf
     check_frames(conf.frames.stride, conf.frames.max_frames)
     check_outputs(conf)
     check_network(conf.network)
     check_depth(depth, conf)
+    check_run_outputs(out, video=video, mcap=mcap, rosbag2=rosbag2)  # what stands where the run writes
     out = Path(out)
     made = [path for path in (*(out / name for name in WORK_FOLDERS), out) if not path.exists()]
     try:

@@ -14,6 +14,7 @@ own world frame (often the first camera's, not necessarily Z-up).
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,8 @@ DEFAULT_INTRINSICS = (525.0, 525.0, 319.5, 239.5)
 DEFAULT_INTRINSICS_SIZE = (640, 480)
 TUM_DEPTH_SCALE = 5000.0  # TUM RGB-D depth PNGs: 5000 units per metre
 REDWOOD_DEPTH_SCALE = 1000.0  # Redwood depth PNGs: millimetres
+TUM_LISTS = {"rgb.txt": "TUM colour image list", "depth.txt": "TUM depth image list"}
+"""A TUM sequence's image lists, and what a refusal of one of the wrong kind calls it."""
 
 
 # ----------------------------------------------------------------------------- shared file helpers
@@ -101,12 +104,20 @@ def default_camera(size: tuple[int, int]) -> Camera:
     return Camera.pinhole(*DEFAULT_INTRINSICS, *size)
 
 
-def _number_rows(path: Path, columns: int) -> list[tuple[int, list[str]]]:
+def present(path: Path) -> bool:
+    """Whether anything has the name `path` (a file, a folder, a pipe, a link, dangling or not): an optional
+    file of a format is then read, and :func:`~frontiernet.io.input_file` names one of the wrong kind, instead of
+    taking it for absent (``is_file()`` is False for a pipe, which a read would wait on forever)."""
+    return os.path.lexists(path)
+
+
+def _number_rows(path: Path, columns: int, what: str = "file") -> list[tuple[int, list[str]]]:
     """(line number, fields) of the non-empty, non-``#`` lines of a text file with at least
-    `columns` whitespace-separated fields; InputError naming the file and line otherwise. A UTF-8 byte-order
+    `columns` whitespace-separated fields; InputError naming the file and line otherwise, or the file when it
+    is no regular file (`what` it should be: :func:`~frontiernet.io.input_file`). A UTF-8 byte-order
     mark (Windows editors write one) is no part of the first line (it made a comment line a bad number's).
     The other text files of the sequence formats are read so as well."""
-    input_file(path)
+    input_file(path, what)
     rows = []
     for number, line in enumerate(path.read_text("utf-8-sig", errors="replace").splitlines(), 1):
         fields = line.split()
@@ -131,9 +142,10 @@ def _floats(path: Path, number: int, fields: list[str]) -> list[float]:
 
 # ----------------------------------------------------------------------------- TUM RGB-D
 
-def _read_tum_list(path: Path) -> tuple[np.ndarray, list[str]]:
-    """(timestamps (N,) float64 seconds, relative paths) of a TUM ``rgb.txt`` / ``depth.txt``, sorted by time."""
-    rows = _number_rows(path, 2)
+def _read_tum_list(path: Path, what: str) -> tuple[np.ndarray, list[str]]:
+    """(timestamps (N,) float64 seconds, relative paths) of a TUM ``rgb.txt`` / ``depth.txt`` (`what`), sorted by
+    time."""
+    rows = _number_rows(path, 2, what)
     if not rows:
         raise InputError(f"{path}: no entries (lines 'timestamp path' expected)")
     times = np.array([_floats(path, number, fields[:1])[0] for number, fields in rows])
@@ -144,7 +156,7 @@ def _read_tum_list(path: Path) -> tuple[np.ndarray, list[str]]:
 def _read_tum_groundtruth(path: Path) -> tuple[np.ndarray, np.ndarray, Rotation]:
     """(timestamps (N,) s, translations (N, 3) m, rotations) of a ``groundtruth.txt``, sorted by
     time with repeated timestamps dropped; poses are camera-to-world."""
-    rows = _number_rows(path, 8)
+    rows = _number_rows(path, 8, "TUM ground truth")
     if not rows:
         raise InputError(f"{path}: no poses (lines 'timestamp tx ty tz qx qy qz qw' expected)")
     values = np.array([_floats(path, number, fields[:8]) for number, fields in rows])
@@ -179,17 +191,18 @@ def _interpolated_poses(groundtruth, times: np.ndarray) -> np.ndarray:
 def _tum_matches(root: Path, rgb_times: np.ndarray, max_time_difference_s: float, notes: list):
     """(depth path, pose, has depth, has pose) per colour frame at `rgb_times` (N,): the nearest
     depth frame and the interpolated pose, found when within `max_time_difference_s` of the time
-    (always, as None, when ``depth.txt`` / ``groundtruth.txt`` is absent: noted in `notes`)."""
+    (always, as None, when ``depth.txt`` / ``groundtruth.txt`` is absent: noted in `notes`; one of another kind,
+    a folder, a pipe or a dangling link, is named: :func:`present`)."""
     count = len(rgb_times)
     depth, poses = [None] * count, [None] * count
     has_depth, has_pose = np.ones(count, bool), np.ones(count, bool)
-    if (root / "depth.txt").is_file():
-        depth_times, depth_files = _read_tum_list(root / "depth.txt")
+    if present(root / "depth.txt"):
+        depth_times, depth_files = _read_tum_list(root / "depth.txt", TUM_LISTS["depth.txt"])
         index, difference = _nearest(depth_times, rgb_times)
         depth, has_depth = [root / depth_files[i] for i in index], difference <= max_time_difference_s
     else:
         notes.append("no depth.txt: frames have no depth")
-    if (root / "groundtruth.txt").is_file():
+    if present(root / "groundtruth.txt"):
         groundtruth = _read_tum_groundtruth(root / "groundtruth.txt")
         poses = list(_interpolated_poses(groundtruth, rgb_times))
         has_pose = _nearest(groundtruth[0], rgb_times)[1] <= max_time_difference_s
@@ -209,7 +222,7 @@ def read_tum(root: str | Path, camera: Camera | None = None, max_time_difference
     another size without `camera` are refused.
     """
     root = require_folder(root, "TUM sequence")
-    rgb_times, rgb_files = _read_tum_list(root / "rgb.txt")
+    rgb_times, rgb_files = _read_tum_list(root / "rgb.txt", TUM_LISTS["rgb.txt"])
     notes = []
     depth, poses, has_depth, has_pose = _tum_matches(root, rgb_times, max_time_difference_s, notes)
     kept = np.flatnonzero(has_depth & has_pose)
@@ -239,7 +252,9 @@ def read_redwood_log(path: Path) -> np.ndarray:
     frame's index (Redwood's and Open3D's ``metadata``: 0 is the first image by name), so entries may come in
     any order, each frame's pose is the entry of its index; the indices must be 0 to N - 1, each once. InputError
     naming the line if malformed, a frame index listed twice, one missing (frames after it would take other
-    frames' poses) or a matrix that is not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`)."""
+    frames' poses) or a matrix that is not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`), or
+    naming the file when it is no regular file (a pipe: a read waits forever)."""
+    input_file(path, "Redwood trajectory")
     text = path.read_text("utf-8-sig", errors="replace")  # (a byte-order mark: _number_rows)
     lines = [(number, line.split()) for number, line in enumerate(text.splitlines(), 1) if line.strip()]
     if len(lines) % 5:
@@ -277,20 +292,22 @@ def read_redwood_log(path: Path) -> np.ndarray:
 
 
 def _redwood_trajectory(root: Path) -> Path | None:
-    """``trajectory.log`` or the only ``*.log`` in `root`; None without one."""
-    if (root / "trajectory.log").is_file():
-        return root / "trajectory.log"
+    """``trajectory.log`` or the only ``*.log`` in `root`; None without one. InputError naming the chosen one
+    when it is no regular file (a folder, a pipe, a dangling link: :func:`~frontiernet.io.input_file`)."""
+    if present(root / "trajectory.log"):
+        return input_file(root / "trajectory.log", "Redwood trajectory")
     logs = sorted(root.glob("*.log"))
     if len(logs) > 1:
         raise InputError(f"{root}: several .log trajectories ({', '.join(p.name for p in logs)}); "
                          f"name the one to use trajectory.log")
-    return logs[0] if logs else None
+    return input_file(logs[0], "Redwood trajectory") if logs else None
 
 
 def read_open3d_intrinsic(path: Path) -> Camera:
     """The :class:`Camera` of an Open3D PinholeCameraIntrinsic JSON (``width``, ``height``,
     ``intrinsic_matrix``: the 3 x 3 K as 9 numbers, column-major); InputError naming the file for
-    intrinsics that do not fit its size (:meth:`Camera.checked`)."""
+    intrinsics that do not fit its size (:meth:`Camera.checked`), or when it is no regular file."""
+    input_file(path, "Open3D camera intrinsic JSON")
     try:
         data = json.loads(path.read_text("utf-8-sig"))
         K = np.array(data["intrinsic_matrix"], np.float64).reshape(3, 3).T
@@ -304,7 +321,7 @@ def read_open3d_intrinsic(path: Path) -> Camera:
 def _redwood_camera(root: Path, camera: Camera | None, size: tuple[int, int], notes: list) -> Camera:
     """The given `camera`, else the intrinsic JSON in `root`, else the PrimeSense default; checked
     against the images' `size` (width, height)."""
-    json_path = next((root / name for name in REDWOOD_INTRINSIC_FILES if (root / name).is_file()), None)
+    json_path = next((root / name for name in REDWOOD_INTRINSIC_FILES if present(root / name)), None)
     if camera is not None:
         if json_path is not None:
             notes.append(f"camera given explicitly; {json_path.name} ignored")
@@ -351,7 +368,7 @@ def read_redwood(root: str | Path, camera: Camera | None = None) -> Sequence:
     ``.log`` trajectory that holds ``rgb.txt`` (a TUM sequence) is refused, naming ``--format tum``.
     """
     root = require_folder(root, "Redwood sequence")
-    if (root / "rgb.txt").is_file() and _redwood_trajectory(root) is None:
+    if present(root / "rgb.txt") and _redwood_trajectory(root) is None:
         raise InputError(f"{root}: not a Redwood folder (no color/ and .log trajectory); it looks like a TUM "
                          "sequence: --format tum")
     colour_folder = next((root / name for name in REDWOOD_COLOUR_FOLDERS if (root / name).is_dir()), None)

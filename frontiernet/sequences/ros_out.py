@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError
 from ..io import check_output_files, ensure_dir
 from .gravity import rotation_between
 
@@ -173,6 +174,31 @@ class _Rosbag2Sink:
         shutil.rmtree(self.partial, ignore_errors=True)
 
 
+ROSBAG2_NAME = "rosbag2"
+"""The folder ``--rosbag2`` writes in the output folder (beside it its scratch ``.rosbag2.partial``)."""
+
+
+def check_ros_outputs(out: Path, *, mcap: bool = True, rosbag2: bool = False, name: str = "frontiers.mcap") -> None:
+    """Before the frames: InputError naming what stands where :class:`RosWriter` writes in `out` when it is of
+    the wrong kind: a folder or a pipe at the MCAP file `name` or its scratch (with `mcap`); with `rosbag2` a
+    file, a pipe or a link at the :data:`ROSBAG2_NAME` folder or its scratch folder (the folder is put there by
+    a rename at the end: a file there failed the run after all its work)."""
+    out = Path(out)
+    if mcap:
+        check_output_files(out, (name, f".{name}.partial"))
+    if not rosbag2:
+        return
+    for path in (out / ROSBAG2_NAME, out / f".{ROSBAG2_NAME}.partial"):
+        if path.is_symlink():  # (the folder is renamed into place: a link there, even to a folder, fails it)
+            kind = "a symbolic link"
+        elif not os.path.lexists(path) or path.is_dir():
+            continue
+        else:
+            kind = "a file" if path.is_file() else "not a regular file nor a folder (a device or a pipe?)"
+        raise InputError(f"{path}: is {kind}, expected the {ROSBAG2_NAME} folder the run writes (--rosbag2); "
+                         "remove it, or choose another --out")
+
+
 class RosWriter:
     """Writes :class:`RosMessage` lists to an MCAP file ``<out>/<name>`` (with `mcap`) and the
     folder ``<out>/rosbag2/`` (with `rosbag2`), streamed; :meth:`close` puts them in place,
@@ -180,11 +206,10 @@ class RosWriter:
 
     def __init__(self, out: Path, *, mcap: bool = True, rosbag2: bool = False, name: str = "frontiers.mcap") -> None:
         out = ensure_dir(out)
-        if mcap:  # a folder or a pipe where the file or its scratch goes: refused before the frames, not after
-            check_output_files(out, (name, f".{name}.partial"))
+        check_ros_outputs(out, mcap=mcap, rosbag2=rosbag2, name=name)  # before any message, not at the end
         self.sinks = [_McapSink(out / name, typestore())] if mcap else []
         if rosbag2:
-            self.sinks.append(_Rosbag2Sink(out / "rosbag2", typestore()))
+            self.sinks.append(_Rosbag2Sink(out / ROSBAG2_NAME, typestore()))
 
     def write(self, messages) -> None:
         for message in messages:
