@@ -217,6 +217,29 @@ def test_mapex_keeps_a_frontiers_value_until_the_prediction_changes_within_its_r
     assert np.array_equal(fresh.values(positions, mean, variance), again)
 
 
+@pytest.mark.parametrize("method", ["mapex", "seer"])
+def test_before_a_stop_the_map_predicting_methods_propose_their_small_regions_too(method):
+    """As the map methods (map_frontiers.min_cells_before_stop): mapex stopped after its start turn on a KTH plan
+    with emulated depth, the door a region under its min_cells; once a run would stop, the regions down to the
+    key's size are proposed, once; with the key null the run stops as before."""
+    def source(**changes):
+        conf = OmegaConf.merge(CONF, {"map_frontiers": changes})
+        if method == "mapex":
+            return MapexSource(SimpleNamespace(spec=SimpleNamespace(band_m=0.3)), empty_map(), conf)
+        predictor = SimpleNamespace(occupied_threshold=0.65, spec=SimpleNamespace(crop_shape=(80, 80, 24)))
+        return SeerSource(predictor, empty_map(), conf, CAMERA)
+
+    def min_cells(of) -> int:
+        return of.frontier_conf.map_frontiers.min_cells if method == "mapex" else of.min_cells
+
+    widening = source(min_cells_before_stop=1)
+    assert min_cells(widening) > 1
+    assert widening.widen() and min_cells(widening) == 1 and not widening.widen()
+    off = source(min_cells_before_stop=None)
+    before = min_cells(off)
+    assert not off.widen() and min_cells(off) == before
+
+
 def test_mapex_predicts_again_only_once_the_map_has_learnt_enough():
     calls = []
 

@@ -155,6 +155,9 @@ METHOD_SECTIONS = {
 (the factories of :mod:`frontiernet.exploration.methods` that parse them)."""
 
 
+WIDENING_METHODS = frozenset({"mapex", "seer"})
+"""The methods besides the map methods whose frontier regions widen before a stop
+(``map_frontiers.min_cells_before_stop``: :func:`~frontiernet.exploration.sources.widened_min_cells`)."""
 FINISHED_WHEN = {"collided": lambda metrics: bool(metrics.get("collisions")),
                  "stopped": lambda metrics: metrics.get("stop_reason") == "no frontiers left"}
 """Conditions on a finished run's metrics under which a setting reaches it (:class:`Readers`' `when`): one
@@ -194,8 +197,9 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     this run's `settings` (the others keep their traversed cells either way); a source's own ``depth``
     section only to it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs;
     ``planner.bumps_are_obstacles`` only to runs that collided (a run without a collision is the same to
-    the step either way), ``map_frontiers.min_cells_before_stop`` only to the map-frontier methods' runs
-    that stopped with no frontier left (the same to the step before); None for every other setting (read
+    the step either way), ``map_frontiers.min_cells_before_stop`` only to the runs of the methods of map
+    frontier regions (the map methods, mapex and seer) that stopped with no frontier left (the same to the
+    step before); None for every other setting (read
     by every run)."""
     from ..depth import SOURCES
     from ..exploration.methods import MAP_METHODS
@@ -211,7 +215,7 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     if (section, key) == ("planner", "bumps_are_obstacles"):
         return Readers(when="collided")
     if (section, key) == ("map_frontiers", "min_cells_before_stop"):
-        return Readers(methods=frozenset(MAP_METHODS), when="stopped")
+        return Readers(methods=frozenset(MAP_METHODS) | WIDENING_METHODS, when="stopped")
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:
         return Readers(sources=frozenset({parts[2]}))
     if len(parts) > 1 and parts[0] == "conf" and parts[1] in METHOD_SECTIONS:

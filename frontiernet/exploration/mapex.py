@@ -48,7 +48,7 @@ from ..frontiers.map_frontiers import map_frontiers
 from ..mapprediction import map_topdown_states
 from .perception import plain_view
 from .predicted import check_predictor, open_predictor, topdown_prediction
-from .sources import FrontierSource, Method
+from .sources import FrontierSource, Method, widened_min_cells
 
 
 def visible_cells(mean: np.ndarray, start: np.ndarray, num_rays: int, range_cells: float,
@@ -113,6 +113,15 @@ class MapexSource(FrontierSource):
             observations = map_frontiers(self.map, z, self.frontier_conf, T, "uniform")
             observations = self.scored(observations, mean, variance)
         return observations, plain_view(frame, depth)
+
+    def widen(self) -> bool:
+        """Once a run would stop: MapEx's regions down to ``map_frontiers.min_cells_before_stop`` cells from
+        then on (:func:`~.sources.widened_min_cells`; once: the next stop is the run's end)."""
+        smallest = widened_min_cells(self.conf, self.frontier_conf.map_frontiers.min_cells)
+        if smallest is None:
+            return False
+        self.frontier_conf = OmegaConf.merge(self.frontier_conf, {"map_frontiers": {"min_cells": smallest}})
+        return True
 
     def prediction(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(mean, variance) (X, Y) of the map with top-down `states` (:class:`~.predicted.TopdownPrediction`)."""

@@ -57,7 +57,7 @@ from ..simulator.camera import PinholeCamera
 from .motion import yaw_of
 from .perception import plain_view
 from .predicted import check_predictor, open_predictor
-from .sources import FrontierSource, Method
+from .sources import FrontierSource, Method, widened_min_cells
 
 
 @dataclass
@@ -161,6 +161,15 @@ class SeerSource(FrontierSource):
         with stopwatch("anchoring"):
             observations = self.views(clusters, crops, T)
         return observations, plain_view(frame, depth)
+
+    def widen(self) -> bool:
+        """Once a run would stop: clusters down to ``map_frontiers.min_cells_before_stop`` cells from then on
+        (:func:`~.sources.widened_min_cells`; once: the next stop is the run's end)."""
+        smallest = widened_min_cells(self.conf, self.min_cells)
+        if smallest is None:
+            return False
+        self.min_cells = smallest
+        return True
 
     # -- clusters and their predictions ---------------------------------------------------------
 

@@ -95,11 +95,20 @@ class MapSource(FrontierSource):
         may still be proposed then, every one of them a view the robot has had: the tracker drops them.)"""
         from omegaconf import OmegaConf
 
-        smallest, regular = self.conf.map_frontiers.get("min_cells_before_stop"), self.conf.map_frontiers.min_cells
-        if self.widened_conf is not None or smallest is None or int(smallest) >= int(regular):
+        smallest = widened_min_cells(self.conf, self.conf.map_frontiers.min_cells)
+        if self.widened_conf is not None or smallest is None:
             return False
-        self.widened_conf = OmegaConf.merge(self.conf, {"map_frontiers": {"min_cells": int(smallest)}})
+        self.widened_conf = OmegaConf.merge(self.conf, {"map_frontiers": {"min_cells": smallest}})
         return True
+
+
+def widened_min_cells(conf, min_cells: int) -> int | None:
+    """The size (cells) down to which a map-frontier source proposes its regions once a run would stop,
+    ``map_frontiers.min_cells_before_stop`` of run config `conf`; None where that widens nothing (null, or
+    not below the source's own `min_cells`). Every source of map frontier regions reads it (:class:`MapSource`,
+    mapex's, seer's clusters): a door the monocular map half-shuts is a region of 2-3 cells."""
+    smallest = conf.map_frontiers.get("min_cells_before_stop")
+    return None if smallest is None or int(smallest) >= int(min_cells) else int(smallest)
 
 
 @dataclass
@@ -147,4 +156,4 @@ class Method:
         return self.source(frame, depth, stopwatch)
 
 
-__all__ = ["GOAL_RULES", "FrontierSource", "ImageSource", "MapSource", "Method"]
+__all__ = ["GOAL_RULES", "FrontierSource", "ImageSource", "MapSource", "Method", "widened_min_cells"]
