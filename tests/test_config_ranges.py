@@ -108,7 +108,7 @@ def test_a_malformed_declaration_names_itself(spec):
     (["datagen", "--scenes", "procedural:0", "--views-per-scene", "1", "--set", "sampling.mode=trajectory",
       "sampling.trajectory.spacing_m=1e-9"], "sampling.trajectory.spacing_m must be a number >= 0.01, got 1e-09"),
     (["explore", "--scene", "procedural:0", "sim.camera.max_depth=1e300"],
-     "sim.camera.max_depth must be a number > 0, got 1e+300: beyond the 32-bit floats it is computed in"),
+     "sim.camera.max_depth must be a number in (0, 100], got 1e+300: beyond the 32-bit floats it is computed in"),
     # YAML reads 1e400 as inf: "must be a number > 0, got inf" alone (the seventh probe's D24)
     (["explore", "--scene", "procedural:0", "planner.clearance_m=1e400"], "planner.clearance_m must be a number > 0, "
      "got inf: not a finite number (a number past 1.8e308, such as 1e400, overflows a float to infinity)"),

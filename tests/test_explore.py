@@ -339,7 +339,7 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
      "override: unknown config key 'depth.emulated.fill_dept'; did you mean depth.emulated.fill_depth"),
     (["depth.source=emulated"], "unknown config key 'depth.source'"),  # the source is --depth / run.depth
     (["--depth", "emulated", "depth.emulated.fill_invalid=zero"], "depth.emulated.fill_invalid"),
-    (["sim.camera.max_depth=-1"], "sim.camera.max_depth must be a number > 0, got -1"),
+    (["sim.camera.max_depth=-1"], "sim.camera.max_depth must be a number in (0, 100], got -1"),
     (["scenes.floorplan.wall_heigth=2"], "unknown config key 'scenes.floorplan.wall_heigth'"),
 ])
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
