@@ -267,6 +267,9 @@ def _lock_file(folder: Path) -> Path:
     """The path of :data:`LOCK_NAME` in `folder`; InputError naming it when something other than a regular file
     has its name (a folder could not be opened, a pipe would block the open)."""
     lock = folder / LOCK_NAME
+    if lock.is_symlink():  # followed, the file it names would be written over with a pid, then the link removed
+        raise InputError(f"{lock}: a symbolic link, expected the lock file frontiernet keeps while a run writes "
+                         "there; remove it")
     if os.path.lexists(lock) and not lock.is_file():
         raise InputError(f"{lock}: {'is a folder' if lock.is_dir() else 'not a regular file'}, expected the lock "
                          "file frontiernet keeps while a run writes there; remove it")

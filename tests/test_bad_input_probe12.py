@@ -114,3 +114,18 @@ def test_a_camera_range_past_100_m_is_refused_before_the_scene(tmp_path, one_lin
     assert main(["explore", "--scene", "procedural:3", "--max-steps", "4", "--no-video", "--method", "classic",
                  "--out", str(out), "sim.camera.max_depth=3e38"]) == 2
     assert "camera.max_depth" in one_line_error() and not out.exists()
+
+
+def test_a_lock_that_is_a_link_is_refused_and_the_file_it_names_kept(tmp_path, one_line_error):
+    # probe 13 T6: a lock that is a link to a file was followed: the file written over with a pid, the link removed
+    from frontiernet.io import LOCK_NAME
+
+    out, precious = tmp_path / "run", tmp_path / "notes.txt"
+    out.mkdir()
+    precious.write_text("mine\n")
+    (out / LOCK_NAME).symlink_to(precious)
+    assert main(["explore", "--scene", "procedural:3", "--max-steps", "2", "--no-video", "--out", str(out),
+                 "--force", "sim.camera.width=64", "sim.camera.height=64", "sim.camera.focal_px=40"]) == 2
+    assert one_line_error().endswith(f"{out / LOCK_NAME}: a symbolic link, expected the lock file frontiernet keeps "
+                                     "while a run writes there; remove it")
+    assert precious.read_text() == "mine\n" and (out / LOCK_NAME).is_symlink()

@@ -235,3 +235,12 @@ def test_predict_with_a_depth_of_3e38_m_is_one_line_exit_2(tmp_path):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "huge.npy: median depth 3e+38 m is implausible" in lines[0], lines
     assert not out.exists()
+
+
+def test_a_depth_just_past_the_bound_is_shown_past_it(tmp_path):
+    # probe 13 T11: "beyond 100 m (the farthest 100 m)" for a pixel at 100.0015 m
+    depth = np.full((4, 4), 2.0, np.float32)
+    depth[0, 0] = 100.0015
+    np.save(tmp_path / "d.npy", depth)
+    with pytest.raises(InputError, match=r"beyond 100 m \(the farthest 100\.001\d* m\)"):
+        read_depth(tmp_path / "d.npy")

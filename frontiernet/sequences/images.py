@@ -134,8 +134,9 @@ def check_depth_range(depth: np.ndarray, path) -> None:
         far = depth > MAX_DEPTH_M  # (NaN: False) +inf too
     if far.any():
         largest = float(depth[far].max())
+        shown = f"{largest:.4g}" if f"{largest:.4g}" != f"{MAX_DEPTH_M:g}" else f"{largest:.10g}"  # (not "100" for 100.0015)
         raise InputError(f"{path}: depth has {int(far.sum())} pixel(s) beyond {MAX_DEPTH_M:g} m (the farthest "
-                         f"{largest:.4g} m), which no indoor camera sees; mark invalid pixels with 0 or NaN")
+                         f"{shown} m), which no indoor camera sees; mark invalid pixels with 0 or NaN")
 
 
 def check_depth_unit(depth: np.ndarray, path, decoding: str, advice: str | None = None) -> None:
