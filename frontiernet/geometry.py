@@ -198,7 +198,7 @@ def check_intrinsics_fit(fx: float, fy: float, cx: float, cy: float, width: int,
     (:meth:`~frontiernet.sequences.Camera.checked`) alike."""
     if not np.all(np.isfinite([fx, fy, cx, cy])):
         raise InputError(f"{what}: intrinsics must be finite numbers, got fx={fx:g}, fy={fy:g}, cx={cx:g}, cy={cy:g}")
-    if not (-0.5 <= cx <= width - 0.5 and -0.5 <= cy <= height - 0.5):
+    if not (0.0 <= cx <= width - 1 and 0.0 <= cy <= height - 1):  # the pixel centres, as pinhole_intrinsics
         raise InputError(f"{what}: the principal point ({cx:g}, {cy:g}) lies outside the {width} x {height} image "
                          f"(intrinsics of another image size?)")
     if max(fx, fy) > MAX_FOCAL_PER_IMAGE_SIDE * max(width, height):

@@ -244,3 +244,18 @@ def test_a_depth_just_past_the_bound_is_shown_past_it(tmp_path):
     np.save(tmp_path / "d.npy", depth)
     with pytest.raises(InputError, match=r"beyond 100 m \(the farthest 100\.001\d* m\)"):
         read_depth(tmp_path / "d.npy")
+
+
+def test_a_principal_point_is_judged_alike_before_and_after_the_work():
+    # probe 13 T4: --intrinsics with cx on the image's edge (-0.5) passed check_intrinsics_fit, then
+    # pinhole_intrinsics (pixel centres 0 .. W - 1) refused it after predict had written its outputs
+    from frontiernet.geometry import check_intrinsics_fit, pinhole_intrinsics
+
+    for cx, cy in ((-0.5, 23.5), (63.5, 20.0), (10.0, 47.2)):
+        with pytest.raises(InputError, match="--intrinsics: the principal point"):
+            check_intrinsics_fit(50.0, 50.0, cx, cy, 64, 48)
+        with pytest.raises(InputError, match="principal point"):
+            pinhole_intrinsics([[50.0, 0, cx], [0, 50.0, cy], [0, 0, 1]], (48, 64))
+    for cx, cy in ((0.0, 47.0), (63.0, 0.0)):
+        check_intrinsics_fit(50.0, 50.0, cx, cy, 64, 48)
+        assert pinhole_intrinsics([[50.0, 0, cx], [0, 50.0, cy], [0, 0, 1]], (48, 64))[0, 2] == cx
