@@ -20,7 +20,7 @@ from ..workers import check_backend
 from .changes import blocking_difference, runs_changed, with_idle_keys, with_keys_added_after
 from .plan import MIN_BUDGET, depth_sources, plan_runs
 from .budget import BudgetRule
-from .report import common_starts, report_files, unfinished_methods, write_report
+from .report import common_starts, finished_methods, report_files, write_report
 from .runner import finished_row, run_all, with_copies
 from .store import FinishedRuns, discard_runs, plan_file, read_plan, write_plan
 
@@ -86,9 +86,10 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
     for name in depths:  # weights missing: refused now, not as every run failing
         check_depth_files(name, conf.get("depth"))
     scenes = expand_specs(scenes)
+    stored = read_plan(out) if plan_file(out) is not None else {"start_poses": {}, "runs": []}  # (re-read under the lock)
     # the report's files, before the runs and before --redo-changed discards any (refused after them, it lost them)
-    stored = list(read_plan(out)["start_poses"]) if plan_file(out) is not None else []
-    check_output_files(out, report_files([*stored, *(scene for scene in scenes if scene not in stored)]))
+    check_output_files(out, report_files([*stored["start_poses"], *(scene for scene in scenes
+                                                                       if scene not in stored["start_poses"])]))
     valid = method_names()
     if not methods:
         raise InputError(f"--methods names no method; valid: {', '.join(valid)}")
@@ -104,7 +105,7 @@ def main(conf, scenes: list[str], methods: list[str], out: str | Path, *, starts
         from ..exploration.methods import runs_frontiernet_model
         from ..model import open_runtime
 
-        planned = {run["method"] for run in read_plan(out)["runs"]} if plan_file(out) is not None else set()
+        planned = {run["method"] for run in stored["runs"]}
         if not any(runs_frontiernet_model(method) for method in (*methods, *planned)):  # (a plan it grows: its own)
             raise InputError(f"--model {model}: none of the methods {', '.join(methods)} runs a FrontierNet model, "
                              "so --model would be ignored; leave it out (seer and mapex take their predictor "
@@ -253,7 +254,7 @@ def report(out: str | Path) -> dict:
     written = write_report(out, reported, scenes, methods, pending, finished, depths,
                            interval=load_config("bench").report.interval,
                            vox_steps=plan["settings"].get("vox_steps", "budget"), starts=common_starts(runs),
-                           defining=set(methods) - set(unfinished_methods(runs, reported)))
+                           defining=finished_methods(runs, reported))
     return {"rows": reported, **written, "pending": pending}
 
 

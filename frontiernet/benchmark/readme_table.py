@@ -23,7 +23,7 @@ import numpy as np
 from ..config import load_config
 from ..io import write_text
 from .comparisons import BOUND, REFERENCE, VOX_FIELDS, ratio_interval
-from .report import add_shared_vox, common_starts, unfinished_methods
+from .report import add_shared_vox, common_starts, finished_methods, unfinished_methods
 from .runner import finished_row, with_copies
 from .store import FinishedRuns, read_plan
 
@@ -52,9 +52,7 @@ def folder_rows(out: str | Path) -> list[dict]:
             if row is not None]
     curves = {index: np.asarray(finished.metrics(row.get("copy_of") or row["key"])["coverage_per_step"], np.float64)
               for index, row in enumerate(rows) if row["status"] == "done"}
-    methods = set(run["method"] for run in plan["runs"])
-    add_shared_vox(rows, curves, plan["settings"].get("vox_steps", "budget"),
-                   methods - set(unfinished_methods(plan["runs"], rows)))
+    add_shared_vox(rows, curves, plan["settings"].get("vox_steps", "budget"), finished_methods(plan["runs"], rows))
     return rows
 
 

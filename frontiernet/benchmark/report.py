@@ -83,7 +83,7 @@ def add_shared_vox(rows: list[dict], curves: dict, vox_steps: str = "budget", de
         rows: result rows (:data:`~frontiernet.benchmark.runner.ROW_FIELDS`; ``depth`` when the
             benchmark has several sources: a comparison is one source's runs).
         curves: row index -> (S + 1,) coverage per step of the finished runs.
-        defining: the methods whose runs set the shared steps (:func:`unfinished_methods`: those with
+        defining: the methods whose runs set the shared steps (:func:`finished_methods`: those with
             every planned run finished, so that a method joining a folder moves no other method's
             Vox@k until all its runs are in); the other runs are read at those steps. None, or a
             comparison without any of them: every run of the comparison.
@@ -138,6 +138,12 @@ def unfinished_methods(runs: list[dict], rows: list[dict]) -> dict[str, tuple[in
     counts = {method: (sum(row["method"] == method for row in finished), sum(run["method"] == method for run in planned))
               for method in dict.fromkeys(run["method"] for run in planned)}
     return {method: (ran, of) for method, (ran, of) in counts.items() if ran < of}
+
+
+def finished_methods(runs: list[dict], rows: list[dict]) -> set[str]:
+    """The methods of the plan's `runs` with every planned run finished among `rows` (no
+    :func:`unfinished_methods`): those whose runs set the shared Vox@k steps (:func:`add_shared_vox`)."""
+    return {run["method"] for run in runs} - set(unfinished_methods(runs, rows))
 
 
 def summary_markdown(done: list[dict], scenes: list[str], methods: list[str]) -> list[str]:
@@ -302,7 +308,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     ``configs/bench.yaml``; `vox_steps`: how Vox@25 / @50's shared steps are set (:func:`add_shared_vox`;
     a plan's ``settings.vox_steps``, ``budget`` for plans made before the scene-sized protocol); `starts`:
     the plan's :func:`common_starts` (:func:`table_markdown`); `defining`: the methods whose runs set the
-    shared steps (:func:`add_shared_vox`; the bench command's: those with no :func:`unfinished_methods`)."""
+    shared steps (:func:`add_shared_vox`; the bench command's: :func:`finished_methods`)."""
     out = Path(out)
     finished = finished if finished is not None else FinishedRuns(out)
     curves = {}
@@ -329,7 +335,7 @@ def write_report(out: Path, rows: list[dict], scenes: list[str], methods: list[s
     return {"results": out / "results.csv", "table": out / "table.md", "plots": plots}
 
 
-__all__ = ["write_report", "report_files", "common_starts", "unfinished_methods", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
+__all__ = ["write_report", "report_files", "common_starts", "finished_methods", "unfinished_methods", "add_shared_vox", "table_markdown", "summary_markdown", "versus_markdown", "bound_markdown",
            "ratio_interval",
            "paired_ratio_cell", "penalty_markdown", "metric_markdown", "compute_markdown", "coverage_at",
            "SUCCESS_COVERAGE"]

@@ -116,9 +116,14 @@ class VideoWriter:
 
     def __init__(self, path: Path, fps: float) -> None:
         self.path, self.fps = Path(path), float(fps)
-        self.tmp = self.path.with_name(f".{self.path.name}.partial.mp4")
+        self.tmp = self.scratch(self.path)
         self.writer = None
         self.frames = 0
+
+    @staticmethod
+    def scratch(path: Path) -> Path:
+        """The file the video of `path` is written to before it is renamed into place."""
+        return Path(path).with_name(f".{Path(path).name}.partial.mp4")
 
     def add(self, frame: np.ndarray) -> None:
         import cv2

@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import InputError, whole_number
 from ..io import claim_output_folder, ensure_dir, write_json
 from .gravity import gravity_alignment
-from .outputs import check_run_outputs, write_arrows, write_frontiers
+from .outputs import VIDEO, check_run_outputs, write_arrows, write_frontiers
 from .perceive import perceive_frames
 from .stream import FrontierStream, load_sequence_config
 from .tracking import track_frontiers
@@ -258,7 +258,7 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
     if video:
         from ..exploration.outputs import VideoWriter
 
-        writer = VideoWriter(out / "overlay.mp4", float(conf.outputs.video_fps))
+        writer = VideoWriter(out / VIDEO, float(conf.outputs.video_fps))
     ros = RosWriter(out, mcap=mcap, rosbag2=rosbag2) if mcap or rosbag2 else None
     pictures = _Pictures(sequence, conf, stream, writer, ros)
     try:

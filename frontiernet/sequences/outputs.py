@@ -17,20 +17,21 @@ from ..model.overlay import frontier_overlay
 
 RUN_OUTPUTS = ("frontiers.json", "poses.json", "map.ply", "frontiers.ply", "occupancy.npz", "summary.json")
 """The files every ``frontiernet sequence`` run writes in its folder (:func:`check_run_outputs`)."""
-VIDEO_OUTPUTS = ("overlay.mp4", ".overlay.mp4.partial.mp4")
-"""The video and its scratch (:class:`~frontiernet.exploration.outputs.VideoWriter`'s), unless ``--no-video``."""
+VIDEO = "overlay.mp4"
+"""The video a run writes, unless ``--no-video`` (through :class:`~frontiernet.exploration.outputs.VideoWriter`)."""
 
 
 def check_run_outputs(out: str | Path, *, video: bool = True, mcap: bool = True, rosbag2: bool = False) -> None:
     """Before the first frame: InputError naming the first path a run writes in `out` where something of
     the wrong kind stands (a folder at ``overlay.mp4``, a file at ``rosbag2``, a pipe at ``map.ply``: each was
     refused, or an internal error, only after the whole run, its scratch left behind):
-    :data:`RUN_OUTPUTS`, the video (with `video`), ``frontiers.mcap`` (with `mcap`), ``rosbag2/`` (with
+    :data:`RUN_OUTPUTS`, the :data:`VIDEO` (with `video`), ``frontiers.mcap`` (with `mcap`), ``rosbag2/`` (with
     `rosbag2`) and their scratch (:func:`~frontiernet.io.check_output_files`,
     :func:`~.ros_out.check_ros_outputs`)."""
+    from ..exploration.outputs import VideoWriter
     from .ros_out import check_ros_outputs
 
-    check_output_files(out, (*RUN_OUTPUTS, *(VIDEO_OUTPUTS if video else ())))
+    check_output_files(out, (*RUN_OUTPUTS, *((VIDEO, VideoWriter.scratch(Path(VIDEO)).name) if video else ())))
     check_ros_outputs(Path(out), mcap=mcap, rosbag2=rosbag2)
 
 

@@ -114,13 +114,19 @@ def output_frames(sequence, T_aligned_input: np.ndarray, scale: float, frame_per
     return OutputFrames("map", "camera", np.eye(4), stamps, True)
 
 
+def scratch(path: Path) -> Path:
+    """Where an output of :class:`RosWriter` at `path` (the MCAP file, the rosbag2 folder) is written before it is
+    renamed into place: ``.<name>.partial`` beside it."""
+    return path.with_name(f".{path.name}.partial")
+
+
 class _McapSink:
     """ROS 2 messages (CDR, ``ros2msg`` schemas) into one MCAP file, zstd chunks, streamed."""
 
     def __init__(self, path: Path, store) -> None:
         from mcap.writer import CompressionType, Writer
 
-        self.path, self.partial, self.typestore = path, path.with_name(f".{path.name}.partial"), store
+        self.path, self.partial, self.typestore = path, scratch(path), store
         self.stream = open(self.partial, "wb")
         self.writer = Writer(self.stream, compression=CompressionType.ZSTD)
         self.writer.start(profile="ros2", library="frontiernet")
@@ -150,7 +156,7 @@ class _Rosbag2Sink:
     def __init__(self, path: Path, store) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
-        self.path, self.partial, self.typestore = path, path.with_name(f".{path.name}.partial"), store
+        self.path, self.partial, self.typestore = path, scratch(path), store
         shutil.rmtree(self.partial, ignore_errors=True)
         self.writer = Writer(self.partial, version=8, storage_plugin=StoragePlugin.SQLITE3)
         self.writer.open()
@@ -185,10 +191,10 @@ def check_ros_outputs(out: Path, *, mcap: bool = True, rosbag2: bool = False, na
     a rename at the end: a file there failed the run after all its work)."""
     out = Path(out)
     if mcap:
-        check_output_files(out, (name, f".{name}.partial"))
+        check_output_files(out, (name, scratch(out / name).name))
     if not rosbag2:
         return
-    for path in (out / ROSBAG2_NAME, out / f".{ROSBAG2_NAME}.partial"):
+    for path in (out / ROSBAG2_NAME, scratch(out / ROSBAG2_NAME)):
         if path.is_symlink():  # (the folder is renamed into place: a link there, even to a folder, fails it)
             kind = "a symbolic link"
         elif not os.path.lexists(path) or path.is_dir():
