@@ -102,6 +102,22 @@ def test_packing_leaves_the_report_byte_identical_and_one_file_per_scene_and_met
     assert json.dumps(pack[runs[1]["key"]]) == json.dumps(original)
 
 
+def test_a_folder_whose_runs_left_the_tree_keeps_its_report(tmp_path):
+    """A record folder keeps its plan and report when its runs leave the tree (docs/benchmark/regimes,
+    its sessions.md): `bench --report` there refuses rather than write an empty report over the figures."""
+    fake_benchmark(tmp_path)
+    assert bench("--pack", "--report", "--out", tmp_path)[0] == 0
+    report = report_files(tmp_path)
+    shutil.rmtree(tmp_path / "runs")
+    code, _, err = bench("--report", "--out", tmp_path)
+    assert code == 2 and err.count("\n") == 1 and "none of its 16 planned runs is finished here" in err
+    assert report_files(tmp_path) == report
+    for name in REPORT:  # with no report there, nothing is lost: an empty interim report is written
+        (tmp_path / name).unlink(missing_ok=True)
+    code, stdout, _ = bench("--report", "--out", tmp_path)
+    assert code == 0 and "report of 0 finished runs (16 not yet)" in stdout
+
+
 @pytest.mark.slow
 def test_a_resumed_benchmark_skips_packed_runs_and_runs_the_rest(plan_spec, tmp_path, one_line_error):
     out = tmp_path / "bench"

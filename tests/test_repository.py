@@ -1,7 +1,8 @@
 """The clone stays small (issue 29): the tracked files, the shipped weights aside, stay under 10 MB.
 
 The benchmark folders grow with every committed run (docs/benchmark/regimes/sessions.md keeps the
-margin); this catches a commit that would pass the bound before it lands. Sizes are those of the
+margin: the runs of a replaced protocol leave the tree, kept in git); this catches a commit that would
+pass the bound before it lands. Sizes are those of the
 files git tracks as they are on disk (the index's list, so an untracked or ignored file never
 counts), in bytes.
 """

@@ -239,7 +239,8 @@ def report(out: str | Path) -> dict:
     Returns:
         as :func:`main`, plus ``pending`` (planned runs not finished yet) and no ``wall_s``.
     Raises:
-        InputError: `out` holds no benchmark (no ``plan.json``), or a run's record is corrupt.
+        InputError: `out` holds no benchmark (no ``plan.json``), or a run's record is corrupt, or no
+            run is finished while a report is there (an empty one would replace it).
     """
     out = Path(out)
     plan = read_plan(out)
@@ -249,6 +250,10 @@ def report(out: str | Path) -> dict:
     rows = with_copies(runs, {row["key"]: row for row in own if row is not None})
     reported = [row for row in rows if row is not None]
     pending = len(rows) - len(reported)
+    kept = [name for name in ("table.md", "results.csv") if (out / name).is_file()]
+    if not reported and kept:  # a folder whose runs left the tree (its sessions.md says where they are)
+        raise InputError(f"{out}: none of its {pending} planned runs is finished here (no records under runs/), so "
+                         f"its report ({', '.join(kept)}) is left as it is; bring its runs back first to rebuild it")
     scenes, methods = list(plan["start_poses"]), list(dict.fromkeys(run["method"] for run in runs))
     depths = list(dict.fromkeys(run["depth"] for run in runs if run.get("depth"))) or None
     written = write_report(out, reported, scenes, methods, pending, finished, depths,
