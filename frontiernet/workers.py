@@ -57,7 +57,8 @@ def check_backend(backend: str, workers) -> int:
 
 
 REDELIVER_S = 0.05
-"""Seconds after a finaliser swallowed an interrupt that :func:`sigterm_as_interrupt` raises it again."""
+"""Seconds after a finaliser swallowed an interrupt (or one came during an import) that
+:func:`sigterm_as_interrupt` raises it again."""
 
 
 class SignalInterrupt(KeyboardInterrupt):
@@ -76,7 +77,8 @@ def sigterm_as_interrupt():
     ``sys.unraisablehook`` and raised again :data:`REDELIVER_S` later (at the latest as the block ends). A
     SIGTERM pending as the block ends (``signal.signal`` runs pending handlers before it restores the previous
     one) is raised after the previous handler is back (unless an exception already ends the block), so the
-    raising handler never outlives the block (into interpreter shutdown)."""
+    raising handler never outlives the block (into interpreter shutdown). A SIGTERM during an ``import`` is
+    held until the import is done (:func:`_importing`), then raised the same way."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -85,6 +87,10 @@ def sigterm_as_interrupt():
     def interrupt(signum, frame):
         if state["closing"] or state["in_hook"]:  # (raised below once the handler is restored / by the timer)
             state["late" if state["closing"] else "lost"] = signum
+            return
+        if _importing(frame):  # raised once the import is done: the timer delivers it again until then
+            state["lost"] = state["lost"] or signum
+            _redeliver_later(state)
             return
         signum, state["lost"] = state["lost"] or signum, None
         raise SignalInterrupt(f"signal {signum}")
@@ -98,9 +104,7 @@ def sigterm_as_interrupt():
                 previous_hook(report)
         finally:
             if state["lost"]:  # (also one that came while the hook ran: `interrupt` noted it)
-                timer = threading.Timer(REDELIVER_S, _redeliver, (state,))
-                timer.daemon = True
-                timer.start()
+                _redeliver_later(state)
             state["in_hook"] = False
 
     previous = signal.getsignal(signal.SIGTERM)
@@ -116,6 +120,25 @@ def sigterm_as_interrupt():
             sys.unraisablehook = previous_hook
     if state["late"] or state["lost"]:  # the block ended, not by an exception: the interrupt ends it now
         raise SignalInterrupt(f"signal {state['late'] or state['lost']}")
+
+
+def _importing(frame) -> bool:
+    """Whether the main thread, stopped at `frame`, is inside an ``import`` (the import system's frames
+    are on its stack). An interrupt raised there leaves a native library half set up (torch, open3d:
+    the process later aborted with a native stack trace, or the next import of it failed with
+    ImportError), so :func:`sigterm_as_interrupt` holds it until the import is done."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _redeliver_later(state: dict) -> None:
+    """Start the timer that delivers a held interrupt again (:func:`_redeliver`) :data:`REDELIVER_S` from now."""
+    timer = threading.Timer(REDELIVER_S, _redeliver, (state,))
+    timer.daemon = True
+    timer.start()
 
 
 def _redeliver(state: dict) -> None:

@@ -112,7 +112,8 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     elif floating and scale_given:
         raise InputError(f"{path}: holds {depth.dtype} depth, read as metres; the depth scale "
                          f"({depth_scale:g}, --depth-scale) applies to integer depth only: leave it out")
-    depth = depth.astype(np.float32)
+    else:  # judged as stored, float32 only once judged: float64 1e300 (1e-300) m became inf (0) first,
+        depth = depth.astype(np.float64)  # "infinite pixels" (no valid depth) blamed on the wrong thing
     if np.isinf(depth).any():
         raise InputError(f"{path}: depth has {int(np.isinf(depth).sum())} infinite pixels; mark invalid pixels "
                          "with 0 or NaN")
@@ -123,7 +124,7 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
     elif encoding != "scale":  # (integer depth of the scale encoding: judged above)
         check_depth_unit(depth, path, f"read with the {encoding} encoding")
     check_depth_range(depth, path)  # after the unit: depth in another unit is said so, stray far pixels here
-    return depth
+    return depth.astype(np.float32)
 
 
 def check_depth_range(depth: np.ndarray, path) -> None:
