@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from frontiernet.errors import InputError, positive_number
+from frontiernet.io import why_missing
 from frontiernet.array_files import npy_overclaim
 
 from .labels import distance_field, gain_definition
@@ -235,6 +236,9 @@ def open_dataset(path: str | Path, truncation_px: float | None = None) -> Fronti
     elif path.exists():  # (a pipe, a device: "no such" sent one looking for a missing folder)
         raise DatasetError(f"{path}: not a regular file nor a folder (a device or a pipe?), expected a dataset folder "
                            "or one of its shards (.zip)")
+    elif path.is_symlink():  # to nothing, or a loop (was "no such dataset folder", which sent one looking for it)
+        raise DatasetError(f"{path}{why_missing(path)}; expected a dataset folder (made by frontiernet datagen) or "
+                           "one of its shards (.zip)")
     else:
         raise DatasetError(f"{path}: no such dataset folder or shard")
     metas = [read_shard_meta(shard) for shard in shards]

@@ -51,7 +51,7 @@ def input_file(path: str | Path, what: str = "file", *, empty_ok: bool = True) -
     if path.is_dir():
         raise InputError(f"{path}: is a folder, expected a file ({what})")
     if not path.exists():
-        raise InputError(f"{path}: {what} not found{_why_missing(path)}")
+        raise InputError(f"{path}: {what} not found{why_missing(path)}")
     if not path.is_file():
         raise InputError(f"{path}: not a regular file, expected a file ({what})")
     if not empty_ok and path.stat().st_size == 0:
@@ -59,7 +59,7 @@ def input_file(path: str | Path, what: str = "file", *, empty_ok: bool = True) -
     return path
 
 
-def _why_missing(path: Path) -> str:
+def why_missing(path: Path) -> str:
     """What an input `path` that does not exist is, where it is more than nothing (``""`` then): ``: a symbolic
     link loop (a -> b -> a)`` (a link, or a folder on the way, that leads back to itself: "not found" alone
     sent one looking for a missing file) or ``: a symbolic link to X, which does not exist``."""
@@ -92,7 +92,7 @@ def input_folder(path: str | Path, what: str = "input") -> Path:
         kind = "a file" if path.is_file() else "not a regular file nor a folder (a device or a pipe?)"
         raise InputError(f"{path}: is {kind}, expected a folder ({what})")
     if not path.is_dir():
-        raise InputError(f"{path}: {what} folder not found{_why_missing(path)}")
+        raise InputError(f"{path}: {what} folder not found{why_missing(path)}")
     return path
 
 

@@ -134,7 +134,7 @@ def open_training_data(path: str | Path) -> FrontierDataset:
     from datagen.generate import missing_shards
 
     path = Path(path)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():  # (a link to nothing: open_dataset names it so, not "not found")
         raise InputError(f"{path}: dataset folder not found (make one with `frontiernet datagen`)")
     try:
         dataset = open_dataset(path)

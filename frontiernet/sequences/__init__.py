@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import input_file, input_folder
-from .colmap import find_model, read_colmap, sequence_from_reconstruction
+from .colmap import MODEL_PARTS, find_model, read_colmap, sequence_from_reconstruction
 from .frames import Camera, Sequence, SequenceFrame
 from .images import DEPTH_ENCODINGS, read_depth, read_rgb
 from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, TUM_LISTS, present, read_redwood, read_tum
@@ -27,6 +27,9 @@ from .ros_extract import is_recording
 FORMATS = ("tum", "redwood", "colmap", "images")
 """The folder formats; a recording (``.bag``, ``.mcap``, ``.db3``, a rosbag2 folder) is format ``rosbag``."""
 READERS = (*FORMATS, "rosbag")
+FOLDERS = {"tum": "a TUM sequence folder", "redwood": "a Redwood sequence folder", "colmap": "a COLMAP model folder",
+           "images": "a folder of images"}
+"""What each folder format's reader takes, as a refusal of a file given for it says (:func:`file_given`)."""
 
 __all__ = ["DEPTH_ENCODINGS", "FORMATS", "READERS", "Camera", "Sequence", "SequenceFrame", "detect_format",
            "is_recording", "open_sequence", "read_colmap", "read_depth", "read_redwood", "read_rgb", "read_tum",
@@ -40,6 +43,24 @@ def _only_images(folder: Path) -> bool:
     return bool(entries) and all(entry.suffix.lower() in IMAGE_SUFFIXES for entry in entries)
 
 
+def file_given(path: Path, format: str = "auto") -> str | None:
+    """The refusal of file `path` given to the reader of `format` where that file is known for a part of another
+    input (None otherwise): a recording (``.bag``, ``.mcap``, ``.db3``) for a folder format; a file of a rosbag2
+    recording (its ``metadata.yaml``), or of a COLMAP model (``cameras.bin``, ...), named with the folder to give
+    (was "a file; a sequence is a folder" or "is a file, expected a folder")."""
+    expected = f", not {FOLDERS[format]}" if format in FOLDERS else ""
+    if format not in ("auto", "rosbag") and is_recording(path):
+        return f"{path}: a recording ({path.suffix} file){expected}; read it with --format rosbag (or auto)"
+    if present(path.parent / "metadata.yaml"):
+        return (f"{path}: a file of the rosbag2 recording {path.parent}{expected}; a rosbag2 recording is the folder "
+                f"holding metadata.yaml and its .db3 or .mcap files: give {path.parent}")
+    if path.suffix in (".bin", ".txt") and path.stem in MODEL_PARTS:
+        folder = f": give {path.parent} (or its project folder)" if find_model(path.parent) == path.parent else ""
+        return (f"{path}: a file of a COLMAP model{expected}; a COLMAP model is the folder holding cameras, images "
+                f"and points3D (.bin or .txt){folder}")
+    return None
+
+
 def detect_format(path: str | Path) -> str:
     """The format of the sequence at `path` (one of :data:`READERS`); InputError if none fits.
 
@@ -51,7 +72,8 @@ def detect_format(path: str | Path) -> str:
     if is_recording(path):
         return "rosbag"
     if path.is_file():
-        raise InputError(f"{path}: a file; a sequence is a folder, or a recording (.bag, .mcap, .db3)")
+        raise InputError(file_given(path) or f"{path}: a file; a sequence is a folder, or a recording (.bag, .mcap, "
+                         ".db3)")
     input_folder(path, "sequence")  # missing, or a device or a pipe
     if present(path / "rgb.txt"):  # a pipe or a dangling link too: named, not taken for absent
         input_file(path / "rgb.txt", TUM_LISTS["rgb.txt"])
@@ -79,6 +101,10 @@ def open_sequence(path: str | Path, format: str = "auto", camera: Camera | None 
         raise InputError(f"sequence format '{format}' is unknown; valid: auto, {', '.join(READERS)}")
     if format == "auto":
         format = detect_format(path)
+    elif Path(path).is_file() and not (format == "rosbag" and is_recording(path)):
+        refusal = file_given(Path(path), format)  # a recording, or a file of one or of a COLMAP model
+        if refusal:
+            raise InputError(refusal)
     if format == "tum":
         return read_tum(path, camera, **options)
     if format == "redwood":

@@ -26,38 +26,54 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import intrinsics_matrix, quaternion_rotations, rigid_pose
-from ..io import input_folder
+from ..io import input_file, input_folder
 from ..workers import keep_sigterm_handler
 
 with keep_sigterm_handler():  # its import installs glog's handler: SIGTERM printed a native stack trace
     import pycolmap
 from .frames import Camera, Sequence, SequenceFrame
-from .readers import IMAGE_SUFFIXES, image_size
+from .readers import IMAGE_SUFFIXES, image_size, present
 
 COLMAP_PIXEL_CENTRE = 0.5  # COLMAP's coordinate of the top-left pixel's centre (OpenCV: 0)
 PINHOLE_MODELS = ("SIMPLE_PINHOLE", "PINHOLE")
 MODEL_FILES = ("cameras.bin", "cameras.txt")
+MODEL_PARTS = ("cameras", "images", "points3D", "rigs", "frames")
+"""The files of a COLMAP model, each ``.bin`` or ``.txt`` (rigs and frames since COLMAP 3.12)."""
 MODEL_SUBFOLDERS = (".", "sparse/0", "sparse")
 _REMAP_CHUNK_PIXELS = 1 << 20  # pixels projected per pycolmap call (bounds the memory of big images)
 
 
 def find_model(path: Path) -> Path | None:
     """The COLMAP model folder at `path`, in ``path/sparse/0`` or in ``path/sparse`` (the first with
-    ``cameras.bin`` or ``cameras.txt``); None if there is none."""
+    ``cameras.bin`` or ``cameras.txt``, of whatever kind: :func:`check_model_files` names a pipe, a folder or a
+    link to nothing there, which was "no COLMAP model"); None if there is none."""
     for subfolder in MODEL_SUBFOLDERS:
         folder = path / subfolder
-        if any((folder / name).is_file() for name in MODEL_FILES):
+        if any(present(folder / name) for name in MODEL_FILES):
             return folder
     return None
 
 
+def check_model_files(model: Path) -> None:
+    """InputError naming the first file of COLMAP model folder `model` (:data:`MODEL_PARTS`) that is there but is
+    no regular file (:func:`~frontiernet.io.input_file`): pycolmap waited for ever on a pipe."""
+    for part in MODEL_PARTS:
+        for suffix in (".bin", ".txt"):
+            if present(model / f"{part}{suffix}"):
+                input_file(model / f"{part}{suffix}", "COLMAP model file")
+
+
 def _default_image_dir(path: Path, model_dir: Path) -> Path:
     """``images/`` of the project folder `path`, else the model folder's sibling (``sparse/images``
-    or, for ``sparse/0``, the project's ``images``)."""
+    or, for ``sparse/0``, the project's ``images``); where none is a folder, the first that is something else (a
+    file, a pipe, a link to nothing) is named as such (:func:`~frontiernet.io.input_folder`), not "no image folder"."""
     candidates = [path / "images", model_dir.parent / "images", model_dir.parent.parent / "images"]
     for candidate in candidates:
         if candidate.is_dir():
             return candidate
+    for candidate in candidates:
+        if present(candidate):
+            input_folder(candidate, "image")
     raise InputError(f"{path}: no image folder for the COLMAP model (looked for "
                      f"{', '.join(str(c) for c in dict.fromkeys(candidates))}); pass image_dir")
 
@@ -118,11 +134,14 @@ def _count_image_files(image_dir: Path) -> int:
 
 
 def _depth_paths(names: list[str], depth_dir: Path) -> list[Path]:
-    """The depth file (``.png`` or ``.npy``, same stem and subfolder) of each image name."""
+    """The depth file (``.png`` or ``.npy``, same stem and subfolder) of each image name; one of the wrong kind
+    (a folder, a pipe, a link to nothing) is named as such where no file of the other suffix is there."""
     paths, missing = [], []
     for name in names:
         candidates = [depth_dir / Path(name).with_suffix(suffix) for suffix in (".png", ".npy")]
         found = next((path for path in candidates if path.is_file()), None)
+        if found is None and any(present(path) for path in candidates):
+            input_file(next(path for path in candidates if present(path)), "depth file")
         if found is None:
             missing.append(candidates[0])
         paths.append(found)
@@ -133,6 +152,11 @@ def _depth_paths(names: list[str], depth_dir: Path) -> list[Path]:
 
 
 def _check_image_files(paths: list[Path], image_dir: Path) -> None:
+    """InputError naming the first image of `paths` that is of the wrong kind (a folder, a pipe, a link to nothing:
+    :func:`~frontiernet.io.input_file`), else the first missing one."""
+    for path in paths:
+        if present(path) and not path.is_file():
+            input_file(path, "image of the COLMAP model")
     missing = [path for path in paths if not path.is_file()]
     if missing:
         raise InputError(f"{missing[0]}: image of the COLMAP model not found ({len(missing)} of {len(paths)} "
@@ -195,9 +219,10 @@ def read_colmap(model_dir: str | Path, image_dir: str | Path | None = None,
     if model is None:
         raise InputError(f"{path}: no COLMAP model (looked for {' or '.join(MODEL_FILES)} in "
                          f"{', '.join(MODEL_SUBFOLDERS)})")
+    check_model_files(model)
     image_dir = input_folder(image_dir if image_dir is not None else _default_image_dir(path, model), "image")
-    if depth_dir is None and (image_dir.parent / "depth").is_dir():
-        depth_dir = image_dir.parent / "depth"
+    if depth_dir is None and present(image_dir.parent / "depth"):  # a file, a pipe or a link to nothing: named
+        depth_dir = input_folder(image_dir.parent / "depth", "COLMAP depth")
     try:
         reconstruction = pycolmap.Reconstruction(model)
     except (ValueError, RuntimeError, IndexError, KeyError) as error:  # pycolmap's failed checks (ValueError

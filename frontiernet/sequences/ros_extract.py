@@ -12,6 +12,7 @@ Bad data (a truncated or corrupt file, a message that is not what its topic's ro
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from contextlib import contextmanager
@@ -21,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .readers import image_size
+from ..io import input_file
+from .readers import image_size, present
 from .ros_messages import COMPRESSED, colour_image, compressed_suffix, depth_image, frame_id, pose_of, stamp_ns
 from .ros_tf import Track, TransformBuffer
 
@@ -30,9 +32,44 @@ RECORDING_SUFFIXES = (".bag", ".mcap", ".db3")
 
 def is_recording(path: str | Path) -> bool:
     """Whether `path` is a recording: a ``.bag``, ``.mcap`` or ``.db3`` file, or a rosbag2 folder
-    (``metadata.yaml``)."""
+    (``metadata.yaml``). What has the name counts whatever it is (a pipe, a folder, a link to nothing:
+    :func:`~.readers.present`), for :func:`check_recording` to name it: taken for absent, a pipe named ``x.bag`` was
+    "expected a folder (sequence)", a ``metadata.yaml`` of the wrong kind "unknown sequence format"."""
     path = Path(path)
-    return (path.is_file() and path.suffix.lower() in RECORDING_SUFFIXES) or (path / "metadata.yaml").is_file()
+    if path.is_dir():
+        return present(path / "metadata.yaml")
+    return path.suffix.lower() in RECORDING_SUFFIXES and present(path)
+
+
+def _listed_files(folder: Path) -> list[Path]:
+    """The storage files that rosbag2 folder `folder`'s ``metadata.yaml`` lists, where rosbags looks for them (in the
+    folder, by name); where the metadata does not parse here, every ``.db3`` and ``.mcap`` the folder holds."""
+    import yaml
+
+    try:
+        names = yaml.safe_load((folder / "metadata.yaml").read_text())["rosbag2_bagfile_information"][
+            "relative_file_paths"]
+        return [folder / Path(str(name)).name for name in names] if isinstance(names, list) else _held(folder)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, KeyError, TypeError):  # (rosbags refuses it before it
+        # opens a file, or reads it where this parser did not)
+        return _held(folder)
+
+
+def _held(folder: Path) -> list[Path]:
+    return sorted(entry for entry in folder.iterdir() if entry.suffix.lower() in (".db3", ".mcap"))
+
+
+def check_recording(path: Path) -> Path:
+    """`path` if the recording there is made of regular files; InputError naming the first that is not, before any is
+    opened (:func:`~frontiernet.io.input_file`: a folder, a pipe, which sqlite and the MCAP reader wait on for ever,
+    SIGTERM unanswered, or a link to nothing, which is not "missing"): a recording file, or a rosbag2 folder's
+    ``metadata.yaml`` and its storage files (:func:`_listed_files`)."""
+    if not path.is_dir():
+        return input_file(path, "recording")
+    input_file(path / "metadata.yaml", "rosbag2 metadata")
+    for file in _listed_files(path):
+        input_file(file, "rosbag2 storage file")
+    return path
 
 
 RECORDING_MAGIC = {".bag": b"#ROSBAG V2.0", ".mcap": b"\x89MCAP0\r\n", ".db3": b"SQLite format 3\x00"}
@@ -61,15 +98,16 @@ def _check_suffix(path: Path) -> None:
 @contextmanager
 def open_recording(path: Path):
     """An open ``rosbags`` AnyReader of the recording at `path`; InputError naming the file when
-    it is missing, of an unknown kind, truncated or corrupt."""
+    it is missing, of an unknown kind, no regular file (:func:`check_recording`), truncated or corrupt."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    if not path.exists():
-        raise InputError(f"{path}: recording not found")
+    if not os.path.exists(path):
+        input_file(path, "recording")  # "recording not found", or a link to nothing named so
     if not is_recording(path):
         raise InputError(f"{path}: not a recording (a .bag, .mcap or .db3 file, or a rosbag2 folder with "
                          "metadata.yaml)")
+    check_recording(path)  # (a pipe for a file: the reader waited for ever)
     _check_suffix(path)
     try:  # rosbag2 files without message definitions are read with ROS 2 Humble's
         reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
