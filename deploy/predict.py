@@ -22,12 +22,45 @@ from frontiernet.config import load_config, merge_user
 from frontiernet.errors import InputError
 from frontiernet.geometry import check_intrinsics_fit, intrinsics_matrix
 from frontiernet.io import ensure_dir, write_bytes, write_image, write_json
-from frontiernet.model.predictor import beyond_range_invalid, fill_invalid_nearest
+from frontiernet.model.network import ENCODER_STRIDE
+from frontiernet.model.predictor import beyond_range_invalid, fill_invalid_nearest, working_geometry, working_intrinsics
 from frontiernet.model.overlay import distance_picture, frontier_overlay
 from frontiernet.sequences.images import read_depth, read_rgb
 from frontiernet.sequences.single import LEVEL_FRAME, frame_frontiers
 
 from .runtime import load_runtime
+
+MIN_IMAGE_PX = ENCODER_STRIDE
+"""The smallest image (pixels, its short side) predict takes, 32: the network's deepest features have a cell per
+32 x 32 px (the encoder's stride), so a smaller image holds not one of them at its own size, and resized to the
+network's input (320 px) all its detail is invented (a 1 x 1 px image was upscaled 320 times and run)."""
+
+
+def check_image_size(array: np.ndarray, path) -> None:
+    """InputError naming file `path` and its size when image or depth map `array` is under :data:`MIN_IMAGE_PX`
+    on a side."""
+    height, width = array.shape[:2]
+    if min(height, width) < MIN_IMAGE_PX:
+        raise InputError(f"{path}: an image of {width} x {height} pixels is too small: predict needs at least "
+                         f"{MIN_IMAGE_PX} px on each side (the network's coarsest features are {ENCODER_STRIDE} px "
+                         "cells; a smaller image resized to its input would be all invented detail)")
+
+
+def check_intrinsics_at_size(intrinsics: tuple, width: int, height: int, size: int) -> None:
+    """InputError quoting `intrinsics` (fx, fy, cx, cy) as typed when their principal point, which fits the
+    `width` x `height` image, falls outside the pixel centres of the network's `size` px input (resized and
+    centre-cropped, :func:`~frontiernet.model.predictor.resize_and_crop`), where the 3D frontiers are anchored:
+    e.g. cx = 0 (pixel 0's centre moves to -0.17 when 480 px become 320), or a point in the cropped-off part."""
+    K = working_intrinsics(intrinsics_matrix(*intrinsics), height, width, size)
+    new_w, new_h, left, top, crop_w, crop_h = working_geometry(height, width, size)
+    if 0.0 <= K[0, 2] <= crop_w - 1 and 0.0 <= K[1, 2] <= crop_h - 1:  # as pinhole_intrinsics judges it there
+        return
+    x = [(left + 0.5) * width / new_w - 0.5, (left + crop_w - 0.5) * width / new_w - 0.5]
+    y = [(top + 0.5) * height / new_h - 0.5, (top + crop_h - 0.5) * height / new_h - 0.5]
+    raise InputError(f"--intrinsics: the principal point ({intrinsics[2]:g}, {intrinsics[3]:g}) lies outside the part "
+                     f"of the {width} x {height} image the network sees at --size {size} (resized and centre-cropped: "
+                     f"x {x[0]:.6g} to {x[1]:.6g}, y {y[0]:.6g} to {y[1]:.6g} in the image's pixels); check the "
+                     f"intrinsics, or give --size 0 (the image as it is)")
 
 
 def load_predict_config(user_file=None, overrides=()):
@@ -109,6 +142,8 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     rgb = read_rgb(image) if image is not None else None  # the files first: a bad one fails before the model loads
     depth_read = None if depth is None or depth_model is not None else read_depth(
         depth, 1000.0 if depth_scale is None else depth_scale, depth_encoding, scale_given=depth_scale is not None)
+    if rgb is not None or depth_read is not None:  # (a depth of another size than the image is said so below)
+        check_image_size(*((rgb, image) if rgb is not None else (depth_read, depth)))
     if model is None:  # the shipped model that takes what was given: RGB + depth, or an RGB photo alone
         from frontiernet.model import shipped_model_path
 
@@ -128,6 +163,9 @@ def predict_files(image: str | Path | None, depth: str | Path | None, model: str
     if intrinsics is not None:
         height, width = (rgb if rgb is not None else depth_read).shape[:2]
         check_intrinsics_fit(*intrinsics, width, height)
+        working = runtime.conf["inference"]["size"] if size is None else size
+        if working:  # before any picture is written
+            check_intrinsics_at_size(intrinsics, width, height, int(working))
     K_image = None if intrinsics is None else intrinsics_matrix(*intrinsics)
     depth_m = depth_read if depth_model is None else estimate_depth(depth_model, rgb, K_image, conf.depth)
     if depth_m is not None and not np.any(depth_m > 0):

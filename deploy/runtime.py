@@ -11,7 +11,6 @@ the three agree to float precision (``tests/test_deploy.py``).
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import torch
 
 from frontiernet.errors import InputError
 from frontiernet.model import Runtime, open_runtime
+from frontiernet.model.files import embedded_model_config
 from frontiernet.model.network import CONFIG_KEY
 from frontiernet.model.predictor import torch_threads
 
@@ -46,7 +46,7 @@ class OnnxRuntime(Runtime):
         metadata = self.session.get_modelmeta().custom_metadata_map
         if CONFIG_KEY not in metadata:
             raise InputError(f"{path}: ONNX model without a FrontierNet config (export it with frontiernet export)")
-        self.conf = json.loads(metadata[CONFIG_KEY])
+        self.conf = embedded_model_config(metadata[CONFIG_KEY], path)  # the safetensors reader's checks
 
     def run(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         distance, logits = self.session.run(None, {"image": image})
@@ -68,7 +68,7 @@ class TorchScriptRuntime(Runtime):
         if not extra[TORCHSCRIPT_EXTRA]:
             raise InputError(f"{path}: TorchScript model without a FrontierNet config (export it with "
                              f"frontiernet export)")
-        self.conf = json.loads(extra[TORCHSCRIPT_EXTRA])
+        self.conf = embedded_model_config(extra[TORCHSCRIPT_EXTRA], path)
         self.module.eval()
         self.threads = threads
 

@@ -91,23 +91,62 @@ def read_model_file(path: Path) -> tuple[dict, dict]:
     path = Path(path)
     if path.suffix != ".safetensors" and not _looks_like_safetensors(path):  # (a model file renamed .bin reads)
         state, conf = _read_checkpoint(path)
+        check_model_config(conf, path)
         check_finite(state, path)
         return state, conf
     state, metadata = _read_safetensors(path)
     if CONFIG_KEY not in metadata:
         raise InputError(f"{path}: safetensors file without a FrontierNet config (not a frontiernet model)")
+    conf = embedded_model_config(metadata[CONFIG_KEY], path)
     try:
-        conf = json.loads(metadata[CONFIG_KEY])
         conf["info"] = json.loads(metadata.get(INFO_KEY, "{}"))
         base = json.loads(metadata[BASE_KEY]) if BASE_KEY in metadata else None
     except json.JSONDecodeError:
-        raise InputError(f"{path}: the FrontierNet config in the file is not valid JSON") from None
+        raise InputError(f"{path}: its {INFO_KEY} or {BASE_KEY} record is not valid JSON") from None
     if base is not None:
         shared, found = _base_tensors(path, base)
         state.update(shared)
         conf["base"] = {"file": found.name, "prefixes": list(base["prefixes"]), "path": str(found)}
     check_finite(state, path)
     return state, conf
+
+
+MODEL_SECTIONS = ("network", "input", "labels", "inference")
+"""The sections of a model config (``configs/model.yaml``'s) that every model file embeds."""
+
+
+def embedded_model_config(text, path: Path) -> dict:
+    """The model config that model file `path` embeds as JSON `text` (a safetensors file's :data:`CONFIG_KEY`
+    metadata, an ONNX model's metadata, a TorchScript file's extra file), checked
+    (:func:`check_model_config`); InputError naming the file when it is not valid JSON. The one reader of
+    every model format's embedded config: ``predict``, ``explore``, ``export`` and ``evaluate`` alike."""
+    try:
+        conf = json.loads(text)
+    except (json.JSONDecodeError, UnicodeDecodeError, TypeError, RecursionError):
+        raise InputError(f"{path}: its embedded model config is not valid JSON (a damaged or hand-edited "
+                         "model file: export it again)") from None
+    check_model_config(conf, path)
+    return conf
+
+
+def check_model_config(conf, path: Path) -> None:
+    """InputError naming model file `path` and the key when its embedded model config `conf` is not a JSON
+    object of the :data:`MODEL_SECTIONS`, holds a value outside the range ``configs/ranges/model.yaml``
+    declares (``labels.num_classes must be an integer in [2, 256], got -3``; a NaN truncation) or breaks a
+    relation it declares."""
+    from ..config import check_ranges
+
+    if not isinstance(conf, dict):
+        raise InputError(f"{path}: its embedded model config is not a JSON object of sections "
+                         f"({', '.join(MODEL_SECTIONS)}); a damaged or hand-edited model file: export it again")
+    missing = [name for name in MODEL_SECTIONS if not isinstance(conf.get(name), dict)]
+    if missing:
+        raise InputError(f"{path}: its embedded model config lacks the {missing[0]} section (or it is no JSON "
+                         "object); a damaged or hand-edited model file: export it again")
+    try:
+        check_ranges(conf, {"": "model"})
+    except InputError as error:
+        raise InputError(f"{path}: its embedded model config is out of range: {error}") from None
 
 
 def first_non_finite(tensors: dict) -> str | None:
@@ -237,7 +276,7 @@ def _read_checkpoint(path: Path) -> tuple[dict, dict]:
     prefix = "net."
     state = {name[len(prefix):]: value for name, value in checkpoint["state_dict"].items()
              if name.startswith(prefix)}
-    conf = {key: model_conf[key] for key in ("network", "input", "labels", "inference")}
+    conf = {key: model_conf.get(key) for key in MODEL_SECTIONS}  # (checked by the caller: check_model_config)
     train_conf = (checkpoint.get("hyper_parameters") or {}).get("train") or {}
     conf["info"] = {"checkpoint": path.name, "epoch": checkpoint.get("epoch"),
                     "steps": checkpoint.get("global_step"), "val_scenes": train_conf.get("val_scenes", [])}
@@ -289,6 +328,6 @@ def save_model(path: str | Path, model, model_conf: dict, info: dict | None = No
     return write_bytes(path, payload)
 
 
-__all__ = ["BASE_KEY", "CONFIG_KEY", "DEFAULT_MODEL", "INFO_KEY", "RUNTIME_GROUP", "SharedBase", "check_finite",
-           "is_export", "default_model_path", "init_weights_file", "load_checkpoint",
-           "model_base", "read_model_file", "save_model", "shipped_weights_folder", "tensors_digest", "torch_model_file"]
+__all__ = ["BASE_KEY", "CONFIG_KEY", "DEFAULT_MODEL", "INFO_KEY", "MODEL_SECTIONS", "RUNTIME_GROUP", "SharedBase",
+           "check_finite", "check_model_config", "embedded_model_config", "is_export", "default_model_path",
+           "init_weights_file", "load_checkpoint", "model_base", "read_model_file", "save_model", "shipped_weights_folder", "tensors_digest", "torch_model_file"]

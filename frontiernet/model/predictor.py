@@ -208,25 +208,38 @@ def resize_and_crop(rgb: np.ndarray | None, depth: np.ndarray | None, K: np.ndar
         (rgb, depth, K) at ``size x size`` (without `crop`: the resized size; None stays None).
     """
     height, width = (rgb if rgb is not None else depth).shape[:2]
-    scale = size / min(height, width)
-    new_w, new_h = max(size, round(width * scale)), max(size, round(height * scale))
-    if not crop and multiple > 1:
-        new_w, new_h = (max(multiple, int(round(side / multiple)) * multiple) for side in (new_w, new_h))
-    left, top = ((new_w - size) // 2, (new_h - size) // 2) if crop else (0, 0)
-    crop_w, crop_h = (size, size) if crop else (new_w, new_h)
+    new_w, new_h, left, top, crop_w, crop_h = working_geometry(height, width, size, crop, multiple)
     if rgb is not None:
         rgb = cv2.resize(np.ascontiguousarray(rgb), (new_w, new_h), interpolation=cv2.INTER_AREA)
         rgb = np.ascontiguousarray(rgb[top:top + crop_h, left:left + crop_w])
     if depth is not None:
         depth = cv2.resize(np.ascontiguousarray(depth, np.float32), (new_w, new_h), interpolation=cv2.INTER_NEAREST)
         depth = np.ascontiguousarray(depth[top:top + crop_h, left:left + crop_w])
-    if K is not None:
-        K = np.asarray(K, np.float64).copy()
-        K[0, 0] *= new_w / width
-        K[1, 1] *= new_h / height
-        K[0, 2] = (K[0, 2] + 0.5) * new_w / width - 0.5 - left
-        K[1, 2] = (K[1, 2] + 0.5) * new_h / height - 0.5 - top
-    return rgb, depth, K
+    return rgb, depth, None if K is None else working_intrinsics(K, height, width, size, crop, multiple)
+
+
+def working_geometry(height: int, width: int, size: int, crop: bool = True, multiple: int = 1) -> tuple[int, ...]:
+    """(resized width, height, crop's left, top, cropped width, height) in pixels of an `height` x `width`
+    image at network size `size` (:func:`resize_and_crop`)."""
+    scale = size / min(height, width)
+    new_w, new_h = max(size, round(width * scale)), max(size, round(height * scale))
+    if not crop and multiple > 1:
+        new_w, new_h = (max(multiple, int(round(side / multiple)) * multiple) for side in (new_w, new_h))
+    left, top = ((new_w - size) // 2, (new_h - size) // 2) if crop else (0, 0)
+    return (new_w, new_h, left, top, *((size, size) if crop else (new_w, new_h)))
+
+
+def working_intrinsics(K: np.ndarray, height: int, width: int, size: int, crop: bool = True,
+                       multiple: int = 1) -> np.ndarray:
+    """(3, 3) float64 intrinsics `K` of an `height` x `width` image at network size `size`, resized and
+    cropped as :func:`resize_and_crop` does it (pixel centres: pixel 0's centre moves to ``0.5 s - 0.5``)."""
+    new_w, new_h, left, top, _, _ = working_geometry(height, width, size, crop, multiple)
+    K = np.asarray(K, np.float64).copy()
+    K[0, 0] *= new_w / width
+    K[1, 1] *= new_h / height
+    K[0, 2] = (K[0, 2] + 0.5) * new_w / width - 0.5 - left
+    K[1, 2] = (K[1, 2] + 0.5) * new_h / height - 0.5 - top
+    return K
 
 
 @contextmanager

@@ -81,7 +81,7 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
 
     NaN (the convention of ``frontiernet render``'s ``depth.npy``), 0 and negative values are invalid.
     Integer depth (an image or a ``.npy`` array) is divided by `depth_scale`; float depth is metres. An 8-bit
-    image is refused: depth images are 16-bit (a 0-255 picture of depth read as millimetres is no depth map).
+    image or array is refused: integer depth is 16-bit (a 0-255 picture of depth read as millimetres is no depth map).
     `scale_given`: the user gave `depth_scale` (``--depth-scale``), so float depth, which it does not
     apply to, is refused rather than read with the scale silently ignored.
     """
@@ -92,6 +92,10 @@ def read_depth(path: str | Path, depth_scale: float = 1000.0, encoding: str = "s
         return _read_nyu(path)
     if path.suffix.lower() == ".npy":
         depth = read_npy(path)
+        if depth.dtype in (np.uint8, np.int8):  # as an 8-bit image: 0-255 steps read as millimetres reach 25 cm
+            raise InputError(f"{path}: holds 8-bit integer ({depth.dtype}) values; integer depth must be 16-bit or "
+                             "wider (units, millimetres unless a depth scale says otherwise) or float (metres), e.g. "
+                             "a uint16 array of millimetres")
     else:
         depth = read_image(path, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH, "depth image")
         if depth.dtype in (np.uint8, np.int8):  # a picture of depth (0-255), not a depth map
