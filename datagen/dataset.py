@@ -15,7 +15,7 @@ import numpy as np
 
 from frontiernet.errors import InputError, positive_number
 from frontiernet.io import why_missing
-from frontiernet.array_files import npy_overclaim
+from frontiernet.array_files import native_stderr, npy_overclaim
 
 from .labels import distance_field, gain_definition
 from .shards import (DEFAULT_TRUNCATION_PX, INFO_NAME, MASK_NAMES, SHARDS_DIR, DatasetError,
@@ -33,7 +33,8 @@ def _decode_sample(read, meta: dict, key: str) -> dict:
     def image(name: str, flags: int, dtype, image_shape) -> np.ndarray:
         data = np.frombuffer(read(name), np.uint8)
         try:
-            array = cv2.imdecode(data, flags) if data.size else None
+            with native_stderr():  # libpng's own line for a damaged PNG: the ValueError below says it
+                array = cv2.imdecode(data, flags) if data.size else None
         except cv2.error:
             array = None
         if array is None or array.dtype != dtype or array.shape != image_shape:

@@ -154,9 +154,13 @@ def _check_regular(path: Path) -> None:
 
 def check_not_dangling(path: str | Path) -> None:
     """InputError when output `path` is a symbolic link to nothing: no folder can be made there, and a file
-    written there would replace the link (say so before the work, not "cannot create ... (File exists)")."""
+    written there would replace the link (say so before the work, not "cannot create ... (File exists)"); a link
+    of a loop is named as such (:func:`why_missing`), not as a link to a target that "does not exist"."""
     path = Path(path)
     if path.is_symlink() and not path.exists():
+        why = why_missing(path)
+        if why.startswith(": a symbolic link loop"):  # (its target exists: "make its target first" cannot be done)
+            raise InputError(f"{path}{why}; remove a link of the loop, or choose another output")
         raise InputError(f"{path}: a symbolic link to {os.readlink(path)}, which does not exist; make its target "
                          "first, or remove the link, or choose another output")
 

@@ -111,7 +111,9 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     With `scene_starts`, the positions a scene ships come first (a KTH plan folder's MapEx
     ``start_poses.json``, in its order; heading seeded, camera at ``motion.camera_height_m``),
     except those outside the scene's main region (:func:`~frontiernet.exploration.region.start_sampler`:
-    shut in by doors too narrow for the robot; logged and left out); sampled poses fill up the count.
+    shut in by doors too narrow for the robot, or too near a wall; logged in one line and left out); sampled
+    poses fill up the count. (A start outside the plan's rooms is the start file's error, refused when the plan
+    loads: :func:`~frontiernet.scenes.floorplan.plan_start_positions`.)
     `world`: the scene's :func:`~frontiernet.exploration.run.planning_world`, when the caller has it already (None: built here).
 
     Raises:
@@ -125,17 +127,21 @@ def start_poses(spec: str, count: int, seed: int, conf, scene_starts: bool = Fal
     scene, voxels = world.scene, world.voxels
     rng = np.random.default_rng([int(seed), int(hashlib.sha1(spec.encode()).hexdigest()[:8], 16)])
     region, draw = start_sampler(scene, voxels, conf)  # one clearance map for the check and the draws
-    poses = []
+    poses, left_out = [], []
     if scene_starts:
         z = camera_z(scene, voxels, conf)
         for index, (x, y) in enumerate(scene.metadata.extra.get("start_xy", [])):
             yaw = float(rng.uniform(-180.0, 180.0))
             i, j = voxels.world_to_index(np.array([x, y, z]))[:2]
             if not region[i, j]:
-                log.warning("%s: shipped start %d at (%.2f, %.2f) is shut in by doors too narrow for the robot "
-                            "(planner.clearance_m); left out", spec, index, x, y)
+                left_out.append(f"{index} at ({x:.2f}, {y:.2f})")
             elif len(poses) < count:
                 poses.append((round(float(x), 4), round(float(y), 4), round(z, 4), round(yaw, 4)))
+    if left_out:  # (one line for the scene; a start off its plan's rooms was refused as the file's error on load)
+        log.warning("%s: shipped start%s %s lie%s outside the region the robot can travel: shut in by doors too "
+                    "narrow for it, or nearer a wall than planner.clearance_m = %g m; left out, sampled starts take "
+                    "their place", spec, "s" if len(left_out) > 1 else "", ", ".join(left_out),
+                    "" if len(left_out) > 1 else "s", float(conf.planner.clearance_m))
     while len(poses) < count:
         T = draw(rng)
         poses.append(tuple(round(float(v), 4) for v in (*T[:3, 3], np.degrees(yaw_of(T)))))

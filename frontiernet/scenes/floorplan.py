@@ -12,6 +12,7 @@ the floor top is at z = 0. :func:`plan_pixel_to_world` applies it.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,12 +39,15 @@ class FloorPlan:
         inside: (H, W) bool, pixels that belong to the building (get a floor).
         doors: (H, W) bool, door gaps (free pixels that get a lintel), may be all False.
         resolution: metres per pixel.
+        spaces: (H, W) bool, the pixels of a labelled space (a KTH/MapEx ``valid_space`` > 0: a room or a
+            corridor), or None for a plan without one.
     """
 
     occupied: np.ndarray
     inside: np.ndarray
     doors: np.ndarray
     resolution: float
+    spaces: np.ndarray | None = None
 
 
 def plan_pixel_to_world(rows, cols, shape: tuple[int, int], resolution: float) -> np.ndarray:
@@ -57,10 +61,13 @@ def plan_start_positions(path: Path, plan: FloorPlan) -> list[list[float]]:
     starts as ``raw_pixel_row_col`` into ``occ_map.npy``; shared/data/floorplans/README.md).
 
     Raises:
-        InputError: a file that is not such a list, or a start off the plan or not free.
+        InputError: a file that is not such a list or not a regular file (a pipe, a folder, a link loop), or a
+            start off the plan, on a wall, or outside every space of the plan's ``valid_space`` (0 there: outside
+            the building, or a wall or door frame between spaces; MapEx's starts all lie in a room or corridor).
     """
     import json
 
+    path = input_file(path, "KTH plan start-pose file")
     try:
         starts = [entry["raw_pixel_row_col"] for entry in json.loads(Path(path).read_text())["start_poses"]]
         rows, cols = (np.asarray([start[i] for start in starts], np.int64).reshape(-1) for i in (0, 1))
@@ -71,6 +78,13 @@ def plan_start_positions(path: Path, plan: FloorPlan) -> list[list[float]]:
     if bad.any() or plan.occupied[rows, cols].any():
         raise InputError(f"{path}: start pose(s) off the plan or on a wall: "
                          f"{[starts[i] for i in np.flatnonzero(bad | plan.occupied[np.clip(rows, 0, shape[0] - 1), np.clip(cols, 0, shape[1] - 1)])]}")
+    outside = np.flatnonzero(~plan.spaces[rows, cols]) if plan.spaces is not None else []
+    if len(outside):
+        listed = ", ".join(f"{i} (row {rows[i]}, col {cols[i]})" for i in outside[:4]) + \
+            (f" and {len(outside) - 4} more" if len(outside) > 4 else "")
+        raise InputError(f"{path}: start{'s' if len(outside) > 1 else ''} {listed} lie{'' if len(outside) > 1 else 's'}"
+                         " outside every space of valid_space.npy (0 there: outside the building, or a wall or door "
+                         "frame between spaces); a start must be a pixel of a room or corridor")
     return np.round(plan_pixel_to_world(rows, cols, shape, plan.resolution), 4).tolist()
 
 
@@ -84,10 +98,11 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
     if not occupied_below <= free_above:  # a pixel value between them would be occupied and free at once
         raise InputError(f"{spec_text}: occupied_below ({occupied_below}) must be at most free_above ({free_above}): "
                          "pixels below the first are walls, above the second free space")
-    if path.is_dir():
-        if not (path / "occ_map.npy").is_file():
+    if path.is_dir():  # (a pipe, a folder or a link loop with a file's name is named so: input_file, read_npy)
+        if not os.path.lexists(path / "occ_map.npy"):
             raise InputError(f"{path}: floor-plan folder has no occ_map.npy")
-        if (path / "valid_space.npy").is_file():
+        input_file(path / "occ_map.npy", "KTH plan occupancy grid")
+        if os.path.lexists(path / "valid_space.npy"):
             valid = _load_array(path / "valid_space.npy")
         resolution = kth_resolution if resolution is None else resolution
         path = path / "occ_map.npy"
@@ -121,7 +136,7 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
         raise InputError(f"{path}: the floor plan has no free space inside a building"
                          f"{_grey_levels(image, occupied_below, free_above)}")
     return FloorPlan(occupied=occupied, inside=inside | (occupied & ndimage.binary_dilation(inside)),
-                     doors=doors, resolution=float(resolution))
+                     doors=doors, resolution=float(resolution), spaces=None if valid is None else valid > 0)
 
 
 def _grey_levels(image: np.ndarray, occupied_below: float, free_above: float) -> str:
@@ -234,7 +249,7 @@ def load_floorplan(path: str | Path, spec_text: str, conf) -> Scene:
     extra = {"resolution": plan.resolution, "plan_shape": list(plan.occupied.shape),
              "wall_height": float(conf.wall_height), "ceiling": bool(conf.ceiling),
              "door_pixels": int(plan.doors.sum())}
-    if path.is_dir() and (path / "start_poses.json").is_file():
+    if path.is_dir() and os.path.lexists(path / "start_poses.json"):  # (a pipe there: named, not taken for none)
         extra["start_xy"] = plan_start_positions(path / "start_poses.json", plan)
     metadata = SceneMetadata(name=path.name if path.is_dir() else path.stem, source="floorplan", spec=spec_text,
                              extra=extra)

@@ -9,13 +9,14 @@ convention); ``?up=y`` converts Y-up to Z-up. HM3D scenes are always Y-up.
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..geometry import T_ZUP_YUP
-from ..io import input_file
+from ..io import input_file, why_missing
 from .scene import Material, Scene, SceneMetadata
 
 log = logging.getLogger(__name__)
@@ -107,6 +108,44 @@ def _collect(trimesh_scene, max_texture_size: int, geometry_only: bool):
     return vertices, triangles, tri_material, tri_uvs, vertex_colors, materials
 
 
+GLB_HEADER = 12
+"""Bytes of a .glb file's header: b"glTF", its version and its whole length (little-endian uint32s)."""
+
+
+def _check_glb_length(path: Path) -> None:
+    """InputError naming .glb file `path` when it is shorter than its header, has no glTF header, or holds fewer
+    bytes than its header says the file has (cut off in a copy or a download: trimesh then failed on the JSON
+    chunk it holds, with a message about a missing ',')."""
+    size = path.stat().st_size
+    with open(path, "rb") as file:
+        header = file.read(GLB_HEADER)
+    problem = (f"{size} bytes, fewer than the {GLB_HEADER} of a .glb header" if len(header) < GLB_HEADER else
+               "its first bytes are not the 'glTF' a .glb file starts with: another format named .glb?"
+               if header[:4] != b"glTF" else None)
+    declared = int.from_bytes(header[8:12], "little") if problem is None else 0
+    if problem is None and declared > size:
+        problem = f"its header says the file has {declared:,} bytes, it holds {size:,}: the end is cut off"
+    if problem:
+        raise InputError(f"{path}: cannot read mesh: a corrupt or truncated .glb file ({problem})")
+
+
+def _trimesh_failure(error: Exception) -> str:
+    """What trimesh's `error` on a corrupt mesh file says, in words (no exception class name: a KeyError's 'y'
+    is a property the file's header does not declare, an IndexError a face naming a vertex there is not)."""
+    import json
+
+    text = str(error).strip().splitlines()[0][:120] if str(error).strip() else ""
+    if isinstance(error, json.JSONDecodeError):
+        return f"its JSON is cut off or malformed: {error.msg} at line {error.lineno} column {error.colno}"
+    if isinstance(error, IndexError):
+        return f"a face names a vertex the file does not have{f'; trimesh: {text}' if text else ''}"
+    if isinstance(error, KeyError):
+        return f"a property or element the data needs is not declared{f': {text}' if text else ''}"
+    if isinstance(error, UnicodeDecodeError):
+        return f"text that is not UTF-8 at byte {error.start}"
+    return f"trimesh: {text}" if text else "trimesh could not parse it"
+
+
 def load_mesh_file(path: str | Path, spec_text: str, *, up: str = "z", scale: float = 1.0,
                    max_texture_size: int = 1024, geometry_only: bool = False,
                    source: str = "mesh") -> Scene:
@@ -132,12 +171,13 @@ def load_mesh_file(path: str | Path, spec_text: str, *, up: str = "z", scale: fl
         raise InputError(f"{spec_text}: up must be 'y' or 'z', got '{up}'")
     if not (isinstance(scale, (int, float)) and scale > 0 and np.isfinite(scale)):
         raise InputError(f"{spec_text}: scale must be a positive number, got {scale!r}")
+    if path.suffix.lower() == ".glb":
+        _check_glb_length(path)
     try:
         loaded = trimesh.load(str(path), force="scene", process=False)
     except Exception as error:  # trimesh raises many types on corrupt input
-        raise InputError(f"{path}: cannot read mesh: a corrupt or truncated {path.suffix.lower()} file (trimesh: "
-                         f"{error.__class__.__name__}: "
-                         f"{str(error).splitlines()[0][:120] if str(error) else 'corrupt file'})") from None
+        raise InputError(f"{path}: cannot read mesh: a corrupt or truncated {path.suffix.lower()} file "
+                         f"({_trimesh_failure(error)})") from None
     vertices, triangles, tri_material, tri_uvs, vertex_colors, materials = _collect(
         loaded, max_texture_size, geometry_only)
     if not triangles:
@@ -172,10 +212,10 @@ def find_hm3d_glb(path: str | Path) -> Path:
     if path.exists() and not path.is_dir():  # a device or a pipe
         input_file(path, "HM3D scene file")
     if not path.is_dir():
-        raise InputError(f"{path}: no such HM3D scene folder or file")
+        raise InputError(f"{path}: no such HM3D scene folder or file{why_missing(path)}")
     scene_id = path.name.split("-", 1)[-1]
-    if (path / f"{scene_id}.glb").is_file():
-        return path / f"{scene_id}.glb"
+    if os.path.lexists(path / f"{scene_id}.glb"):  # the scene's own file: a pipe, a folder or a loop there named so
+        return input_file(path / f"{scene_id}.glb", "HM3D scene mesh")
     plain = [glb for glb in sorted(path.glob("*.glb"))
              if glb.is_file() and not glb.name.endswith((".basis.glb", ".semantic.glb"))]
     for found in (plain, sorted(path.glob("*.basis.glb"))):
@@ -185,6 +225,8 @@ def find_hm3d_glb(path: str | Path) -> Path:
                              "folder's own; give the scene's file")
         if found:
             return found[0]
+    for odd in sorted(path.glob("*.glb")):  # (the name of a .glb, but no regular file: say what it is)
+        input_file(odd, "HM3D scene mesh")
     raise InputError(f"{path}: HM3D scene folder holds no .glb file")
 
 

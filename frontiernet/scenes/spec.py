@@ -133,7 +133,7 @@ def _guess_source(argument: str) -> str:
     if path.suffix.lower() in MESH_SUFFIXES:
         return "mesh"
     if path.is_dir():
-        if (path / "occ_map.npy").is_file():
+        if os.path.lexists(path / "occ_map.npy"):  # (a pipe or a folder there: the plan reader names it)
             return "floorplan"
         if any(path.glob("*.glb")):
             return "hm3d"
@@ -196,7 +196,7 @@ def parse_spec(text: str) -> SceneSpec:
 
 
 def _is_scene_folder(path: Path) -> bool:
-    return (path / "occ_map.npy").is_file() or any(path.glob("*.glb"))
+    return os.path.lexists(path / "occ_map.npy") or any(path.glob("*.glb"))
 
 
 def _seed_range(text: str, argument: str) -> tuple[int, int]:

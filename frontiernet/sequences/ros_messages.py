@@ -130,7 +130,10 @@ def _compressed_depth(message, topic: str) -> np.ndarray:
         raise InputError(f"topic {topic}: compressed depth format '{text}' is not read (16UC1 or mono16 as PNG)")
     if "compressedDepth" in text:
         data = data[12:]  # compressed_depth_image_transport's ConfigHeader (format, 2 quantisation floats)
-    depth = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    from ..array_files import native_stderr
+
+    with native_stderr():  # libpng's own line for a damaged PNG: the refusal below says it
+        depth = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if depth is None or depth.dtype != np.uint16 or depth.ndim != 2:
         raise InputError(f"topic {topic}: compressed depth image (format '{text}') is not a 16-bit PNG")
     return depth

@@ -30,6 +30,47 @@ def check_view_settings(pixel_size: float, cut_height: float) -> None:
     positive_number(cut_height, "the cut height (--cut-height)", "metres above the floor")
 
 
+def check_view_size(scene: Scene, pixel_size: float) -> None:
+    """InputError when a top view of `scene` at `pixel_size` metres per pixel (a positive number) would have more
+    than :data:`MAX_TOPDOWN_PIXELS`, naming the size it would have (3 digits: a pixel size of 1e-300 gave a
+    600-digit count; 1e-320, below the smallest normal float, overflowed to an infinite width) and the smallest
+    pixel size the scene takes."""
+    from ..errors import InputError
+
+    extent = np.maximum(scene.bounds[1, :2] - scene.bounds[0, :2], 0.0).astype(np.float64)
+    if not extent.min() > 0:  # (a flat mesh: no pixel size gives it MIN_TOPDOWN_PIXELS across)
+        raise InputError(f"{scene.name} is {extent[0]:.3g} x {extent[1]:.3g} m across: a top view of it has no "
+                         "width at any pixel size")
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        across = np.ceil(extent / pixel_size)  # (x, y) pixels, inf where they overflow
+        digits = np.log10(extent) - np.log10(pixel_size)  # their decimal logarithms, finite where they overflow
+        if np.isfinite(across).all() and across.prod() <= MAX_TOPDOWN_PIXELS:
+            return
+    smallest = float(np.sqrt(extent.prod() / MAX_TOPDOWN_PIXELS))
+    while np.ceil(extent / smallest).prod() > MAX_TOPDOWN_PIXELS:  # (ceil: a few steps up at most)
+        smallest *= 1.001
+    size = " x ".join(f"{n:,.0f}" if n < 1e9 else _power_of_ten(d) for n, d in zip(across, digits))
+    side = int(np.sqrt(MAX_TOPDOWN_PIXELS))
+    raise InputError(f"a top view of {scene.name} ({extent[0]:.3g} x {extent[1]:.3g} m) at {pixel_size:.3g} m per "
+                     f"pixel (--pixel-size) would be {size} px, more than the {MAX_TOPDOWN_PIXELS:,} drawn at most "
+                     f"({side:,} x {side:,}); give a larger pixel size, at least {_round_up(smallest)} m")
+
+
+def _power_of_ten(digits: float) -> str:
+    """``10 ** digits`` to 3 significant digits, also past the largest float (``1.92e+321``)."""
+    exponent = int(np.floor(digits))
+    mantissa = 10.0 ** (digits - exponent)
+    if round(mantissa, 2) >= 10.0:
+        mantissa, exponent = mantissa / 10.0, exponent + 1
+    return f"{mantissa:.3g}e+{exponent}"
+
+
+def _round_up(value: float) -> str:
+    """`value` > 0 to 3 significant digits, rounded up (a smallest pixel size that is no smaller)."""
+    digits = 2 - int(np.floor(np.log10(value)))
+    return f"{np.ceil(value * 10.0 ** digits) / 10.0 ** digits:.{max(digits, 0)}f}"
+
+
 def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.8) -> np.ndarray:
     """Orthographic top view of `scene` cut at ``bounds_min_z + cut_height`` metres.
 
@@ -55,14 +96,12 @@ def topdown_image(scene: Scene, pixel_size: float = 0.05, cut_height: float = 1.
 
     check_view_settings(pixel_size, cut_height)
     lo, hi = scene.bounds
+    check_view_size(scene, pixel_size)
     width, height = (int(np.ceil((hi[axis] - lo[axis]) / pixel_size)) for axis in (0, 1))
     if min(width, height) < MIN_TOPDOWN_PIXELS:
         raise InputError(f"a top view of {scene.name} at {pixel_size:g} m per pixel would be {width} x {height} px, "
                          f"fewer than {MIN_TOPDOWN_PIXELS} across; give a smaller pixel size (--pixel-size, at most "
                          f"{min(hi[:2] - lo[:2]) / MIN_TOPDOWN_PIXELS:.3g} m here)")
-    if width * height > MAX_TOPDOWN_PIXELS:
-        raise InputError(f"a top view of {scene.name} at {pixel_size:g} m per pixel would be {width} x {height} px, "
-                         f"more than {MAX_TOPDOWN_PIXELS:,}; give a larger pixel size (--pixel-size)")
     if cut_height >= hi[2] - lo[2]:  # the plane above everything: a view of the roof, nothing cut
         raise InputError(f"the cut height (--cut-height) {cut_height:g} m lies above {scene.name}, which is "
                          f"{hi[2] - lo[2]:.2f} m high; give a height inside it (1.8 m cuts a storey's walls)")
