@@ -7,7 +7,7 @@ point (``frontiernet`` itself never imports ``datagen``).
                       [--workers W] [--backend local|ray] [--seed S] [--resume] [--config FILE]
   frontiernet datagen preview DIR [--n 16] [--out DIR/preview]
   frontiernet datagen bench [--scene SPEC] [--views N] [--raycast ENGINE ...]
-  frontiernet datagen consistency --scenes SPEC [SPEC ...] [--views-per-scene N] [--json FILE]
+  frontiernet datagen consistency --scenes SPEC [SPEC ...] [--views-per-scene N] [--json FILE [--force]]
   frontiernet mapgen --scenes SPEC [SPEC ...] --out DIR [...]   (datagen/mapgen_cli.py)
 """
 
@@ -64,6 +64,7 @@ def add_parser(subparsers) -> None:
     options.config_file(consistency, "configs/sim.yaml, datagen.yaml and label_consistency.yaml")
     options.config_overrides(consistency, "consistency.translation_m=0.2", option=True)
     options.json_file(consistency, "the figures (confusion matrices too)")
+    consistency.add_argument("--force", action="store_true", help="replace the --json file if it exists (refused without it)")
     consistency.set_defaults(func=run_consistency)
     from .mapgen_cli import add_parser as add_mapgen_parser
 
@@ -187,6 +188,18 @@ def run_bench(args) -> int:
     return 0
 
 
+def scene_paths(specs) -> list[str]:
+    """The files or folders that scene specs name (``floorplan:plan.png?resolution=0.05``: ``plan.png``), where
+    they exist: the inputs an output must not replace."""
+    import os
+
+    paths = []
+    for spec in specs or ():
+        text = str(spec).split("?", 1)[0]
+        paths += [path for path in (text, text.split(":", 1)[-1]) if path and os.path.exists(path)]
+    return paths
+
+
 def run_consistency(args) -> int:
     from rich.progress import Progress
 
@@ -196,7 +209,11 @@ def run_consistency(args) -> int:
 
     _refuse_options_before(args)
     if args.json:
-        check_output_file(args.json, writable="--json")  # a folder given as --json fails now, not after the labelling
+        from frontiernet.errors import check_not_an_input
+
+        check_not_an_input(args.json, [(args.config, "the config file"),
+                                       *((path, "a scene") for path in scene_paths(args.scenes))], "--json")
+        check_output_file(args.json, args.force, writable="--json")  # (a folder: now, not after the labelling)
     conf = load_consistency_config(args.config, args.set)
     with Progress(transient=True) as bar:
         task = bar.add_task("labelling", total=None)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frontiernet.errors import InputError
+from frontiernet.errors import InputError, decode_problem
 from frontiernet.io import ensure_dir, input_folder, write_json
 
 from .shards import (INFO_NAME, META_NAME, SHARDS_DIR, DatasetError, _dumps, _npy_bytes, read_info_file, regular_file,
@@ -134,7 +134,7 @@ def read_map_shard_meta(shard: str | Path) -> dict:
     except KeyError:
         raise _corrupt(shard, "no meta.json") from None
     except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as error:
-        raise _corrupt(shard, f"unreadable: {error.__class__.__name__}") from None
+        raise _corrupt(shard, f"unreadable: {decode_problem(error)}") from None
     ok = isinstance(meta, dict) and all(key in meta for key in _RUN_KEYS) and isinstance(meta["snapshots"], list) \
         and len(meta["shape"]) == 3 and all(isinstance(r, dict) and all(k in r for k in _SNAPSHOT_KEYS)
                                             for r in meta["snapshots"])
@@ -201,7 +201,7 @@ class MapDataset:
             with zipfile.ZipFile(self.shards[shard]) as archive:
                 packed = np.lib.format.read_array(io.BytesIO(archive.read(name)), allow_pickle=False)
         except (KeyError, zipfile.BadZipFile, zlib.error, OSError, ValueError) as error:
-            raise _corrupt(self.shards[shard], f"{name}: {error.__class__.__name__}") from None
+            raise _corrupt(self.shards[shard], f"{name}: {'missing' if isinstance(error, KeyError) else decode_problem(error)}") from None
         count = int(np.prod(shape))
         if packed.dtype != np.uint8 or packed.size != (count + 7) // 8:
             raise _corrupt(self.shards[shard], f"{name} holds {packed.size} bytes, not a {shape} grid")

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frontiernet.errors import InputError
+from frontiernet.errors import InputError, decode_problem
 from frontiernet.io import ensure_dir, input_file, write_json
 
 DATASET_FORMAT = "frontiernet-dataset"
@@ -104,7 +104,8 @@ def read_info_file(root: str | Path, not_found: str) -> tuple[Path, object]:
     try:
         return path, json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, ValueError) as error:
-        raise DatasetError(f"{path}: not a readable JSON file ({error.__class__.__name__})") from None
+        # (not valid JSON at line L column C, not UTF-8 text: in words, not the decoder's class name)
+        raise DatasetError(f"{path}: not a readable JSON file: {decode_problem(error)}") from None
 
 
 def regular_file(path: Path, what: str) -> Path:
@@ -341,7 +342,7 @@ def _parse_meta(archive: zipfile.ZipFile, shard: Path) -> dict:
     except KeyError:
         raise _corrupt(shard, "no meta.json") from None
     except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError) as error:
-        raise _corrupt(shard, f"unreadable meta.json: {error.__class__.__name__}") from None
+        raise _corrupt(shard, f"unreadable meta.json: {decode_problem(error)}") from None
     ok = isinstance(meta, dict) and isinstance(meta.get("samples"), list) \
         and meta.get("num_samples") == len(meta["samples"]) \
         and all(isinstance(meta.get(k), int) and meta[k] > 0 for k in ("height", "width")) \

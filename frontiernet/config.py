@@ -17,7 +17,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from .config_ranges import Layout, layout_ranges, layout_relations, magnitude_note
-from .errors import InputError, check_keys
+from .errors import InputError, check_keys, decode_problem, setting_text
 
 
 _MISSING = object()
@@ -96,12 +96,16 @@ def _read_yaml(path: Path) -> DictConfig:
     import yaml
 
     try:
-        check_yaml_mapping(yaml.compose(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)), path)
+        text = path.read_text(encoding="utf-8")
+    except (OSError, ValueError) as error:  # (UTF-16, random bytes: "not UTF-8 text", not the decoder's own words)
+        raise InputError(f"{path}: not a readable YAML config: {decode_problem(error)}") from None
+    try:
+        check_yaml_mapping(yaml.compose(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)), path)
         conf = OmegaConf.load(path)
     except yaml.YAMLError as error:  # malformed YAML: say where
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or error.__class__.__name__
+        problem = getattr(error, "problem", None) or decode_problem(error)  # (a ReaderError's own words, no class name)
         if "expansion exceeds" in str(problem):  # OmegaConf stopped expanding aliases: not its advice to raise it
             limit = str(problem).split("limit of ")[-1].split(".")[0]
             raise InputError(f"{path}: its YAML aliases (*name) expand past {limit} nodes, more than a config has "
@@ -110,7 +114,7 @@ def _read_yaml(path: Path) -> DictConfig:
     except InputError:
         raise
     except (OSError, OmegaConfBaseException, ValueError) as error:
-        raise InputError(f"{path}: not a readable YAML config ({error.__class__.__name__}: {error})".split("\n")[0]) from None
+        raise InputError(f"{path}: not a readable YAML config ({decode_problem(error)})") from None
     if not isinstance(conf, DictConfig):
         raise InputError(f"{path}: a config must be a YAML mapping")
     return conf
@@ -153,10 +157,11 @@ def merge_user(conf: DictConfig, user_file: str | Path | None = None, overrides:
 
 
 def _shown(value) -> str:
-    """`value` as a message shows it: repr, a long list by its ends and length (a message stays one short line)."""
+    """`value` as a message shows it: :func:`~frontiernet.errors.setting_text` (null for None, as the user typed
+    ``~`` or ``null``), a long list by its ends and length (a message stays one short line)."""
     if isinstance(value, (list, tuple)) and len(value) > 8:
-        return f"[{', '.join(map(repr, value[:3]))}, ..., {value[-1]!r}] ({len(value)} items)"
-    return repr(value)
+        return f"[{', '.join(map(setting_text, value[:3]))}, ..., {setting_text(value[-1])}] ({len(value)} items)"
+    return setting_text(value)
 
 
 def check_ranges(conf, layout: Layout) -> None:
@@ -241,18 +246,6 @@ def dotted_parent(tree: dict, dotted: str) -> tuple[dict | None, str]:
     for name in sections:
         tree = tree.get(name) if isinstance(tree, dict) else None
     return (tree if isinstance(tree, dict) else None), key
-
-
-def setting_text(value) -> str:
-    """A setting's value as a message names it: repr, with None written as a config file writes it,
-    ``null`` (Python's ``None`` is no value a user gives), inside lists and dicts too."""
-    if value is None:
-        return "null"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(setting_text(item) for item in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{key!r}: {setting_text(item)}" for key, item in value.items()) + "}"
-    return repr(value)
 
 
 def differences(old, new, prefix: str = "", before: str = "before"):

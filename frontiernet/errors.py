@@ -18,6 +18,44 @@ class InputError(ValueError):
     """Bad user input: a missing or corrupt file, an unsupported format, a bad value."""
 
 
+def setting_text(value) -> str:
+    """A setting's value as a message names it: repr, with None written as a config file writes it,
+    ``null`` (Python's ``None`` is no value a user gives: ``run.seed=~`` said "got None"), inside lists and
+    dicts too."""
+    if value is None:
+        return "null"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(setting_text(item) for item in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{key!r}: {setting_text(item)}" for key, item in value.items()) + "}"
+    return repr(value)
+
+
+def decode_problem(error: BaseException) -> str:
+    """What is wrong with a file's text that a JSON or text read refused, in words (no exception's class name):
+    ``not UTF-8 text (byte 0xff at offset 0; a UTF-16 file? save it as UTF-8)``, ``not valid JSON at line 1
+    column 2 (Unterminated string starting at)``, ``a damaged or cut-short zip archive`` (a zip member's read: the
+    archive's, zlib's or an early end); for any other error its first line, or ``unreadable``."""
+    import json
+    import zipfile
+    import zlib
+
+    if isinstance(error, UnicodeDecodeError):
+        data = bytes(error.object) if isinstance(error.object, (bytes, bytearray, memoryview)) else b""
+        bad = data[error.start:error.start + 1].hex() or "?"
+        utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")
+        return (f"not UTF-8 text (byte 0x{bad} at offset {error.start}"
+                + ("; a UTF-16 file? save it as UTF-8)" if utf16 else ")"))
+    if isinstance(error, json.JSONDecodeError):
+        return f"not valid JSON at line {error.lineno} column {error.colno} ({error.msg})"
+    if isinstance(error, (zipfile.BadZipFile, zlib.error, EOFError)):
+        return "a damaged or cut-short zip archive"
+    if isinstance(error, OSError) and error.strerror:
+        return error.strerror
+    text = (str(error).strip().splitlines() or [""])[0]
+    return text or "unreadable"
+
+
 def positive_number(value, name: str, unit: str = "", *, allow_zero: bool = False) -> float:
     """`value` as a float if it is a finite number > 0 (>= 0 with `allow_zero`).
 
@@ -28,7 +66,7 @@ def positive_number(value, name: str, unit: str = "", *, allow_zero: bool = Fals
         and (value >= 0 if allow_zero else value > 0)
     if not ok:
         kind = "non-negative" if allow_zero else "positive"
-        raise InputError(f"{name} must be a {kind} number{' of ' + unit if unit else ''}, got {value!r}")
+        raise InputError(f"{name} must be a {kind} number{' of ' + unit if unit else ''}, got {setting_text(value)}")
     return float(value)
 
 
@@ -38,7 +76,7 @@ def fraction_or_null(value, name: str) -> float | None:
     if value is None:
         return None
     if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)):
-        raise InputError(f"{name} (or null) must be a finite number, got {value!r}")
+        raise InputError(f"{name} (or null) must be a finite number, got {setting_text(value)}")
     if not 0.0 < value <= 1.0:
         raise InputError(f"{name} must be in (0, 1] (or null), got {float(value)}")
     return float(value)
@@ -53,7 +91,7 @@ def number_range(value, name: str, lower: float = -math.inf, upper: float = math
     try:
         low, high = (float(v) for v in value)
     except (TypeError, ValueError):
-        raise InputError(f"{name} must be a [min, max] pair of numbers, got {value!r}") from None
+        raise InputError(f"{name} must be a [min, max] pair of numbers, got {setting_text(value)}") from None
     if not (math.isfinite(low) and math.isfinite(high) and lower <= low <= high <= upper):
         bound = f" <= {upper}" if math.isfinite(upper) else ""
         raise InputError(f"{name} must satisfy {lower} <= min <= max{bound}, got {[low, high]}")
@@ -70,7 +108,7 @@ def whole_number(value, name: str, minimum: int = 0, maximum: float = math.inf) 
     ok = isinstance(value, numbers.Integral) and not isinstance(value, bool) and minimum <= value <= maximum
     if not ok:
         bound = f">= {minimum}" if maximum == math.inf else f"in [{minimum}, {maximum}]"
-        raise InputError(f"{name} must be an integer {bound}, got {value!r}")
+        raise InputError(f"{name} must be an integer {bound}, got {setting_text(value)}")
     return int(value)
 
 
@@ -154,8 +192,8 @@ def check_keys(base: Mapping, extra: Mapping, source: str, noun: str = "config k
                 raise InputError(f"{source}: {noun} '{name}' is a section (its keys: {keys}), "
                                  "not a value that can be null")
             if value is not None and expected is not None and _kind(value) != expected:
-                shown = "" if isinstance(default, dict) else f" (default {default!r})"
-                raise InputError(f"{source}: {noun} '{name}' takes {expected}{shown}, got {value!r}")
+                shown = "" if isinstance(default, dict) else f" (default {setting_text(default)})"
+                raise InputError(f"{source}: {noun} '{name}' takes {expected}{shown}, got {setting_text(value)}")
             if isinstance(value, dict) and isinstance(default, dict) and default:
                 walk(default, value, f"{name}.")
 
@@ -165,3 +203,25 @@ def check_keys(base: Mapping, extra: Mapping, source: str, noun: str = "config k
         return OmegaConf.to_container(tree, resolve=False) if isinstance(tree, DictConfig) else dict(tree)
 
     walk(plain(base), plain(extra), "")
+
+
+def check_not_an_input(path, inputs, option: str) -> None:
+    """InputError when output file `path` (of `option`, ``--json``) is one of a command's inputs, or an existing file
+    inside one of its input folders: `inputs` holds (path, what it is: ``the dataset (--data)``) pairs, None paths
+    skipped. Whatever ``--force`` says, the results are never written over what the command reads (``evaluate --json
+    ds/dataset.json`` replaced the description of the dataset it had just evaluated, which no command read again)."""
+    import os
+    from pathlib import Path
+
+    target = Path(path)
+    if not target.is_file():
+        return  # (a new file, even inside an input folder, replaces nothing; a folder is refused as no file)
+    for given, what in inputs:
+        if given is None or not Path(given).exists():
+            continue
+        source = Path(given)
+        inside = source.is_dir() and os.path.realpath(target).startswith(os.path.realpath(source) + os.sep)
+        if inside or os.path.samefile(target, source):
+            where = f"a file of {what} {given}" if inside else f"{what} {given}"
+            raise InputError(f"{option} {path}: is {where}, which this command reads; writing its results there "
+                             "would destroy it: choose another file")

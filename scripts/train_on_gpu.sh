@@ -112,7 +112,7 @@ else
 fi
 
 stage evaluate "${FRONTIERNET[@]}" evaluate "$RUN/model.safetensors" --data "$DATA" --max-samples 512 --workers "$CORES" \
-    --json "$RUN/evaluate.json"
+    --json "$RUN/evaluate.json" --force  # (a rerun evaluates again: its own earlier file, replaced)
 # the shippable file: float16 weights, the frontier threshold l = the held-out best-F1 one
 THRESHOLD=$("$PYTHON" -c "import json, sys; print(json.load(open(sys.argv[1]))['best_f1_threshold_px'])" "$RUN/evaluate.json")
 rm -f "$RUN/model_fp16.safetensors"

@@ -2,7 +2,7 @@
 ``frontiernet.commands`` entry point; ``frontiernet`` itself never imports ``train``).
 
   frontiernet train --config configs/train.yaml [key=value ...] [--resume [CKPT]]
-  frontiernet evaluate MODEL --data DIR [--scenes SPEC ...] [--all] [--max-samples N] [--json FILE]
+  frontiernet evaluate MODEL --data DIR [--scenes SPEC ...] [--all] [--max-samples N] [--json FILE [--force]]
   frontiernet train --config configs/train_seer.yaml | train_mapex.yaml data.path=DIR   (map predictors)
   frontiernet mapeval PREDICTOR --data DIR [--json FILE]                               (train/mapeval.py)
 """
@@ -44,6 +44,7 @@ def add_parser(subparsers) -> None:
     evaluate.add_argument("--workers", type=int, default=0, metavar="W",
                           help="processes decoding the dataset (default 0: in this process)")
     options.json_file(evaluate, "the metrics")
+    evaluate.add_argument("--force", action="store_true", help="replace the --json file if it exists (refused without it)")
     evaluate.set_defaults(func=run_evaluate)
     from .mapeval import add_parser as add_mapeval_parser
 
@@ -70,7 +71,7 @@ def run_train(args) -> int:
 
 def run_evaluate(args) -> int:
     from frontiernet.depth import check_depth_files, known_source
-    from frontiernet.errors import InputError, cpu_count_option, whole_number
+    from frontiernet.errors import InputError, check_not_an_input, cpu_count_option, whole_number
     from frontiernet.io import check_output_file, write_json
     from frontiernet.model.files import torch_model_file
     from frontiernet.model.predictor import input_size
@@ -91,7 +92,9 @@ def run_evaluate(args) -> int:
 
         args.scenes = expand_scene_ranges(dict.fromkeys(scene.strip() for scene in args.scenes))  # (procedural:3-4)
     if args.json:
-        check_output_file(args.json, writable="--json")  # a folder given as --json fails now, not after the evaluation
+        # never over an input (the dataset's own dataset.json was replaced), nor over a file without --force
+        check_not_an_input(args.json, [(args.model, "the model file"), (args.data, "the dataset (--data)")], "--json")
+        check_output_file(args.json, args.force, writable="--json")  # (a folder: now, not after the evaluation)
     from frontiernet.config import load_config
 
     # (an unknown one was refused after the data load; its options are configs/depth.yaml's, as evaluate reads them)

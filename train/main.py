@@ -21,7 +21,6 @@ import os
 import platform
 import time
 import warnings
-from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
 
@@ -47,6 +46,7 @@ from .data import (FrontierDataModule, check_training_cache, gain_bins_mismatch,
 from .finetune import freeze, init_file, initial_weights, shared_base
 from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_schedule
 from .resume import claimed_run_folder, resume_checkpoint, resumed_settings
+from .stopping import lightning_interrupts, run_folder  # (train.mapprediction's too)
 
 log = logging.getLogger(__name__)
 
@@ -140,8 +140,12 @@ def check_settings(conf) -> None:
     from frontiernet.io import check_output_folder
     from frontiernet.model.predictor import input_size
 
-    if not str(conf.name).strip():  # (' ' trained into a folder named ' ')
-        raise InputError(f"name: the run's folder name inside out= is blank ({conf.name!r}); give one, e.g. name=tiny")
+    if conf.out is None or not str(conf.out).strip():  # (null was an internal error: no path of None)
+        raise InputError(f"out: the folder of the training runs is {'null' if conf.out is None else 'blank'}; give one, "
+                         "e.g. out=runs")
+    if conf.name is None or not str(conf.name).strip():  # (' ' trained into a folder named ' '; null one named None)
+        shown = "null" if conf.name is None else f"blank ({conf.name!r})"
+        raise InputError(f"name: the run's folder name inside out= is {shown}; give one, e.g. name=tiny")
     if Path(str(conf.name)).name != str(conf.name) or str(conf.name) in (".", ".."):
         raise InputError(f"name: the run's folder name inside out= (no / or ..), got {conf.name!r}")
     check_seed(conf.seed, "seed")  # (Lightning's seed_everything raises past its range)
@@ -221,7 +225,7 @@ def check_trainer(trainer) -> None:
                             ("strategy", STRATEGIES, "the weights this process holds are written as the model: it "
                                                      "must train them itself")):
         if str(trainer[key]) not in valid:
-            raise InputError(f"trainer.{key}={trainer[key]}: not one this training takes; valid: {', '.join(valid)} "
+            raise InputError(f"trainer.{key}={_typed(trainer[key])}: not one this training takes; valid: {', '.join(valid)} "
                              f"({why})")
     accelerator = str(trainer.accelerator)
     if accelerator in ("gpu", "cuda") and not torch.cuda.is_available():  # (Lightning: "No supported gpu backend")
@@ -229,9 +233,14 @@ def check_trainer(trainer) -> None:
                          "trainer.accelerator=cpu, or auto (a GPU where there is one)")
     on_cpu = accelerator == "cpu" or (accelerator == "auto" and not torch.cuda.is_available())
     if on_cpu and str(trainer.devices) not in ("auto", "1"):
-        raise InputError(f"trainer.devices={trainer.devices}: training runs on the CPU here (trainer.accelerator="
+        raise InputError(f"trainer.devices={_typed(trainer.devices)}: training runs on the CPU here (trainer.accelerator="
                          f"{accelerator}{', no CUDA GPU' if accelerator == 'auto' else ''}), in one process; give "
                          "trainer.devices=1 (or auto), or train on GPUs (trainer.accelerator=gpu)")
+
+
+def _typed(value) -> str:
+    """A ``key=value`` setting's value as the user typed it: text as is, ``null`` for None (not Python's ``None``)."""
+    return "null" if value is None else str(value)
 
 
 def check_crop(crop, size: int, size_key: str) -> None:
@@ -351,44 +360,6 @@ def _fit(conf, out: Path, resume: str | None, init, base, datamodule, progress: 
         if trainer.is_global_zero:
             _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
     return out
-
-
-@contextmanager
-def lightning_interrupts(trainer):
-    """Ctrl-C or SIGTERM in Lightning's `trainer` (``fit``, ``validate``) ends the body as KeyboardInterrupt, which
-    ``frontiernet`` ends as every command's interrupt (exit 130, "interrupted"): Lightning turns it into
-    ``sys.exit(1)`` after its ``on_exception`` hooks (an exit 1 with no word of the signal), or only marks the
-    trainer interrupted."""
-    try:
-        yield
-    except SystemExit:
-        if trainer.interrupted:
-            raise KeyboardInterrupt from None
-        raise
-    if trainer.interrupted:
-        raise KeyboardInterrupt
-
-
-@contextmanager
-def run_folder(out: Path, trainer, made: Path | None = None):
-    """Run folder `out` made (with the folders above it that are missing) for the training in the body, which
-    Lightning's `trainer` runs: where the body fails before any checkpoint was saved (it never stepped, or it
-    diverged first: :class:`~train.module.TrainingDiverged`), the folders made here, or `made` (the outermost
-    folder that :func:`~train.resume.claimed_run_folder` made for the run), are removed, as nothing could resume
-    from them; Ctrl-C ends as KeyboardInterrupt (:func:`lightning_interrupts`)."""
-    made = made or next((folder for folder in reversed((out, *out.parents)) if not folder.exists()), None)
-    out.mkdir(parents=True, exist_ok=True)
-    with lightning_interrupts(trainer):
-        try:
-            yield out
-        except SystemExit:
-            raise
-        except BaseException:
-            if made is not None and not any((out / "checkpoints").glob("*.ckpt")):
-                import shutil
-
-                shutil.rmtree(made, ignore_errors=True)
-            raise
 
 
 def _write_results(out: Path, conf, trainer, datamodule, checkpoint: str, elapsed: float, resume) -> None:

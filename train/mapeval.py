@@ -167,11 +167,12 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--radius-m", type=float, default=3.0, help="scored: unknown cells this near a frontier (default 3)")
     parser.add_argument("--threads", type=int, metavar="T", help="torch threads (default: torch's)")
     options.json_file(parser, "the scores")
+    parser.add_argument("--force", action="store_true", help="replace the --json file if it exists (refused without it)")
     parser.set_defaults(func=run_mapeval)
 
 
 def run_mapeval(args) -> int:
-    from frontiernet.errors import InputError, positive_number, whole_number
+    from frontiernet.errors import InputError, check_not_an_input, positive_number, whole_number
     from frontiernet.io import check_output_file, write_json
 
     import os
@@ -185,7 +186,9 @@ def run_mapeval(args) -> int:
     if positive_number(args.radius_m, "--radius-m", "metres") > 100:
         raise InputError(f"--radius-m must be at most 100 metres, got {args.radius_m}")
     if args.json:
-        check_output_file(args.json, writable="--json")  # (a missing folder was found after the scoring)
+        check_not_an_input(args.json, [(args.predictor, "the predictor file"), (args.data, "the dataset (--data)")],
+                           "--json")
+        check_output_file(args.json, args.force, writable="--json")  # (a missing folder was found after the scoring)
     if args.threads:
         import torch
 

@@ -26,8 +26,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--depth", help="depth source: gt, emulated, depth_anything_v2, metric3d_v2 "
                                         "(default: configs/explore.yaml run.depth)")
     options.max_steps(parser, "configs/explore.yaml")
-    parser.add_argument("--start", help="start pose x,y,z,yaw (metres; yaw in degrees, or radians with a "
-                                         "'rad' suffix; default: sampled with the seed)")
+    parser.add_argument("--start", metavar="x,y,z,yaw[,pitch]",
+                        help="start pose (metres; angles in degrees, or radians with a 'rad' suffix; default: sampled "
+                             "with the seed); the robot keeps the start's camera height, and a pitch (> 0 looks up) "
+                             "is its camera's tilt for the run (motion.pitch_deg)")
     parser.add_argument("--seed", type=int, help="seed (default: run.seed)")
     parser.add_argument("--map-free", action="store_true", help="plan on the frontier tree only (paper Table III)")
     parser.add_argument("--no-video", action="store_true", help="skip exploration.mp4 (faster)")
@@ -77,6 +79,28 @@ def model_contradictions(method: str, model, depth) -> dict:
     return keys
 
 
+def refuse_pitch_contradiction(start, overrides) -> None:
+    """InputError where ``--start`` gives a pitch and a ``motion.pitch_deg=`` override another (one of the two
+    would be ignored); the start's pitch wins over a ``--config`` file's, as ``--map-free`` does."""
+    import yaml
+
+    from ..errors import InputError
+    from ..exploration.run import start_pitch_deg
+
+    pitch = start_pitch_deg(start)
+    for item in overrides or () if pitch is not None else ():
+        key, _, text = str(item).partition("=")
+        if key.strip() != "motion.pitch_deg":
+            continue
+        try:
+            given = yaml.safe_load(text)
+        except yaml.YAMLError:
+            given = text
+        if not isinstance(given, (int, float)) or isinstance(given, bool) or abs(float(given) - pitch) > 1e-9:
+            raise InputError(f"--start {start} (pitch {pitch:g} degrees) contradicts {str(item).strip()}: give one "
+                             "of them")
+
+
 def run(args) -> int:
     from ..exploration.run import RUN_OUTPUTS, check_run, load_run_config, main
     from ..io import check_output_files, check_output_folder, claim_output_folder
@@ -87,6 +111,7 @@ def run(args) -> int:
         "planner.mode": ("--map-free", "map_free" if args.map_free else None),
         "run.seed": (f"--seed {args.seed}", args.seed), "run.max_steps": (f"--max-steps {args.max_steps}", args.max_steps),
         **model_contradictions(args.method, args.model, args.depth)})
+    refuse_pitch_contradiction(args.start, args.overrides)
     overrides = [*args.overrides, *(["planner.mode=map_free"] if args.map_free else [])]  # over a --config file's
     conf = load_run_config(args.config, overrides)
     settings = {"method": args.method, "model": args.model, "depth": args.depth, "max_steps": args.max_steps,

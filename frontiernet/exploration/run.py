@@ -95,7 +95,8 @@ def run_depth_source(depth: str | None, conf) -> str:
     for an unknown one (:func:`~frontiernet.depth.known_source`)."""
     from ..depth import known_source
 
-    return known_source(str(conf.run.depth) if depth is None else depth)  # ('' is no source: refused)
+    named = conf.run.depth
+    return known_source(("null" if named is None else str(named)) if depth is None else depth)  # ('' is no source)
 
 
 def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | None = None,
@@ -126,7 +127,7 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
     if model is not None:
         input_file(model, "model file")
     if start is not None:
-        parse_pose_text(start, "--start", pitch=False)
+        parse_pose_text(start, "--start")  # x,y,z,yaw[,pitch]: a pitch is the camera's for the run (start_pitch_deg)
     agent = run_section(conf, "sim").agent
     body_radius(conf.planner, float(conf.map.voxel_size), positive_number(agent.radius_m, "agent.radius_m", "metres"))
     if rerun:
@@ -139,6 +140,15 @@ def check_run(conf, *, method: str = "frontiernet", model=None, depth: str | Non
         if not shows_own_prediction(method, show_prediction):  # (its own: check_method's)
             shown_predictor(conf, show_prediction)
     return budget, seed, depth_name
+
+
+def start_pitch_deg(start: str | None) -> float | None:
+    """The camera pitch (degrees, > 0 looks up) a ``--start x,y,z,yaw,pitch`` gives, None without one. The robot
+    keeps its camera's height and pitch for the whole run (:class:`~.motion.Motion`): as the start's z is the
+    camera height of the run, its pitch is the run's ``motion.pitch_deg``, which every method reads."""
+    if start is None or len(str(start).split(",")) != 5:
+        return None
+    return round(float(np.degrees(parse_pose_text(start, "--start")[4])), 9)
 
 
 def check_sections(conf) -> None:
@@ -204,8 +214,9 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
         model: model file of the learned methods (None: the shipped model).
         depth: depth source (``gt`` or a source of ``configs/depth.yaml``; None: ``run.depth``).
         max_steps, seed: override ``run.max_steps`` and ``run.seed``.
-        start: ``"x,y,z,yaw"`` (metres; yaw in degrees or with a ``rad`` suffix, see
-            :func:`~frontiernet.geometry.parse_pose_text`; None: sampled with the seed).
+        start: ``"x,y,z,yaw[,pitch]"`` (metres; angles in degrees or with a ``rad`` suffix, see
+            :func:`~frontiernet.geometry.parse_pose_text`; None: sampled with the seed); a pitch sets
+            ``motion.pitch_deg``, the camera's tilt for the whole run (:func:`start_pitch_deg`).
         video: write ``exploration.mp4``; rerun: write ``recording.rrd`` (needs rerun-sdk).
         show_prediction: draw a ``mapex`` predictor's completion of the map into the video (a third
             panel): True for ``mapex.predictor`` (null: the shipped one), or a predictor file; None: off.
@@ -225,8 +236,10 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     budget, seed, depth_name = check_run(conf, method=method, model=model, depth=depth, max_steps=max_steps,
                                          start=start, seed=seed, rerun=rerun, show_prediction=show_prediction,
                                          video=video)
-    # the explorer's own draws read run.seed; config.yaml records what the run used
+    # the explorer's own draws read run.seed; config.yaml records what the run used (a --start pitch too)
     conf = OmegaConf.merge(conf, {"run": {"seed": seed, "max_steps": budget, "depth": depth_name}})
+    if (pitch_deg := start_pitch_deg(start)) is not None:
+        conf = OmegaConf.merge(conf, {"motion": {"pitch_deg": pitch_deg}})
     sim = run_section(conf, "sim")
     clock = time.perf_counter()
     # the run's ray-cast engine (sim.raycast.backend) and scene options (scenes), not the shipped files'
@@ -238,7 +251,7 @@ def main(conf, scene: str, out: str | Path, *, method: str = "frontiernet", mode
     if start is None:
         T_start = sample_start(loaded, voxels, conf, rng)
     else:
-        x, y, z, yaw = parse_pose_text(start, "--start", pitch=False)
+        x, y, z, yaw, _ = parse_pose_text(start, "--start")  # (its pitch is motion.pitch_deg now)
         T_start = pose_from_heading(x, y, z, yaw, np.radians(float(conf.motion.pitch_deg)))
     depth_source = make_depth_source(depth_name, run_section(conf, "depth"))
     depth_source.reset(seed)

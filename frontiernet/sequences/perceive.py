@@ -18,12 +18,17 @@ from __future__ import annotations
 
 import io
 import json
+import logging
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, decode_problem
 from ..io import ensure_dir, write_bytes
+
+log = logging.getLogger(__name__)
 
 
 def image_depth(rgb: np.ndarray, sensor: np.ndarray | None, K: np.ndarray, depth_source, name: str) -> np.ndarray:
@@ -49,7 +54,8 @@ def cache_key(frame, model_name: str, depth_name: str, conf) -> str:
 
 def load_cached(path: Path, key: str | None = None) -> dict | None:
     """The arrays of a cache file made with `key` (None: any), or None (absent, unreadable or
-    another key)."""
+    another key). A damaged one (cut short by a full disk or a killed copy: not a zip, a bad member, a
+    CRC error) is a cache entry to recompute, with a warning line naming it, not an internal error."""
     if not path.is_file():
         return None
     try:
@@ -57,7 +63,8 @@ def load_cached(path: Path, key: str | None = None) -> dict | None:
             if key is not None and str(data["key"]) != key:
                 return None
             return {name: data[name] for name in data.files if name != "key"}
-    except (OSError, ValueError, KeyError):
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as error:
+        log.warning("%s: a damaged cache entry (%s); computed again", path, decode_problem(error))
         return None
 
 
