@@ -203,14 +203,12 @@ def scene_paths(specs) -> list[str]:
 def run_consistency(args) -> int:
     from rich.progress import Progress
 
-    from frontiernet.io import check_output_file, write_json
+    from frontiernet.io import check_not_an_input, check_output_file, write_json
 
     from .consistency import format_consistency, label_consistency, load_consistency_config
 
     _refuse_options_before(args)
     if args.json:
-        from frontiernet.errors import check_not_an_input
-
         check_not_an_input(args.json, [(args.config, "the config file"),
                                        *((path, "a scene") for path in scene_paths(args.scenes))], "--json")
         check_output_file(args.json, args.force, writable="--json")  # (a folder: now, not after the labelling)

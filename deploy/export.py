@@ -10,14 +10,13 @@ multiple of 32 inside the graph).
 from __future__ import annotations
 
 import json
-import os
 import warnings
 from pathlib import Path
 
 import torch
 
 from frontiernet.errors import InputError, positive_number
-from frontiernet.io import atomic_path, check_output_file
+from frontiernet.io import atomic_path, check_not_an_input, check_output_file
 from frontiernet.model import default_model_path, load_model, save_model
 from frontiernet.model.files import model_base
 from frontiernet.model.network import CONFIG_KEY
@@ -75,9 +74,7 @@ def export(model_path: str | Path | None, fmt: str, out: str | Path, half: bool 
         raise InputError(f"--half writes float16 safetensors only; {fmt} files keep float32 weights (leave --half out)")
     out = check_output_file(out)  # a folder in the way fails now, not after the export
     source = Path(default_model_path() if model_path is None else model_path)
-    if out.exists() and source.exists() and os.path.samefile(out, source):  # --force: written over as it is read
-        raise InputError(f"--out {out}: is the model being exported ({source}); writing it would replace its input "
-                         "(the shipped weights, where none is given): choose another output")
+    check_not_an_input(out, [(source, "the model being exported")], "--out")  # --force: written over as it is read
     if out.suffix.lower() not in SUFFIXES[fmt]:  # models are read by their suffix: another would not load again
         raise InputError(f"--out {out.name}: {fmt} files are read back by their suffix; name it "
                          f"{' or '.join('*' + suffix for suffix in SUFFIXES[fmt])}")

@@ -203,25 +203,3 @@ def check_keys(base: Mapping, extra: Mapping, source: str, noun: str = "config k
         return OmegaConf.to_container(tree, resolve=False) if isinstance(tree, DictConfig) else dict(tree)
 
     walk(plain(base), plain(extra), "")
-
-
-def check_not_an_input(path, inputs, option: str) -> None:
-    """InputError when output file `path` (of `option`, ``--json``) is one of a command's inputs, or an existing file
-    inside one of its input folders: `inputs` holds (path, what it is: ``the dataset (--data)``) pairs, None paths
-    skipped. Whatever ``--force`` says, the results are never written over what the command reads (``evaluate --json
-    ds/dataset.json`` replaced the description of the dataset it had just evaluated, which no command read again)."""
-    import os
-    from pathlib import Path
-
-    target = Path(path)
-    if not target.is_file():
-        return  # (a new file, even inside an input folder, replaces nothing; a folder is refused as no file)
-    for given, what in inputs:
-        if given is None or not Path(given).exists():
-            continue
-        source = Path(given)
-        inside = source.is_dir() and os.path.realpath(target).startswith(os.path.realpath(source) + os.sep)
-        if inside or os.path.samefile(target, source):
-            where = f"a file of {what} {given}" if inside else f"{what} {given}"
-            raise InputError(f"{option} {path}: is {where}, which this command reads; writing its results there "
-                             "would destroy it: choose another file")

@@ -33,6 +33,13 @@ def ensure_dir(path: str | Path) -> Path:
     return path
 
 
+def present(path: str | Path) -> bool:
+    """Whether anything has the name `path` (a file, a folder, a pipe, a link, dangling or not): an optional
+    file of a format is then read, and :func:`input_file` names one of the wrong kind, instead of
+    taking it for absent (``is_file()`` is False for a pipe, which a read would wait on forever)."""
+    return os.path.lexists(path)
+
+
 def nonempty_path(path: str | Path, what: str) -> Path:
     """`path` as a Path unless it is the empty string, which ``Path`` reads as ``.`` (the current folder):
     InputError ``an empty path ('') names no <what>`` (an option given as ``''``; the CLI's input options
@@ -181,6 +188,25 @@ def check_output_file(path: str | Path, force: bool = True, *, writable: str | N
     if writable:
         check_writable_folder(path.resolve().parent, f"{writable} {path}")
     return path
+
+
+def check_not_an_input(path, inputs, option: str) -> None:
+    """InputError when output file `path` (of `option`, ``--json``) is one of a command's inputs, or an existing file
+    inside one of its input folders: `inputs` holds (path, what it is: ``the dataset (--data)``) pairs, None paths
+    skipped. Whatever ``--force`` says, the results are never written over what the command reads (``evaluate --json
+    ds/dataset.json`` replaced the description of the dataset it had just evaluated, which no command read again)."""
+    target = Path(path)
+    if not target.is_file():
+        return  # (a new file, even inside an input folder, replaces nothing; a folder is refused as no file)
+    for given, what in inputs:
+        if given is None or not Path(given).exists():
+            continue
+        source = Path(given)
+        inside = source.is_dir() and os.path.realpath(target).startswith(os.path.realpath(source) + os.sep)
+        if inside or os.path.samefile(target, source):
+            where = f"a file of {what} {given}" if inside else f"{what} {given}"
+            raise InputError(f"{option} {path}: is {where}, which this command reads; writing its results there "
+                             "would destroy it: choose another file")
 
 
 def check_output_folder(path: str | Path, force: bool = False) -> Path:

@@ -23,6 +23,6 @@ def test_export_onto_the_model_it_reads_is_refused_and_the_model_kept(tmp_path, 
     else:
         out = model
     assert main(["export", str(model), "--format", "safetensors", "--out", str(out), "--force"]) == 2
-    assert one_line_error().endswith(f"--out {out}: is the model being exported ({model}); writing it would replace "
-                                     "its input (the shipped weights, where none is given): choose another output")
+    assert one_line_error().endswith(f"--out {out}: is the model being exported {model}, which this command reads; "
+                                     "writing its results there would destroy it: choose another file")
     assert model.read_bytes() == before

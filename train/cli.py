@@ -71,8 +71,8 @@ def run_train(args) -> int:
 
 def run_evaluate(args) -> int:
     from frontiernet.depth import check_depth_files, known_source
-    from frontiernet.errors import InputError, check_not_an_input, cpu_count_option, whole_number
-    from frontiernet.io import check_output_file, write_json
+    from frontiernet.errors import InputError, cpu_count_option, whole_number
+    from frontiernet.io import check_not_an_input, check_output_file, write_json
     from frontiernet.model.files import torch_model_file
     from frontiernet.model.predictor import input_size
 

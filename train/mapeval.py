@@ -172,8 +172,8 @@ def add_parser(subparsers) -> None:
 
 
 def run_mapeval(args) -> int:
-    from frontiernet.errors import InputError, check_not_an_input, positive_number, whole_number
-    from frontiernet.io import check_output_file, write_json
+    from frontiernet.errors import InputError, positive_number, whole_number
+    from frontiernet.io import check_not_an_input, check_output_file, write_json
 
     import os
 

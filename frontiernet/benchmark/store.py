@@ -38,14 +38,13 @@ from __future__ import annotations
 import gzip
 import itertools
 import json
-import os
 import re
 import zlib
 from collections import defaultdict
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import input_file, write_bytes
+from ..io import input_file, present, write_bytes
 
 PACK_SUFFIX = ".jsonl.gz"
 PLAN = "plan.json"
@@ -103,7 +102,7 @@ def plan_file(out: str | Path) -> Path | None:
             to nothing: :func:`~frontiernet.io.input_file`'s words), which was taken for no plan.
     """
     for name in (PLAN, PACKED_PLAN):
-        if os.path.lexists(Path(out) / name):
+        if present(Path(out) / name):
             return input_file(Path(out) / name, "benchmark plan")
     return None
 
@@ -112,7 +111,7 @@ def check_runs_folder(out: str | Path) -> None:
     """InputError when something other than a folder has the name of the ``runs`` folder of benchmark
     folder `out` (its finished runs were read as none: a pack rewrote the plan as packed, a report failed)."""
     runs = Path(out) / "runs"
-    if os.path.lexists(runs) and not runs.is_dir():
+    if present(runs) and not runs.is_dir():
         raise InputError(f"{runs}: {'is a file' if runs.is_file() else 'not a folder'}, expected the benchmark's "
                          "runs folder")
 
@@ -281,7 +280,7 @@ class FinishedRuns:
         self._packs: dict[Path, tuple] = {}  # pack path -> (its stat when read, key -> record)
 
     def _pack(self, path: Path) -> dict[str, dict]:
-        if not os.path.lexists(path):  # no pack: its runs are not finished (or not packed)
+        if not present(path):  # no pack: its runs are not finished (or not packed)
             return {}
         stamp = input_file(path, "packed benchmark file").stat()  # a link to nothing, a folder, a pipe: named
         stamp = (stamp.st_mtime_ns, stamp.st_size)
@@ -356,7 +355,7 @@ def pack(out: str | Path) -> dict:
         except FileNotFoundError:  # not finished (or packed)
             continue
     for path in fresh:  # the packs they go into, where something has their name: regular files (a link to nothing)
-        if os.path.lexists(path):
+        if present(path):
             input_file(path, "packed benchmark file")
     written, rewritten, packed = [], [], {}  # packed: pack path -> its number of runs
     for path in sorted((out / "runs").glob(f"*/*{PACK_SUFFIX}")):  # packs in an older form: rewritten in today's
@@ -371,7 +370,7 @@ def pack(out: str | Path) -> dict:
         write_bytes(path, data)  # checked before the old pack is replaced
         rewritten.append(path)
     for path, records in fresh.items():
-        merged = {**(read_pack(path) if os.path.lexists(path) else {}), **records}
+        merged = {**(read_pack(path) if present(path) else {}), **records}
         write_pack(path, merged)
         if set(read_pack(path)) != set(merged):  # read back before anything is removed
             raise InputError(f"{path}: the pack written does not read back; per-run files kept")

@@ -12,7 +12,6 @@ the floor top is at z = 0. :func:`plan_pixel_to_world` applies it.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,7 +20,7 @@ from scipy import ndimage
 
 from ..errors import InputError, positive_number
 from ..array_files import read_image, read_npy
-from ..io import input_file
+from ..io import input_file, present
 from .builder import MeshBuilder, make_texture, mask_rectangles, rect_boxes
 from .explorable import enclosed_free as building_inside  # shared with 3D voxelisation
 from .scene import Material, Scene, SceneMetadata
@@ -99,10 +98,10 @@ def read_floorplan(path: str | Path, *, resolution: float | None, occupied_below
         raise InputError(f"{spec_text}: occupied_below ({occupied_below}) must be at most free_above ({free_above}): "
                          "pixels below the first are walls, above the second free space")
     if path.is_dir():  # (a pipe, a folder or a link loop with a file's name is named so: input_file, read_npy)
-        if not os.path.lexists(path / "occ_map.npy"):
+        if not present(path / "occ_map.npy"):
             raise InputError(f"{path}: floor-plan folder has no occ_map.npy")
         input_file(path / "occ_map.npy", "KTH plan occupancy grid")
-        if os.path.lexists(path / "valid_space.npy"):
+        if present(path / "valid_space.npy"):
             valid = _load_array(path / "valid_space.npy")
         resolution = kth_resolution if resolution is None else resolution
         path = path / "occ_map.npy"
@@ -249,7 +248,7 @@ def load_floorplan(path: str | Path, spec_text: str, conf) -> Scene:
     extra = {"resolution": plan.resolution, "plan_shape": list(plan.occupied.shape),
              "wall_height": float(conf.wall_height), "ceiling": bool(conf.ceiling),
              "door_pixels": int(plan.doors.sum())}
-    if path.is_dir() and os.path.lexists(path / "start_poses.json"):  # (a pipe there: named, not taken for none)
+    if path.is_dir() and present(path / "start_poses.json"):  # (a pipe there: named, not taken for none)
         extra["start_xy"] = plan_start_positions(path / "start_poses.json", plan)
     metadata = SceneMetadata(name=path.name if path.is_dir() else path.stem, source="floorplan", spec=spec_text,
                              extra=extra)

@@ -9,14 +9,13 @@ convention); ``?up=y`` converts Y-up to Z-up. HM3D scenes are always Y-up.
 from __future__ import annotations
 
 import logging
-import os
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..geometry import T_ZUP_YUP
-from ..io import input_file, why_missing
+from ..io import input_file, present, why_missing
 from .scene import Material, Scene, SceneMetadata
 
 log = logging.getLogger(__name__)
@@ -214,7 +213,7 @@ def find_hm3d_glb(path: str | Path) -> Path:
     if not path.is_dir():
         raise InputError(f"{path}: no such HM3D scene folder or file{why_missing(path)}")
     scene_id = path.name.split("-", 1)[-1]
-    if os.path.lexists(path / f"{scene_id}.glb"):  # the scene's own file: a pipe, a folder or a loop there named so
+    if present(path / f"{scene_id}.glb"):  # the scene's own file: a pipe, a folder or a loop there named so
         return input_file(path / f"{scene_id}.glb", "HM3D scene mesh")
     plain = [glb for glb in sorted(path.glob("*.glb"))
              if glb.is_file() and not glb.name.endswith((".basis.glb", ".semantic.glb"))]

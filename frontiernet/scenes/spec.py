@@ -52,6 +52,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from ..config import check_ranges
 from ..errors import InputError, check_keys
+from ..io import present
 from ..registry import Registry
 from .scene import Scene
 
@@ -133,7 +134,7 @@ def _guess_source(argument: str) -> str:
     if path.suffix.lower() in MESH_SUFFIXES:
         return "mesh"
     if path.is_dir():
-        if os.path.lexists(path / "occ_map.npy"):  # (a pipe or a folder there: the plan reader names it)
+        if present(path / "occ_map.npy"):  # (a pipe or a folder there: the plan reader names it)
             return "floorplan"
         if any(path.glob("*.glb")):
             return "hm3d"
@@ -196,7 +197,7 @@ def parse_spec(text: str) -> SceneSpec:
 
 
 def _is_scene_folder(path: Path) -> bool:
-    return os.path.lexists(path / "occ_map.npy") or any(path.glob("*.glb"))
+    return present(path / "occ_map.npy") or any(path.glob("*.glb"))
 
 
 def _seed_range(text: str, argument: str) -> tuple[int, int]:

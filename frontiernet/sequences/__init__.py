@@ -17,11 +17,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import input_file, input_folder
+from ..io import input_file, input_folder, present
 from .colmap import MODEL_PARTS, find_model, read_colmap, sequence_from_reconstruction
 from .frames import Camera, Sequence, SequenceFrame
 from .images import DEPTH_ENCODINGS, read_depth, read_rgb
-from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, TUM_LISTS, present, read_redwood, read_tum
+from .readers import IMAGE_SUFFIXES, REDWOOD_COLOUR_FOLDERS, TUM_LISTS, read_redwood, read_tum
 from .ros_extract import is_recording
 
 FORMATS = ("tum", "redwood", "colmap", "images")

@@ -26,13 +26,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import intrinsics_matrix, quaternion_rotations, rigid_pose
-from ..io import input_file, input_folder
+from ..io import input_file, input_folder, present
 from ..workers import keep_sigterm_handler
 
 with keep_sigterm_handler():  # its import installs glog's handler: SIGTERM printed a native stack trace
     import pycolmap
 from .frames import Camera, Sequence, SequenceFrame
-from .readers import IMAGE_SUFFIXES, image_size, present
+from .readers import IMAGE_SUFFIXES, image_size
 
 COLMAP_PIXEL_CENTRE = 0.5  # COLMAP's coordinate of the top-left pixel's centre (OpenCV: 0)
 PINHOLE_MODELS = ("SIMPLE_PINHOLE", "PINHOLE")

@@ -14,7 +14,6 @@ own world frame (often the first camera's, not necessarily Z-up).
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +23,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from ..errors import InputError
 from ..geometry import quaternion_rotations, rigid_pose
 from ..array_files import read_npy
-from ..io import input_file, input_folder
+from ..io import input_file, input_folder, present
 from .frames import Camera, Sequence, SequenceFrame
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm", ".webp")
@@ -102,13 +101,6 @@ def check_camera_size(camera: Camera, size: tuple[int, int], source: Path) -> Ca
 def default_camera(size: tuple[int, int]) -> Camera:
     """The :data:`DEFAULT_INTRINSICS` pinhole camera at `size` (width, height) px."""
     return Camera.pinhole(*DEFAULT_INTRINSICS, *size)
-
-
-def present(path: Path) -> bool:
-    """Whether anything has the name `path` (a file, a folder, a pipe, a link, dangling or not): an optional
-    file of a format is then read, and :func:`~frontiernet.io.input_file` names one of the wrong kind, instead of
-    taking it for absent (``is_file()`` is False for a pipe, which a read would wait on forever)."""
-    return os.path.lexists(path)
 
 
 def _number_rows(path: Path, columns: int, what: str = "file") -> list[tuple[int, list[str]]]:

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io import input_file
-from .readers import image_size, present
+from ..io import input_file, present
+from .readers import image_size
 from .ros_messages import COMPRESSED, colour_image, compressed_suffix, depth_image, frame_id, pose_of, stamp_ns
 from .ros_tf import Track, TransformBuffer
 
@@ -33,7 +33,7 @@ RECORDING_SUFFIXES = (".bag", ".mcap", ".db3")
 def is_recording(path: str | Path) -> bool:
     """Whether `path` is a recording: a ``.bag``, ``.mcap`` or ``.db3`` file, or a rosbag2 folder
     (``metadata.yaml``). What has the name counts whatever it is (a pipe, a folder, a link to nothing:
-    :func:`~.readers.present`), for :func:`check_recording` to name it: taken for absent, a pipe named ``x.bag`` was
+    :func:`~frontiernet.io.present`), for :func:`check_recording` to name it: taken for absent, a pipe named ``x.bag`` was
     "expected a folder (sequence)", a ``metadata.yaml`` of the wrong kind "unknown sequence format"."""
     path = Path(path)
     if path.is_dir():
