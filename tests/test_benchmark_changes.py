@@ -114,7 +114,7 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
         # the default since 2026-11-27 is 2)
         overrides = ("planner.gain_exponent=1", "planner.forgive_before_stop=false", "planner.approach_radius_m=0",
                      "planner.traversed_is_free=false", "planner.bumps_are_obstacles=false",
-                     "map_frontiers.min_cells_before_stop=null", *OLD_ROBOT, *overrides)
+                     "map_frontiers.min_cells_before_stop=null", "tracking.bury_visited=false", *OLD_ROBOT, *overrides)
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": None, "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 
@@ -123,10 +123,11 @@ def test_a_plan_made_before_a_key_existed_resumes_while_the_key_keeps_the_old_be
     with pytest.raises(InputError, match=r"\(conf.planner.gain_exponent: 1.0 in the plan, 2.0 now\)"):
         resumable_plan(published, {**protocol(), "conf": OmegaConf.to_container(load_run_config(
             None, ["planner.forgive_before_stop=false", "planner.approach_radius_m=0", "planner.traversed_is_free=false",
-                   "planner.bumps_are_obstacles=false", "map_frontiers.min_cells_before_stop=null", *OLD_ROBOT]),
+                   "planner.bumps_are_obstacles=false", "map_frontiers.min_cells_before_stop=null",
+                   "tracking.bury_visited=false", *OLD_ROBOT]),
             resolve=True)})
     assert "--set planner.forgive_before_stop=false planner.approach_radius_m=0 \\\n    planner.traversed_is_free=false " \
-        "planner.bumps_are_obstacles=false \\\n    map_frontiers.min_cells_before_stop=null " + \
+        "planner.bumps_are_obstacles=false \\\n    map_frontiers.min_cells_before_stop=null tracking.bury_visited=false " + \
         " ".join(OLD_ROBOT) + " $SETTINGS" in \
         (published / "resume.sh").read_text()
     assert "SETTINGS=${SETTINGS-planner.gain_exponent=1}" in (published / "resume.sh").read_text()
@@ -184,8 +185,8 @@ def test_the_two_regime_plan_resumes_as_the_record_it_is():
 
     def protocol(*overrides) -> dict:  # the settings `frontiernet bench` makes of resume.sh's command
         overrides = ("planner.forgive_before_stop=false", "planner.approach_radius_m=0", "planner.traversed_is_free=false",
-                     "planner.bumps_are_obstacles=false", "map_frontiers.min_cells_before_stop=null", *OLD_ROBOT,
-                     *overrides)  # published/resume.sh sets these for all
+                     "planner.bumps_are_obstacles=false", "map_frontiers.min_cells_before_stop=null",
+                     "tracking.bury_visited=false", *OLD_ROBOT, *overrides)  # published/resume.sh sets these for all
         return {"budget": 500, "seed": 0, "model": "runs/shipped.onnx", "depth": "gt,emulated", "scene_starts": True,
                 "conf": OmegaConf.to_container(load_run_config(None, list(overrides)), resolve=True)}
 
@@ -237,3 +238,16 @@ def test_small_frontiers_before_a_stop_redo_only_the_map_methods_runs_that_stopp
     keys, (reader,) = runs_changed(plan, settings, records)
     assert keys == ["s/classic/start0_repeat0"] and str(reader).endswith("runs that stopped with no frontier left")
     assert runs_changed(plan, settings)[0] == ["s/classic/start0_repeat0", "s/random-frontier/start0_repeat0"]
+
+
+def test_burying_visited_frontiers_redoes_only_the_runs_of_methods_with_fresh_frontier_sets():
+    # tracking.bury_visited (issue 54) acts only where the whole frontier set is proposed afresh each frame: the
+    # image methods' runs are the same to the step either way
+    from frontiernet.benchmark.changes import runs_changed
+
+    methods = ("classic", "random-frontier", "nbvp", "omniscient", "seer", "mapex", "frontiernet", "oracle",
+               "frontiernet-mapex")
+    runs = [{"key": f"s/{method}/start0_repeat0", "method": method} for method in methods]
+    plan = {"settings": {"depth": "gt", "conf": {"tracking": {"bury_visited": False}}}, "runs": runs}
+    keys, (reader,) = runs_changed(plan, {"depth": "gt", "conf": {"tracking": {"bury_visited": True}}})
+    assert keys == [f"s/{method}/start0_repeat0" for method in methods[:6]]

@@ -53,6 +53,16 @@ def test_goals_given_up_on_get_another_chance_once_per_g_min_the_map_has_learnt(
     assert not off._forgive() and off.planner.blacklist == {7}  # as before the option
 
 
+def test_places_buried_as_visited_get_another_chance_before_a_stop_as_goals_given_up_on():
+    explorer = explorer_in_a_room(forgive_before_stop=True)
+    explorer.sense()
+    explorer.tracker.buried_visits.append(np.array([3.0, 2.0, 1.2]))  # (tracking.bury_visited) and no blacklist
+    explorer.look_around_left = 0.0
+    assert explorer._forgive() and not explorer.tracker.buried_visits and explorer.result.forgiven == 1
+    explorer.tracker.buried_visits.append(np.array([3.0, 2.0, 1.2]))
+    assert not explorer._forgive() and explorer.tracker.buried_visits  # the same map: it stops
+
+
 @pytest.mark.slow
 def test_classic_on_monocular_depth_spends_its_budget_instead_of_stopping_with_the_north_unseen(tmp_path):
     """The default scene from seed 0 with emulated depth: classic stopped at step 196 with 72 % of the

@@ -348,6 +348,23 @@ def test_a_blacklisted_frontier_leaves_a_tombstone_that_discards_its_reobservati
     assert tracker.removed["blacklisted"] == 1 and len(tracker) == 2
 
 
+def test_a_visited_frontier_of_a_fresh_set_buries_its_place_whatever_the_direction_of_its_return():
+    # a map frontier of a pocket the camera cannot see from where the robot stood is proposed again every
+    # frame, its direction following the robot: with bury_visited its place stays given up on until forgiven
+    at = level_pose(1.3, 1.0, 0.0)  # 0.3 m from the frontier, looking along its direction
+    for bury, expected in ((False, [2, 3, 4]), (True, [None, None, 2])):
+        tracker = FrontierTracker(tracking_conf())
+        pocket, far = tracker.add([observation((1.0, 1.0, 1.2), 0.0), observation((3.5, 1.0, 1.2), 0.0)], 0, 0)
+        assert tracker.prune(at[None], bury_visited=bury) == [pocket]
+        assert tracker.get(far) is not None  # no pose stood there: kept, and buries nothing
+        again = tracker.add([observation((1.0, 1.0, 1.2), 0.0), observation((1.4, 1.2, 1.2), 135.0),  # back, turned
+                             observation((1.0, 2.0, 1.2), 0.0)], 1, 1)  # 1 m away (merge distance 0.6 m)
+        assert again == expected
+        assert tracker.removed["visited"] == 1
+    tracker.forgive()  # (planner.forgive_before_stop, before a stop): proposed again
+    assert not tracker.buried_visits and tracker.add([observation((1.0, 1.0, 1.2), 90.0)], 2, 2) == [3]
+
+
 def test_frontier_in_occupied_space_is_dropped(mapped_room):
     tracker = FrontierTracker(tracking_conf(gain_reduction="none", relocate_m=0.0))
     wall, free = tracker.add([observation((4.0, 1.5, 1.2), 180.0), observation((2.0, 1.5, 1.2), 90.0)], 0, 0)

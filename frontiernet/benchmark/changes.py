@@ -49,6 +49,7 @@ KEYS_ADDED_AFTER_PLANS = {
     "planner.monocular_traversed_is_free": False,  # issue 54: monocular maps alone decide what is traversable, as before
     "planner.bumps_are_obstacles": False,  # issue 54: a collision leaves the robot's map as it was, as before
     "map_frontiers.min_cells_before_stop": None,  # issue 54: a run with no frontier left stops, as before
+    "tracking.bury_visited": False,  # issue 54: a visited frontier is dropped, its next proposal kept, as before
     # --method nbvp's settings (Bircher et al. 2016; they change no run of any other method)
     "nbvp": {"extension_m": 1.0, "degressive_coeff": 0.5, "init_iterations": 15, "cutoff_iterations": 200,
              "gain_range_m": 3.5, "gain_width_px": 16, "yaw_samples": 1, "overshoot_m": 0.0, "attempts_per_node": 1000,
@@ -156,6 +157,10 @@ METHOD_SECTIONS = {
 
 
 WIDENING_METHODS = frozenset({"mapex", "seer"})
+FRESH_METHODS = frozenset({"nbvp", "omniscient", "mapex", "seer"})
+"""The methods besides the map methods that propose their whole frontier set afresh each frame (their
+:class:`~frontiernet.exploration.methods.Method`'s ``fresh_frontiers``), whose runs alone read
+``tracking.bury_visited``."""
 """The methods besides the map methods whose frontier regions widen before a stop
 (``map_frontiers.min_cells_before_stop``: :func:`~frontiernet.exploration.sources.widened_min_cells`)."""
 FINISHED_WHEN = {"collided": lambda metrics: bool(metrics.get("collisions")),
@@ -196,7 +201,8 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     sources without them while ``planner.monocular_traversed_is_free`` holds in both the stored and
     this run's `settings` (the others keep their traversed cells either way); a source's own ``depth``
     section only to it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs;
-    ``planner.bumps_are_obstacles`` only to runs that collided (a run without a collision is the same to
+    ``tracking.bury_visited`` only to the runs of methods with fresh frontier sets (the map methods and
+:data:`FRESH_METHODS`), ``planner.bumps_are_obstacles`` only to runs that collided (a run without a collision is the same to
     the step either way), ``map_frontiers.min_cells_before_stop`` only to the runs of the methods of map
     frontier regions (the map methods, mapex and seer) that stopped with no frontier left (the same to the
     step before); None for every other setting (read
@@ -214,6 +220,8 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
         return Readers(sources=frozenset(SOURCES) - flying)
     if (section, key) == ("planner", "bumps_are_obstacles"):
         return Readers(when="collided")
+    if (section, key) == ("tracking", "bury_visited"):
+        return Readers(methods=frozenset(MAP_METHODS) | FRESH_METHODS)
     if (section, key) == ("map_frontiers", "min_cells_before_stop"):
         return Readers(methods=frozenset(MAP_METHODS) | WIDENING_METHODS, when="stopped")
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:

@@ -138,6 +138,7 @@ class Explorer:
         self.step_back, self.start_failed_at = start_failure == "step_back", None
         self.escape = None  # (4, 4) pose to step to first: off a spot a fresh route could not start from
         self.forgive, self.forgiven_at_m3 = bool(conf.planner.get("forgive_before_stop", False)), -np.inf
+        self.bury_visited = bool(conf.tracking.get("bury_visited", False))
 
     # -- sensing --------------------------------------------------------------------------------
 
@@ -181,7 +182,8 @@ class Explorer:
                     self.tracker.remove(frontier.id, "stale")
         elif not self.map_free:
             self.tracker.update_gains(self.map)
-        self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
+        self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map,
+                           bury_visited=fresh and self.bury_visited)
         if not fresh and self.tracker.merge_clusters():  # (merge: clusters) the public code filters again
             self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
 
@@ -319,19 +321,19 @@ class Explorer:
 
     def _forgive(self) -> bool:
         """With ``planner.forgive_before_stop``, before the run stops with no frontier left: give
-        the goals given up on (blacklisted, and the frontiers their tombstones buried) another
-        chance when the map has learnt at least ``tracking.min_gain_m3`` since they last had one
-        (a goal was given up on the map of its time; a longer run spends its steps instead of
-        stopping while a route may now exist). Returns whether it did: the loop then looks around
-        again, and the next frame proposes the buried frontiers anew."""
+        the goals given up on (blacklisted, and the frontiers their tombstones buried, and the places
+        ``tracking.bury_visited`` buried) another chance when the map has learnt at least
+        ``tracking.min_gain_m3`` since they last had one (a goal was given up on the map of its time; a
+        longer run spends its steps instead of stopping while a route may now exist). Returns whether it
+        did: the loop then looks around again, and the next frame proposes the buried frontiers anew."""
         known = float(self.map.known_volume_m3)
-        if not self.forgive or not self.planner.blacklist \
+        if not self.forgive or not (self.planner.blacklist or self.tracker.buried_visits) \
                 or known < self.forgiven_at_m3 + float(self.conf.tracking.min_gain_m3):
             return False
         self.forgiven_at_m3 = known
         self.planner.blacklist.clear()
         self.planner.failures.clear()
-        self.tracker.tombstones.clear()
+        self.tracker.forgive()
         self.look_around_left = np.radians(float(self.conf.motion.look_around_deg))
         self.result.forgiven += 1
         return True

@@ -107,6 +107,7 @@ class FrontierTracker:
     next_id: int = 0
     removed: dict = field(default_factory=lambda: {"low_gain": 0, "visited": 0, "occupied": 0, "blacklisted": 0})
     tombstones: list = field(default_factory=list)
+    buried_visits: list = field(default_factory=list)  # positions (3,) of frontiers visited yet proposed still
     removed_log: list = field(default_factory=list)  # {"reason", **Frontier.as_dict()} per removal
 
     def __len__(self) -> int:
@@ -182,7 +183,8 @@ class FrontierTracker:
 
     def _buried(self, position, direction, max_distance, min_cos) -> bool:
         return any(float(np.linalg.norm(p - position)) < max_distance and float(d @ direction) > min_cos
-                   for p, d in self.tombstones)
+                   for p, d in self.tombstones) \
+            or any(float(np.linalg.norm(p - position)) < max_distance for p in self.buried_visits)
 
     def _closest_match(self, position, direction, max_distance, min_cos) -> Frontier | None:
         best, best_distance = None, max_distance
@@ -305,11 +307,18 @@ class FrontierTracker:
             undecided[index] = cap[index] < gains[index]
         return cap
 
-    def prune(self, visited_poses: np.ndarray, occupancy=None) -> list[int]:
+    def prune(self, visited_poses: np.ndarray, occupancy=None, bury_visited: bool = False) -> list[int]:
         """Drop low-gain, visited and (with `occupancy`) occupied frontiers; returns the dropped ids.
 
         Args:
             visited_poses: (N, 4, 4) float64 ``T_world_cam`` of the poses visited so far.
+            bury_visited: a visited frontier also buries its place (``tracking.bury_visited``, for a
+                method that proposes its whole frontier set afresh each frame): observations within
+                ``merge_distance_m`` of it are discarded from then on, whatever their direction, until
+                :meth:`forgive`. Such a frontier is still proposed, with at least ``min_gain_m3`` of
+                unknown volume in view, after a pose stood at it facing it: the camera cannot see what it
+                promises from there, and a frame later it comes back under a new id (a map frontier
+                whose direction follows the robot drew it back for whole budgets).
         """
         if not self.frontiers:
             return []
@@ -329,6 +338,8 @@ class FrontierTracker:
         dropped = []
         for frontier, why in zip(frontiers, reason):
             if why:
+                if why == "visited" and bury_visited:
+                    self.buried_visits.append(frontier.position.copy())
                 self.remove(frontier.id, why)
                 dropped.append(frontier.id)
         self._keep_best(int(self.conf["max_frontiers"]))
@@ -391,6 +402,12 @@ class FrontierTracker:
             self.removed_log.append({"reason": reason, **frontier.as_dict()})
             if reason == "blacklisted":
                 self.tombstones.append((frontier.position.copy(), frontier.direction.copy()))
+
+    def forgive(self) -> None:
+        """Let every buried frontier be proposed again (the blacklist's tombstones and the visited places
+        of ``bury_visited``)."""
+        self.tombstones.clear()
+        self.buried_visits.clear()
 
     def as_list(self) -> list[dict]:
         return [f.as_dict() for f in self.frontiers.values()]

@@ -19,7 +19,8 @@
 # sphere of 0.2 m planned 0.3 m clear; 0.1 m and 0.2 m since 2026-12-06) and the planner's map alone
 # on ground truth (planner.traversed_is_free off; on since 2026-12-07), bumps not in the map
 # (planner.bumps_are_obstacles off; on since 2026-12-07), and a stop with no frontier left
-# (map_frontiers.min_cells_before_stop null; 1 since 2026-12-07).
+# (map_frontiers.min_cells_before_stop null; 1 since 2026-12-07), and visited map frontiers proposed again
+# (tracking.bury_visited off; on since 2026-12-08).
 set -euo pipefail
 SETTINGS=${SETTINGS-planner.gain_exponent=1}
 cd "$(dirname "$0")/../../.."
@@ -35,5 +36,5 @@ $FRONTIERNET bench --scenes ../shared/data/scenes/aws_small_house.glb procedural
     --starts 3 --repeats "${REPEATS:-3}" --max-steps 500 --scene-starts --model runs/shipped.onnx \
     ${DEPTH:+--depth "$DEPTH"} --set planner.forgive_before_stop=false planner.approach_radius_m=0 \
     planner.traversed_is_free=false planner.bumps_are_obstacles=false \
-    map_frontiers.min_cells_before_stop=null sim.agent.radius_m=0.2 sim.voxels.floor_clearance_m=0.2 planner.clearance_m=0.3 $SETTINGS --workers "${WORKERS:-2}" --out "$OUT_DIR"
+    map_frontiers.min_cells_before_stop=null tracking.bury_visited=false sim.agent.radius_m=0.2 sim.voxels.floor_clearance_m=0.2 planner.clearance_m=0.3 $SETTINGS --workers "${WORKERS:-2}" --out "$OUT_DIR"
 exec $FRONTIERNET bench --pack --out "$OUT_DIR"
