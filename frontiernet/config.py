@@ -210,6 +210,23 @@ def _refuse_values_set_inside(overrides: list[str]) -> None:
                              f"inside it (a section): give one of them")
 
 
+def _unparsable_override(overrides: list[str], error) -> str:
+    """The message for ``key=value`` `overrides` whose values OmegaConf could not read as YAML (`error`, the
+    YAMLError it raised): the first item whose value alone is no YAML, named with the parser's own words."""
+    import yaml
+
+    def problem(error) -> str:
+        words = [getattr(error, "context", None), getattr(error, "problem", None)]
+        return ": ".join(str(word) for word in words if word) or str(error).splitlines()[0]
+
+    for item in overrides:
+        try:
+            yaml.safe_load(item.split("=", 1)[1])
+        except yaml.YAMLError as own:
+            return f"override '{item}': its value is not valid YAML ({problem(own)})"
+    return f"overrides {' '.join(overrides)}: not valid YAML ({problem(error)})"
+
+
 def apply_overrides(conf: DictConfig, overrides: Iterable[str] = (), shipped: DictConfig | None = None) -> DictConfig:
     """`conf` with ``key.sub=value`` strings merged on top (InputError for a malformed one or a
     key that `conf` does not have, see :func:`merge_user`). A value's kind is judged by the `shipped`
@@ -227,8 +244,12 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = (), shipped: Di
             key = empty.split("=", 1)[0].strip()
             raise InputError(f"override '{empty}' has no value (write {key}=null for none)")
         _refuse_values_set_inside(overrides)
+        import yaml
+
         try:
             extra = OmegaConf.from_dotlist(overrides)
+        except yaml.YAMLError as error:  # an unclosed [ or quote, a tag, an alias, a tab: name the item
+            raise InputError(_unparsable_override(overrides, error)) from None
         except OmegaConfBaseException as error:
             raise InputError(f"bad override {overrides}: {error}") from None
         check_keys(conf if shipped is None else shipped, extra, "override")
