@@ -235,3 +235,15 @@ def test_map_frontiers_are_the_current_maps_frontiers_only(plan_spec, tmp_path):
     assert metrics["frontiers_removed"].get("stale", 0) > 0  # frontiers that the map no longer has are gone
     assert all(f["predicted_gain_m3"] == explore_section("map_frontiers")["uniform_gain_m3"]
                for f in frontiers["frontiers"])
+
+
+def test_the_methods_of_map_frontier_regions_are_those_whose_runs_read_bury_visited(two_room_scene, two_room_voxels):
+    # tracking.bury_visited acts on map frontier regions (Method.map_regions); --redo-changed redoes the runs of the
+    # methods frontiernet.benchmark.changes lists for it, so the two must name the same methods
+    from frontiernet.benchmark.changes import REGION_METHODS
+    from frontiernet.exploration.methods import MAP_METHODS
+
+    context = MethodContext(load_config("explore"), load_config("sim"), scene=two_room_scene, voxels=two_room_voxels)
+    regions = {name for name in ("classic", "gain-distance", "random-frontier", "vacuum", "nbvp", "omniscient", "seer",
+                                 "mapex", "discontinuity-uniform") if make_method(name, context).map_regions}
+    assert regions == set(MAP_METHODS) | REGION_METHODS == {"classic", "gain-distance", "random-frontier", "mapex"}

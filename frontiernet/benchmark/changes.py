@@ -157,9 +157,9 @@ METHOD_SECTIONS = {
 
 
 WIDENING_METHODS = frozenset({"mapex", "seer"})
-FRESH_METHODS = frozenset({"nbvp", "omniscient", "mapex", "seer"})
-"""The methods besides the map methods that propose their whole frontier set afresh each frame (their
-:class:`~frontiernet.exploration.methods.Method`'s ``fresh_frontiers``), whose runs alone read
+REGION_METHODS = frozenset({"mapex"})
+"""The methods besides the map methods whose frontiers are regions of the map's frontier cells (their
+:class:`~frontiernet.exploration.methods.Method`'s ``map_regions``), whose runs alone read
 ``tracking.bury_visited``."""
 """The methods besides the map methods whose frontier regions widen before a stop
 (``map_frontiers.min_cells_before_stop``: :func:`~frontiernet.exploration.sources.widened_min_cells`)."""
@@ -201,8 +201,8 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     sources without them while ``planner.monocular_traversed_is_free`` holds in both the stored and
     this run's `settings` (the others keep their traversed cells either way); a source's own ``depth``
     section only to it, a method's own section (:data:`METHOD_SECTIONS`) only to that method's runs;
-    ``tracking.bury_visited`` only to the runs of methods with fresh frontier sets (the map methods and
-:data:`FRESH_METHODS`), ``planner.bumps_are_obstacles`` only to runs that collided (a run without a collision is the same to
+    ``tracking.bury_visited`` only to the runs of methods whose frontiers are map frontier regions (the map
+    methods and :data:`REGION_METHODS`), ``planner.bumps_are_obstacles`` only to runs that collided (a run without a collision is the same to
     the step either way), ``map_frontiers.min_cells_before_stop`` only to the runs of the methods of map
     frontier regions (the map methods, mapex and seer) that stopped with no frontier left (the same to the
     step before); None for every other setting (read
@@ -221,7 +221,7 @@ def _runs_reading(dotted: str, stored: dict | None = None, settings: dict | None
     if (section, key) == ("planner", "bumps_are_obstacles"):
         return Readers(when="collided")
     if (section, key) == ("tracking", "bury_visited"):
-        return Readers(methods=frozenset(MAP_METHODS) | FRESH_METHODS)
+        return Readers(methods=frozenset(MAP_METHODS) | REGION_METHODS)
     if (section, key) == ("map_frontiers", "min_cells_before_stop"):
         return Readers(methods=frozenset(MAP_METHODS) | WIDENING_METHODS, when="stopped")
     if len(parts) > 2 and parts[:2] == ["conf", "depth"] and parts[2] in SOURCES:

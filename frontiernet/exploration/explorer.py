@@ -183,7 +183,7 @@ class Explorer:
         elif not self.map_free:
             self.tracker.update_gains(self.map)
         self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map,
-                           bury_visited=fresh and self.bury_visited)
+                           bury_visited=self.method.map_regions and self.bury_visited)
         if not fresh and self.tracker.merge_clusters():  # (merge: clusters) the public code filters again
             self.tracker.prune(np.stack(self.poses), None if self.map_free else self.map)
 

@@ -175,7 +175,7 @@ def make_mapex(context) -> Method:
     ``mapex.predictor``."""
     predictor = open_predictor(context.conf, "mapex", context.model)
     return Method("mapex", MapexSource(predictor, context.map, context.conf), "rate", fresh_frontiers=True,
-                  uses_model=True)
+                  map_regions=True, uses_model=True)
 
 
 make_mapex.uses_model = True  # --model names its predictor file (methods.uses_model)

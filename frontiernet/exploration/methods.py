@@ -204,7 +204,7 @@ def _map_method(name: str):
     gain, goal = MAP_METHODS[name]
 
     def make(context: MethodContext) -> Method:
-        return Method(name, MapSource(gain, context.map, context.conf), goal, fresh_frontiers=True)
+        return Method(name, MapSource(gain, context.map, context.conf), goal, fresh_frontiers=True, map_regions=True)
 
     make.needs_map = "takes its frontiers from the robot's map"
     return make

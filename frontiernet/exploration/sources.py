@@ -125,6 +125,11 @@ class Method:
         fresh_frontiers: the frontier set is this frame's proposals only (map frontiers are
             recomputed from the whole map every frame); otherwise observations are merged
             into the tracked frontiers across frames (image frontiers).
+        map_regions: its frontiers are regions of the map's frontier cells
+            (:func:`~frontiernet.frontiers.map_frontiers.map_frontiers`), proposed afresh each frame,
+            whose direction follows the robot where their steps to unknown cells cancel: a visited one
+            proposed still buries its place (``tracking.bury_visited``). Views (nbvp, omniscient, seer)
+            are not: their heading is the view's own.
         uses_model: it runs the FrontierNet model file (a run records which file).
         moves: the method's own moves, which the explorer follows instead of planned routes
             (goal rule ``vacuum``): ``next_pose(T_world_cam, motion, check_move) -> (4, 4) pose``
@@ -137,6 +142,7 @@ class Method:
     source: FrontierSource | None
     goal: str = "utility"
     fresh_frontiers: bool = False
+    map_regions: bool = False
     uses_model: bool = False
     moves: Any = None
 
