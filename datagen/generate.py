@@ -28,7 +28,7 @@ from frontiernet.config import first_difference, setting_text
 from frontiernet.errors import InputError, whole_number
 from frontiernet.io import (LOCK_NAME, check_not_dangling, check_output_files, check_output_name, claim_output_folder,
                             input_folder, write_json)
-from frontiernet.scenes.spec import expand_specs, parse_spec
+from frontiernet.scenes.spec import checked_spec, expand_specs
 from frontiernet.errors import check_seed
 from frontiernet.simulator.raycast import resolve_backend
 from frontiernet.workers import check_backend
@@ -119,9 +119,7 @@ def _check_args(specs, views_per_scene, seed, conf: DictConfig) -> tuple[list[st
         raise InputError(f"{len(expanded):,} scenes x {views_per_scene:,} views is more than {MAX_VIEWS:,} views "
                          "in one run; split the scenes over several datasets")
     for spec in expanded:
-        parsed = parse_spec(spec)  # a malformed or missing scene fails before any work starts
-        if parsed.source != "procedural" and not Path(parsed.argument).exists():
-            raise InputError(f"{spec}: no such scene file or folder")
+        checked_spec(spec)  # a malformed or missing scene fails before any work starts
     return expanded, shard_size
 
 

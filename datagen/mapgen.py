@@ -278,7 +278,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
             (:func:`~frontiernet.io.claim_output_folder`), a resume that does not match the dataset there (all
             before anything is written). Failing scenes do not raise: they are reported.
     """
-    from frontiernet.scenes.spec import expand_specs, parse_spec
+    from frontiernet.scenes.spec import checked_spec, expand_specs
     from frontiernet.workers import check_backend, run_parallel
 
     from .backends import _init_worker
@@ -294,9 +294,7 @@ def generate_maps(scenes: list[str], out: str | Path, conf, *, seed: int = 0, wo
         raise InputError(f"map.voxel_size {conf.map.voxel_size} m differs from sim.voxels.voxel_size {voxel_size} m")
     specs = expand_specs(scenes)
     for spec in specs:
-        parsed = parse_spec(spec)
-        if parsed.source != "procedural" and not Path(parsed.argument).exists():
-            raise InputError(f"{spec}: no such scene file or folder")
+        checked_spec(spec)  # a malformed or missing scene fails before any work starts
     conf_dict = OmegaConf.to_container(conf, resolve=True)
     info = {"generator_version": GENERATOR_VERSION, "config_hash": config_hash(conf), "seed": seed, "scenes": specs,
             "runs": runs, "voxel_size": voxel_size, "config": conf_dict}

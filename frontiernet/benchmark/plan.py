@@ -87,7 +87,9 @@ def depth_sources(depth: str | None, conf) -> list[str]:
     """
     from ..depth import known_source
 
-    text = str(depth or conf.run.depth)
+    text = str(conf.run.depth if depth is None else depth)  # (--depth '' names no source: not run.depth's)
+    if not text.strip():
+        known_source(text)  # the one line explore --depth '' gives: unknown, the valid ones listed
     names = []
     for item in text.split(","):
         if not item.strip():

@@ -43,6 +43,7 @@ from __future__ import annotations
 import glob
 import logging
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -200,14 +201,47 @@ def _is_scene_folder(path: Path) -> bool:
     return present(path / "occ_map.npy") or any(path.glob("*.glb"))
 
 
+def _plain_seed(text: str) -> bool:
+    """Whether `text` is a seed as the docs write one: the digits 0-9 alone (``int`` also reads ``+3``, `` 3``,
+    ``1_000`` and other scripts' digits, each then a second name, and a second run, of one scene)."""
+    return bool(re.fullmatch(r"[0-9]+", text))
+
+
+def checked_spec(text: str) -> SceneSpec:
+    """:func:`parse_spec` of `text` and, before any scene is loaded, its seed (:func:`procedural_seed`) or its file
+    or folder: InputError ``<spec>: no such scene file or folder`` (for commands that load scenes one by one
+    later, so a bad one among many fails before any work starts)."""
+    spec = parse_spec(text)
+    if spec.source == "procedural":
+        procedural_seed(spec.text, spec.argument)
+    elif not Path(spec.argument).exists():
+        raise InputError(f"{text}: no such scene file or folder")
+    return spec
+
+
+def procedural_seed(text: str, argument: str) -> int:
+    """The seed of procedural scene spec `text` (`argument`: what follows ``procedural:``); InputError naming
+    `text` unless it is :func:`_plain_seed` (a range, ``3-5``, names several scenes: said so)."""
+    if not _plain_seed(argument):
+        first, dash, last = argument.partition("-")
+        if dash and first.strip().isdigit() and last.strip().isdigit():
+            _seed_range(text, argument)  # 3-1 names no scene: said so
+            raise InputError(f"scene spec '{text}': a range of seeds names several scenes, and this takes one "
+                             f"(e.g. procedural:{first.strip()})")
+        if argument.strip().startswith("-") and argument.strip()[1:].isdigit():
+            raise InputError(f"scene spec '{text}': procedural seed must be >= 0")
+        raise InputError(f"scene spec '{text}': procedural seed must be an integer >= 0 in the digits 0-9 alone, "
+                         "e.g. procedural:3")
+    return int(argument)
+
+
 def _seed_range(text: str, argument: str) -> tuple[int, int]:
     """(FIRST, LAST) of the seed range `argument` (``FIRST-LAST``) of scene spec `text`; InputError naming
     `text` unless both are integers with 0 <= FIRST <= LAST (an inverted range names no scene)."""
     first, _, last = argument.partition("-")
-    try:
-        low, high = int(first), int(last)
-    except ValueError:
-        raise InputError(f"scene spec '{text}': a seed range is procedural:FIRST-LAST, e.g. procedural:0-199") from None
+    if not (_plain_seed(first) and _plain_seed(last)):
+        raise InputError(f"scene spec '{text}': a seed range is procedural:FIRST-LAST, e.g. procedural:0-199")
+    low, high = int(first), int(last)
     if not 0 <= low <= high:
         raise InputError(f"scene spec '{text}': seed range must satisfy 0 <= FIRST <= LAST")
     return low, high
@@ -272,7 +306,7 @@ def scene_identity(text: str) -> tuple:
     spec = parse_spec(text)
     argument = spec.argument
     if spec.source == "procedural":
-        argument = int(argument) if argument.lstrip("-").isdigit() else argument
+        argument = int(argument) if _plain_seed(argument) else argument
     else:
         argument = str(Path(argument).resolve())
     return spec.source, argument, tuple(sorted((key, repr(value)) for key, value in spec.options.items()))
@@ -301,18 +335,7 @@ def _floorplan(spec, options):
 def _procedural(spec, options):
     from .procedural import generate_procedural_scene
 
-    try:
-        seed = int(spec.argument)
-    except ValueError:
-        first, dash, last = spec.argument.partition("-")
-        if dash and first.strip().isdigit() and last.strip().isdigit():
-            _seed_range(spec.text, spec.argument)  # 3-1 names no scene: said so
-            raise InputError(f"scene spec '{spec.text}': a range of seeds names several scenes, and this takes one "
-                             f"(e.g. procedural:{first.strip()})") from None
-        raise InputError(f"scene spec '{spec.text}': procedural seed must be an integer") from None
-    if seed < 0:
-        raise InputError(f"scene spec '{spec.text}': procedural seed must be >= 0")
-    return generate_procedural_scene(seed, spec.text, options)
+    return generate_procedural_scene(procedural_seed(spec.text, spec.argument), spec.text, options)
 
 
 SCENE_SOURCES = Registry("scene source", None, {"mesh": _mesh, "hm3d": _hm3d, "floorplan": _floorplan,
