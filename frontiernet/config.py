@@ -100,7 +100,9 @@ def _read_yaml(path: Path) -> DictConfig:
     except (OSError, ValueError) as error:  # (UTF-16, random bytes: "not UTF-8 text", not the decoder's own words)
         raise InputError(f"{path}: not a readable YAML config: {decode_problem(error)}") from None
     try:
-        check_yaml_mapping(yaml.compose(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)), path)
+        root = yaml.compose(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        check_yaml_mapping(root, path)
+        _check_no_base_60(root, path)
         conf = OmegaConf.load(path)
     except yaml.YAMLError as error:  # malformed YAML: say where
         mark = getattr(error, "problem_mark", None)
@@ -210,6 +212,50 @@ def _refuse_values_set_inside(overrides: list[str]) -> None:
                              f"inside it (a section): give one of them")
 
 
+def _is_base_60(node) -> bool:
+    """Whether YAML node `node` is a plain scalar that YAML 1.1 reads as a base-60 number (``1:00`` is 60, ``1:30.5``
+    is 90.5): nobody means that in a config; the user typed a time or a ratio."""
+    import yaml
+
+    return (isinstance(node, yaml.ScalarNode) and not node.style and ":" in node.value  # (plain: None, C loader "")
+            and node.tag in ("tag:yaml.org,2002:int", "tag:yaml.org,2002:float"))
+
+
+def _base_60_as_text(item: str) -> str:
+    """``key=value`` override `item`, its value quoted when YAML 1.1 would read it as a base-60 number
+    (:func:`_is_base_60`): ``run.max_steps=1:00`` is then the text '1:00', refused as no number by the key's check,
+    as ``0:02`` always was (it ran 60 steps)."""
+    import yaml
+
+    key, _, value = item.partition("=")
+    try:
+        node = yaml.compose(value, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:
+        return item  # (the parse below names it)
+    return f"{key}='{value.strip()}'" if _is_base_60(node) else item
+
+
+def _check_no_base_60(root, path) -> None:
+    """InputError naming YAML file `path` and the line of the first plain scalar of the composed tree `root` that
+    YAML 1.1 reads as a base-60 number (:func:`_is_base_60`): ``max_steps: 1:00`` ran 60 steps."""
+    import yaml
+
+    seen, stack = set(), [root]
+    while stack:
+        node = stack.pop()
+        if node is None or id(node) in seen:
+            continue
+        seen.add(id(node))
+        if _is_base_60(node):
+            number = yaml.safe_load(node.value)
+            raise InputError(f"{path}: line {node.start_mark.line + 1}: YAML reads {node.value} as the base-60 number "
+                             f"{number}; write {number} if that is meant, or quote '{node.value}' as text")
+        if isinstance(node, yaml.MappingNode):
+            stack += [part for pair in node.value for part in pair]
+        elif isinstance(node, yaml.SequenceNode):
+            stack += node.value
+
+
 def _unparsable_override(overrides: list[str], error) -> str:
     """The message for ``key=value`` `overrides` whose values OmegaConf could not read as YAML (`error`, the
     YAMLError it raised): the first item whose value alone is no YAML, named with the parser's own words."""
@@ -246,6 +292,7 @@ def apply_overrides(conf: DictConfig, overrides: Iterable[str] = (), shipped: Di
         _refuse_values_set_inside(overrides)
         import yaml
 
+        overrides = [_base_60_as_text(item) for item in overrides]
         try:
             extra = OmegaConf.from_dotlist(overrides)
         except yaml.YAMLError as error:  # an unclosed [ or quote, a tag, an alias, a tab: name the item

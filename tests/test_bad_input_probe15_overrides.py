@@ -47,3 +47,43 @@ def test_a_valid_yaml_value_still_reads_as_its_type():
     conf = load_run_config(overrides=["planner.clearance_m=0.3", "tracking.unknown_cap_yaw_offsets_deg=[-30, 0, 30]",
                                       "run.depth=gt"])
     assert conf.planner.clearance_m == 0.3 and list(conf.tracking.unknown_cap_yaw_offsets_deg) == [-30, 0, 30]
+
+
+# ----------------------------------------------------------------------------- Q12: YAML 1.1's base-60 numbers
+
+@pytest.mark.parametrize("override, message", [
+    ("run.max_steps=1:00", "config key 'run.max_steps' takes a number (default 500), got '1:00'"),
+    ("run.seed=1:00", "got '1:00'"),
+    ("planner.clearance_m=1:30", "config key 'planner.clearance_m' takes a number (default 0.2), got '1:30'"),
+    ("planner.clearance_m=1:30.5", "got '1:30.5'"),
+])
+def test_an_override_yaml_would_read_as_a_base_60_number_is_the_text_typed(override, message, tmp_path,
+                                                                           one_line_error):
+    out = tmp_path / "ex"
+    args = [arg for arg in EXPLORE if arg not in ("--max-steps", "2")] if override.startswith("run.max_steps") else EXPLORE
+    assert main([*args, override, "--out", str(out)]) == 2  # (1:00 ran 60 steps; 1:30 was "90 m" of clearance)
+    line = one_line_error()
+    assert message in line and "60" not in line.split("got")[-1].replace("1:00", ""), line
+    assert not out.exists()
+
+
+def test_a_config_file_with_a_base_60_number_names_its_line(tmp_path, one_line_error):
+    config = tmp_path / "c.yaml"
+    config.write_text("run:\n  seed: 4\n  max_steps: 1:00\n")
+    out = tmp_path / "ex"
+    assert main([*EXPLORE[:-2], "--method", "classic", "--config", str(config), "--out", str(out)]) == 2
+    assert one_line_error().endswith(f"{config}: line 3: YAML reads 1:00 as the base-60 number 60; write 60 if that "
+                                     "is meant, or quote '1:00' as text")
+    assert not out.exists()
+    config.write_text("run:\n  max_steps: 60\nmotion:\n  pitch_deg: -5.0\n")  # numbers as numbers still read
+    from frontiernet.exploration.run import load_run_config
+
+    assert load_run_config(config).run.max_steps == 60
+
+
+def test_a_training_time_limit_is_the_text_typed():
+    from train.config import check_max_time
+
+    check_max_time("1:00:00:00")  # one day, as typed (YAML had made it 216000)
+    with pytest.raises(Exception, match=r"got '1:00'"):
+        check_max_time("1:00")

@@ -65,11 +65,10 @@ def model_with(tmp_path: Path, value: float, suffix: str = ".safetensors") -> Pa
     # Lightning refused it only after its INFO lines on stderr
     (["trainer.limit_val_batches=1.5"], "trainer.limit_val_batches: a fraction of the validation batches is in "
                                         "[0, 1] (or give a whole number of batches, e.g. 1), got 1.5"),
-    # eighth probe (E19): "got 60", a value never typed (YAML 1.1 reads 1:00 as a base-60 number)
+    # eighth probe (E19): "got 60", a value never typed (YAML 1.1 reads 1:00 as a base-60 number); since the fifteenth
+    # (Q12) an override's base-60 number is the text typed, for every key (1:00:00:00 is then one day, as typed)
     (["trainer.max_time=1:00"], "trainer.max_time: a wall-clock limit is DD:HH:MM:SS (e.g. 00:01:00:00), or null "
-                                "for none; got 60, the number YAML makes of an unquoted 1:00 (base 60): write all "
-                                "four fields, two digits each"),
-    (["trainer.max_time=1:00:00:00"], "got 216000, the number YAML makes of an unquoted 1:00:00:00 (base 60)"),
+                                "for none; got '1:00'"),
     # eighth probe (E27): the advice was the bare key name, "...: init_inputs"
     (["init_weights=default", "model.network.inputs=depth"],
      "model.network.inputs: depth, but the run starts from init_weights's rgbd (its network replaces model.network): "

@@ -71,20 +71,7 @@ def check_max_time(value) -> None:
             length = timedelta(**plain(value))
     except (AttributeError, TypeError, ValueError, OverflowError):  # (no match, not a mapping, a bad key)
         raise InputError(f"trainer.max_time: a wall-clock limit is DD:HH:MM:SS (e.g. 00:01:00:00), or null for "
-                         f"none; got {value!r}{_base_60(value)}") from None
+                         f"none; got {value!r}") from None
     if length.total_seconds() <= 0:
         raise InputError(f"trainer.max_time: {value} leaves no time to train (the run would stop before its first "
                          "step); give a limit above 0 (e.g. 00:01:00:00), or null for none")
-
-
-def _base_60(value) -> str:
-    """For a whole number of 60 or more, what YAML 1.1 read as that base-60 number (``1:00`` is 60): the user typed
-    that, not the number (``trainer.max_time=1:00`` said "got 60")."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 60:
-        return ""
-    digits = []
-    while value:
-        value, digit = divmod(value, 60)
-        digits.insert(0, digit)
-    typed = ":".join([str(digits[0]), *(f"{digit:02d}" for digit in digits[1:])])
-    return f", the number YAML makes of an unquoted {typed} (base 60): write all four fields, two digits each"
