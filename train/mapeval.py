@@ -60,6 +60,9 @@ def evaluate_maps(predictor_path, data, *, max_snapshots: int | None = None, cro
     crops_per_snapshot = 4 if crops_per_snapshot is None else crops_per_snapshot
     check_voxel_size(read_map_dataset_info(data), data, predictor.spec.voxel_size,
                      f"the predictor's voxel_size ({predictor_path})")
+    if radius_m < predictor.spec.voxel_size:  # (no unknown cell lies nearer a frontier than one cell: a table of NaN)
+        raise InputError(f"--radius-m {radius_m:g}: less than one map cell ({predictor.spec.voxel_size:g} m), so no "
+                         f"unknown cell is that near a frontier; give at least {predictor.spec.voxel_size:g}")
     dataset = open_map_dataset(data)
     seen = set(predictor.info.get("train_scenes", [])) | set(predictor.info.get("val_scenes", []))
     held = [i for i, (shard, _) in enumerate(dataset.snapshots) if dataset.metas[shard]["scene"] not in seen]
