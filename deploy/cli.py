@@ -81,10 +81,10 @@ def run_predict(args) -> int:
     """``frontiernet predict``; refuses, before anything is written, a ``--depth-scale`` the depth is not
     read with (another ``--depth-encoding``, a depth model, no ``--depth``) and an encoding of no depth file."""
     from frontiernet.errors import InputError, cpu_count_option, positive_number
-    from frontiernet.io import check_output_folder, claim_output_folder, input_file
+    from frontiernet.io import check_output_files, check_output_folder, claim_output_folder, input_file
     from frontiernet.model.predictor import input_size
 
-    from .predict import depth_model_name, load_predict_config, predict_files
+    from .predict import OUTPUT_FILES, depth_model_name, load_predict_config, predict_files
 
     if args.size:  # (0 keeps the image as is)
         input_size(args.size, "--size (or 0: the image's own size)")
@@ -102,6 +102,9 @@ def run_predict(args) -> int:
     if args.threads is not None:
         cpu_count_option(args.threads, "--threads")
     check_output_folder(args.out, args.force)  # earlier outputs are replaced only with --force
+    check_output_files(args.out, OUTPUT_FILES, [(args.image, "the image (--image)"), (args.model, "the model file"),
+                                                (None if depth_model else args.depth, "the depth file (--depth)"),
+                                                (args.config, "the config file")])
     for path, what in ((args.image, "image"), (args.model, "model file"),
                        (None if depth_model else args.depth, "depth file")):
         if path is not None:  # before the model loads

@@ -34,6 +34,8 @@ MIN_IMAGE_PX = ENCODER_STRIDE
 """The smallest image (pixels, its short side) predict takes, 32: the network's deepest features have a cell per
 32 x 32 px (the encoder's stride), so a smaller image holds not one of them at its own size, and resized to the
 network's input (320 px) all its detail is invented (a 1 x 1 px image was upscaled 320 times and run)."""
+OUTPUT_FILES = ("overlay.png", "distance.png", "input.png", "outputs.npz", "frontiers.json")
+"""The files ``frontiernet predict`` writes in its folder (:func:`predict_files`; frontiers.json with intrinsics)."""
 
 
 def check_image_size(array: np.ndarray, path) -> None:

@@ -190,11 +190,12 @@ def check_output_file(path: str | Path, force: bool = True, *, writable: str | N
     return path
 
 
-def check_not_an_input(path, inputs, option: str) -> None:
+def check_not_an_input(path, inputs, option: str, choose: str = "another file") -> None:
     """InputError when output file `path` (of `option`, ``--json``) is one of a command's inputs, or an existing file
     inside one of its input folders: `inputs` holds (path, what it is: ``the dataset (--data)``) pairs, None paths
     skipped. Whatever ``--force`` says, the results are never written over what the command reads (``evaluate --json
-    ds/dataset.json`` replaced the description of the dataset it had just evaluated, which no command read again)."""
+    ds/dataset.json`` replaced the description of the dataset it had just evaluated, which no command read again).
+    `choose`: what the message advises instead (``another --out`` for a file of an output folder)."""
     target = Path(path)
     if not target.is_file():
         return  # (a new file, even inside an input folder, replaces nothing; a folder is refused as no file)
@@ -206,7 +207,7 @@ def check_not_an_input(path, inputs, option: str) -> None:
         if inside or os.path.samefile(target, source):
             where = f"a file of {what} {given}" if inside else f"{what} {given}"
             raise InputError(f"{option} {path}: is {where}, which this command reads; writing its results there "
-                             "would destroy it: choose another file")
+                             f"would destroy it: choose {choose}")
 
 
 def check_output_folder(path: str | Path, force: bool = False) -> Path:
@@ -230,17 +231,20 @@ def check_output_folder(path: str | Path, force: bool = False) -> Path:
     return path
 
 
-def check_output_files(folder: str | Path, names) -> None:
+def check_output_files(folder: str | Path, names, inputs=()) -> None:
     """Before the work: InputError when something other than a regular file stands where one of the files
     `names` that a run writes in output folder `folder` goes (a folder named ``metrics.json``: the run was
     refused after its work, when it wrote its results; a symbolic link to nothing, which the file written
-    would replace: :func:`check_not_dangling`)."""
+    would replace: :func:`check_not_dangling`), or when one of them is one of the run's `inputs` ((path, what)
+    pairs: :func:`check_not_an_input`; ``render 'floorplan:rp/rgb.png' --out rp --force`` replaced the plan it
+    rendered by the picture, ``predict --image pp/input.png --out pp --force`` the photo by its resized copy)."""
     for name in names:
         path = Path(folder) / name
         check_not_dangling(path)
         if path.is_dir():
             raise InputError(f"{path}: a folder is where the run writes its {name}; remove it, or choose another --out")
         _check_regular(path)
+        check_not_an_input(path, inputs, "--out", "another --out")
 
 
 LOCK_NAME = ".frontiernet.lock"

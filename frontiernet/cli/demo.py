@@ -30,7 +30,7 @@ def run(args) -> int:
     from .explore import summary_line
 
     check_output_folder(args.out, force=True)  # the demo writes over its own outputs (make demo)
-    check_output_files(args.out, RUN_OUTPUTS)
+    check_output_files(args.out, RUN_OUTPUTS, [(args.config, "the config file")])
     options.refuse_contradictions(args.overrides, {"run.max_steps": (f"--max-steps {args.max_steps}", args.max_steps),
                                                    "scene": (f"--scene {args.scene}", args.scene)})
     conf = load_run_config(args.config, args.overrides, names=("explore", "demo"))

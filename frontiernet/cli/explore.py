@@ -104,9 +104,11 @@ def refuse_pitch_contradiction(start, overrides) -> None:
 def run(args) -> int:
     from ..exploration.run import RUN_OUTPUTS, check_run, load_run_config, main
     from ..io import check_output_files, check_output_folder, claim_output_folder
+    from ..scenes.spec import scene_file
 
     check_output_folder(args.out, args.force)
-    check_output_files(args.out, RUN_OUTPUTS)
+    check_output_files(args.out, RUN_OUTPUTS, [(scene_file(args.scene), "the scene"), (args.model, "the model file"),
+                                                (args.config, "the config file")])
     options.refuse_contradictions(args.overrides, {
         "planner.mode": ("--map-free", "map_free" if args.map_free else None),
         "run.seed": (f"--seed {args.seed}", args.seed), "run.max_steps": (f"--max-steps {args.max_steps}", args.max_steps),

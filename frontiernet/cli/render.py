@@ -23,11 +23,18 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+RENDER_OUTPUTS = ("rgb.png", "depth.npy", "depth.png", "normals.png", "camera.json")
+"""The files ``frontiernet render`` writes in its folder."""
+
+
 def run(args) -> int:
-    from ..io import check_output_folder, claim_output_folder, colorize_depth, write_image, write_json, write_npy
+    from ..io import (check_output_files, check_output_folder, claim_output_folder, colorize_depth, write_image,
+                      write_json, write_npy)
+    from ..scenes.spec import scene_file
     from ..simulator.world import build_world, load_world_config
 
     check_output_folder(args.out, args.force)
+    check_output_files(args.out, RENDER_OUTPUTS, [(scene_file(args.spec), "the scene"), (args.config, "the config file")])
     x, y, z, yaw, pitch = parse_pose_text(args.pose)
     conf = load_world_config(args.config)
     world = build_world(args.spec, conf, conf.scenes, voxels=not args.no_check)

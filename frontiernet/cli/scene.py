@@ -85,11 +85,14 @@ columns explorable only above or below it."""
 
 
 def run_topdown(args) -> int:
-    from ..io import check_image_name, check_output_file, check_output_folder, ensure_dir, write_image
+    from ..io import check_image_name, check_not_an_input, check_output_file, check_output_folder, ensure_dir, write_image
+    from ..scenes.spec import scene_file
     from ..simulator.preview import check_view_settings, topdown_image
     from ..simulator.world import build_world, load_world_config
 
     check_output_file(args.out, args.force)  # before the work: a bad --out or setting fails at once, no folder
+    check_not_an_input(args.out, [(scene_file(args.spec), "the scene"), (args.config, "the config file")], "--out",
+                       "another --out")  # (--force wrote a floor plan's top view over the plan)
     check_image_name(args.out)
     check_output_folder(Path(args.out).parent, force=True)
     check_view_settings(args.pixel_size, args.cut_height)

@@ -207,6 +207,13 @@ def _plain_seed(text: str) -> bool:
     return bool(re.fullmatch(r"[0-9]+", text))
 
 
+def scene_file(text: str) -> str | None:
+    """The file or folder scene spec `text` reads (None: a procedural scene, made from its seed), for the checks
+    that keep a command's outputs off its inputs (:func:`~frontiernet.io.check_not_an_input`)."""
+    spec = parse_spec(text)
+    return None if spec.source == "procedural" else spec.argument
+
+
 def checked_spec(text: str) -> SceneSpec:
     """:func:`parse_spec` of `text` and, before any scene is loaded, its seed (:func:`procedural_seed`) or its file
     or folder: InputError ``<spec>: no such scene file or folder`` (for commands that load scenes one by one

@@ -214,7 +214,8 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
     check_outputs(conf)
     check_network(conf.network)
     check_depth(depth, conf)
-    check_run_outputs(out, video=video, mcap=mcap, rosbag2=rosbag2)  # what stands where the run writes
+    check_run_outputs(out, video=video, mcap=mcap, rosbag2=rosbag2,  # what stands where the run writes
+                      inputs=[(input_path, "the sequence (--input)"), (model, "the model file")])
     out = Path(out)
     made = [path for path in (*(out / name for name in WORK_FOLDERS), out) if not path.exists()]
     try:

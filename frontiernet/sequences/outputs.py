@@ -21,17 +21,19 @@ VIDEO = "overlay.mp4"
 """The video a run writes, unless ``--no-video`` (through :class:`~frontiernet.exploration.outputs.VideoWriter`)."""
 
 
-def check_run_outputs(out: str | Path, *, video: bool = True, mcap: bool = True, rosbag2: bool = False) -> None:
+def check_run_outputs(out: str | Path, *, video: bool = True, mcap: bool = True, rosbag2: bool = False,
+                      inputs=()) -> None:
     """Before the first frame: InputError naming the first path a run writes in `out` where something of
     the wrong kind stands (a folder at ``overlay.mp4``, a file at ``rosbag2``, a pipe at ``map.ply``: each was
     refused, or an internal error, only after the whole run, its scratch left behind):
     :data:`RUN_OUTPUTS`, the :data:`VIDEO` (with `video`), ``frontiers.mcap`` (with `mcap`), ``rosbag2/`` (with
     `rosbag2`) and their scratch (:func:`~frontiernet.io.check_output_files`,
-    :func:`~.ros_out.check_ros_outputs`)."""
+    :func:`~.ros_out.check_ros_outputs`); or where one of the run's `inputs` ((path, what) pairs) is."""
     from ..exploration.outputs import VideoWriter
     from .ros_out import check_ros_outputs
 
-    check_output_files(out, (*RUN_OUTPUTS, *((VIDEO, VideoWriter.scratch(Path(VIDEO)).name) if video else ())))
+    check_output_files(out, (*RUN_OUTPUTS, *((VIDEO, VideoWriter.scratch(Path(VIDEO)).name) if video else ())),
+                       inputs)
     check_ros_outputs(Path(out), mcap=mcap, rosbag2=rosbag2)
 
 
