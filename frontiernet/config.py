@@ -101,6 +101,9 @@ def _read_yaml(path: Path) -> DictConfig:
         raise InputError(f"{path}: not a readable YAML config: {decode_problem(error)}") from None
     try:
         root = yaml.compose(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        if root is None:  # (a config saved empty, or the wrong file, ran as if no --config were given)
+            said = "is an empty file (0 bytes)" if not text else "holds no settings (blank lines and comments only)"
+            raise InputError(f"{path}: {said}; a config is a YAML mapping of settings (key: value lines)")
         check_yaml_mapping(root, path)
         _check_no_base_60(root, path)
         conf = OmegaConf.load(path)

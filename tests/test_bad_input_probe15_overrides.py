@@ -87,3 +87,35 @@ def test_a_training_time_limit_is_the_text_typed():
     check_max_time("1:00:00:00")  # one day, as typed (YAML had made it 216000)
     with pytest.raises(Exception, match=r"got '1:00'"):
         check_max_time("1:00")
+
+
+# ----------------------------------------------------------------------------- Q16: empty config files
+
+@pytest.mark.parametrize("text, said", [("", "is an empty file (0 bytes)"),
+                                        ("# only a comment\n\n", "holds no settings (blank lines and comments only)")])
+def test_an_empty_or_comment_only_config_is_refused(text, said, tmp_path, one_line_error):
+    config = tmp_path / "c.yaml"
+    config.write_text(text)
+    out = tmp_path / "o"
+    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--config", str(config), "--out", str(out)]) == 2
+    assert one_line_error().endswith(f"{config}: {said}; a config is a YAML mapping of settings (key: value lines)")
+    assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- Q13: an option given twice
+
+def test_a_single_option_given_twice_is_refused_and_a_list_option_takes_both(tmp_path, one_line_error):
+    out = tmp_path / "ex"
+    for args, message in ((["explore", "--scene", "procedural:3", "--scene", "procedural:4", "--max-steps", "2",
+                            "--no-video", "--out", str(out)], "--scene given twice (procedural:3, then procedural:4)"),
+                          (["export", "--format", "onnx", "--format", "torchscript", "--out", str(tmp_path / "m.pt")],
+                           "--format given twice (onnx, then torchscript)")):
+        with pytest.raises(SystemExit) as stop:  # (a usage error: argparse's exit)
+            main(args)
+        assert stop.value.code == 2 and one_line_error().endswith(f"{message}: give one")
+    assert not out.exists()
+    from frontiernet.cli.main import build_parser
+
+    args = build_parser().parse_args(["bench", "--scenes", "procedural:3", "procedural:5", "--scenes", "procedural:4",
+                                      "--out", str(tmp_path / "b")])
+    assert args.scenes == ["procedural:3", "procedural:5", "procedural:4"]  # (was procedural:4 alone)

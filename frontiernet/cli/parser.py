@@ -20,6 +20,23 @@ def one_line(text: str) -> str:
                    for char in text)
 
 
+class _StoreOnce(argparse._StoreAction):
+    """argparse's store, for an option given more than once: a second value is refused (argparse kept the last and
+    dropped the first without a word: ``explore --scene procedural:3 --scene procedural:4`` explored 4), and a list
+    option (``nargs`` ``+`` or ``*``: ``--scenes``) takes the values of every one, as ``--set`` does (``bench
+    --scenes A --scenes B`` ran B alone). Options with an action of their own (flags, ``--config``) keep it."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        given = namespace.__dict__.setdefault("_options_given", {})
+        if self.dest in given:
+            if self.nargs in ("+", "*"):
+                values = [*getattr(namespace, self.dest), *values]
+            else:
+                parser.error(f"{option_string} given twice ({given[self.dest]}, then {values}): give one")
+        given[self.dest] = values
+        setattr(namespace, self.dest, values)
+
+
 class Parser(argparse.ArgumentParser):
     """argparse, but usage errors are one line with exit code 2 (argparse's own code), and an
     argument that starts with '-' and a digit is a value, never an option: ``--pose -4.5,-0.5,1.2,0``,
@@ -33,6 +50,8 @@ class Parser(argparse.ArgumentParser):
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = NEGATIVE_NUMBER
+        for name in (None, "store"):  # (the default action: groups share the registry)
+            self.register("action", name, _StoreOnce)
 
     def error(self, message: str):  # noqa: D401
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
