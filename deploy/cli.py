@@ -77,6 +77,22 @@ def run_export(args) -> int:
     return 0
 
 
+def _overrides_not_read(overrides, *, intrinsics: bool, depth_model: str | None) -> str | None:
+    """What is wrong with ``key=value`` `overrides` that this ``predict`` would not read (None: each is read): an
+    ``anchoring.*`` key without ``--intrinsics`` (only the 3D frontiers anchor), a ``depth.<model>.*`` key of a
+    model that does not run (a depth file given, or another model). Both ran without a word, as if they had acted."""
+    for item in overrides:
+        key = item.split("=", 1)[0].strip()
+        if key.startswith("anchoring.") and not intrinsics:
+            return (f"{item}: anchoring makes the 3D frontiers of --intrinsics, and none is given: give --intrinsics, "
+                    "or leave it out")
+        model = key.split(".")[1] if key.startswith("depth.") and key.count(".") >= 2 else None
+        if model is not None and model != depth_model:
+            runs = f"--depth {depth_model} runs" if depth_model else "no depth model runs (--depth gives a file, or none)"
+            return f"{item}: a setting of the depth model {model}, and {runs}: leave it out"
+    return None
+
+
 def run_predict(args) -> int:
     """``frontiernet predict``; refuses, before anything is written, a ``--depth-scale`` the depth is not
     read with (another ``--depth-encoding``, a depth model, no ``--depth``) and an encoding of no depth file."""
@@ -109,6 +125,9 @@ def run_predict(args) -> int:
                        (None if depth_model else args.depth, "depth file")):
         if path is not None:  # before the model loads
             input_file(path, what)
+    unread = _overrides_not_read(args.overrides, intrinsics=bool(args.intrinsics), depth_model=depth_model)
+    if unread:
+        raise InputError(unread)
     conf = load_predict_config(args.config, args.overrides)
     intrinsics = None
     if args.intrinsics:

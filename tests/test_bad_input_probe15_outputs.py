@@ -71,3 +71,21 @@ def test_explore_into_the_folder_of_its_config_named_config_yaml_is_refused(tmp_
                              "classic", "--config", str(config), "--out", str(folder), "--force"], one_line_error,
                     f"--out {config}: is the config file {config}, which this command reads; writing its results "
                     "there would destroy it: choose another --out")
+
+
+@pytest.mark.parametrize("override, message", [
+    ("anchoring.hdbscan.min_cluster_size=30", "anchoring.hdbscan.min_cluster_size=30: anchoring makes the 3D frontiers "
+                                              "of --intrinsics, and none is given: give --intrinsics, or leave it out"),
+    ("depth.depth_anything_v2.path=/nonexistent", "depth.depth_anything_v2.path=/nonexistent: a setting of the depth "
+                                                  "model depth_anything_v2, and no depth model runs (--depth gives a "
+                                                  "file, or none): leave it out"),
+])
+def test_predict_refuses_an_override_it_would_not_read(override, message, tmp_path, one_line_error):
+    # Q15: both ran, the override never read, nothing recorded
+    rendered = tmp_path / "in"
+    assert main(["render", "procedural:3", "--pose", "3,3,1.2,0", "--out", str(rendered)]) == 0
+    out = tmp_path / "p"
+    assert main(["predict", "--image", str(rendered / "rgb.png"), "--depth", str(rendered / "depth.npy"), "--out",
+                 str(out), override]) == 2
+    assert one_line_error().endswith(message)
+    assert not out.exists()

@@ -5,6 +5,7 @@ counted twice (Q3). Each refusal: one line on stderr naming the value, exit code
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from frontiernet.cli.main import main
@@ -48,3 +49,18 @@ def test_datagen_and_mapgen_refuse_a_second_spelling_before_any_view(command, tm
     assert main([command[0], "--scenes", "procedural:3", "procedural:+3", *command[1:], "--out", str(out)]) == 2
     assert "scene spec 'procedural:+3': procedural seed must be an integer" in one_line_error()
     assert not out.exists()
+
+
+def test_a_resolution_given_to_a_kth_plan_folder_is_refused(tmp_path, one_line_error):
+    # Q14: ?resolution=0.5 on a 0.05 m/pixel plan folder made a 427 x 325 m building: minutes and 6.6 GB to load
+    folder = tmp_path / "plan"
+    folder.mkdir()
+    plan = np.full((60, 80), 255, np.uint8)
+    plan[:3], plan[-3:], plan[:, :3], plan[:, -3:] = 0, 0, 0, 0
+    np.save(folder / "occ_map.npy", plan)
+    spec = f"floorplan:{folder}?resolution=0.5"
+    assert main(["scene", "info", spec]) == 2
+    assert one_line_error().endswith(f"scene spec '{spec}': ?resolution= scales an image floor plan; a KTH / MapEx "
+                                     "plan folder is 0.05 m/pixel (scenes.floorplan.kth_resolution): leave resolution "
+                                     "out, or set kth_resolution for plans of another scale")
+    assert main(["scene", "info", f"floorplan:{folder}"]) == 0

@@ -336,6 +336,11 @@ def _hm3d(spec, options):
 def _floorplan(spec, options):
     from .floorplan import load_floorplan
 
+    if "resolution" in spec.options and Path(spec.argument).is_dir():  # (10x made a 427 m plan, minutes and 6.6 GB)
+        raise InputError(f"scene spec '{spec.text}': ?resolution= scales an image floor plan; a KTH / MapEx plan "
+                         f"folder is {float(options.kth_resolution):g} m/pixel (scenes.floorplan.kth_resolution): "
+                         "leave resolution out, or set kth_resolution for plans of another scale")
+
     return load_floorplan(spec.argument, spec.text, options)
 
 
