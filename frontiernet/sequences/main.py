@@ -31,7 +31,7 @@ from .gravity import gravity_alignment
 from .outputs import VIDEO, check_run_outputs, write_arrows, write_frontiers
 from .perceive import perceive_frames
 from .stream import FrontierStream, load_sequence_config
-from .tracking import track_frontiers
+from .tracking import check_map_extent, track_frontiers
 
 
 def check_frames(stride, max_frames) -> tuple[int, int | None]:
@@ -203,7 +203,9 @@ def main(conf, input_path: str | Path, out: str | Path, *, format: str = "auto",
         recording: a recording's ``topics`` and ``intrinsics`` (:func:`~.rosbag.read_rosbag`).
         mcap, rosbag2: write ``frontiers.mcap`` and the ``rosbag2/`` folder (:mod:`.ros_out`).
     The frames, the outputs (:func:`check_outputs`), ``network.size``, the depth, `out` and the paths the run
-    writes there (:func:`~.outputs.check_run_outputs`) are checked before any work; a run refused after (an
+    writes there (:func:`~.outputs.check_run_outputs`) are checked before any work, the map's extent over the
+    frames' poses (:func:`~.tracking.check_map_extent`) before any frame is perceived (an up-to-scale sequence's
+    once pass 1 gave its scale); a run refused after (an
     :class:`InputError`: a recording without depth, a reconstruction that fails, ...) removes the `out` folder
     if it made it, else the work folders it made there (``cache``, ``recording``, ``colmap``), while an
     interrupted run keeps them to resume; a second run on `out` while this one writes there is refused
@@ -247,12 +249,17 @@ def _run(conf, input_path, out: Path, *, format, depth, model, camera, video, pr
         raise InputError(f"{input_path}: the frames have no poses (use --format images to reconstruct them)")
     if depth == "sensor" and not sequence.has_depth:
         raise InputError(no_depth_message(sequence, format, input_path))
+    if sequence.metric:  # every pose known in metres: the map's extent is checked before any frame is perceived
+        poses = sequence.poses()
+        check_map_extent(sequence, gravity_alignment(poses, str(conf.gravity)) @ poses, conf, input_path)
     stream = FrontierStream(conf=conf, model=model, depth=depth)
     cache_paths = perceive_frames(sequence, stream, out / "cache", model_identity(model), progress)
     perceived = time.perf_counter()
     poses, scale, notes = metric_poses(sequence, cache_paths, conf)
     T_aligned_input = gravity_alignment(poses, str(conf.gravity))
     poses = T_aligned_input @ poses
+    if not sequence.metric:  # up to scale until pass 1's depth gave the scale
+        check_map_extent(sequence, poses, conf, f"{input_path} (poses x {scale:.4g} to metres)")
     # the ROS outputs' frames and stamps (frames without stamps 1 / outputs.video_fps apart)
     stream.ros_frames = output_frames(sequence, T_aligned_input, scale, 1.0 / float(conf.outputs.video_fps))
     writer = None

@@ -21,7 +21,7 @@ from PIL import Image, UnidentifiedImageError
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
-from ..geometry import quaternion_rotations, rigid_pose
+from ..geometry import MAX_COORDINATE_M, quaternion_rotations, rigid_pose
 from ..array_files import read_npy
 from ..io import input_file, input_folder, present
 from .frames import Camera, Sequence, SequenceFrame
@@ -132,6 +132,18 @@ def _floats(path: Path, number: int, fields: list[str]) -> list[float]:
     return values
 
 
+def check_positions(positions: np.ndarray, places: list[str]) -> None:
+    """InputError naming the place (``file:line``) of the first of the (N, 3) camera `positions` (metres) farther than
+    :data:`~frontiernet.geometry.MAX_COORDINATE_M` from the origin on an axis (the bound of a typed ``--pose``), as
+    the trajectory is read: a pose 1e6 m off made a map of 368 GiB, a MemoryError once every frame was perceived,
+    and 1e30 m a voxel count that overflowed (a numpy warning, then "map shape must be 3 positive voxel counts")."""
+    far = np.flatnonzero(np.abs(positions).max(axis=1, initial=0.0) > MAX_COORDINATE_M)
+    if len(far):
+        x, y, z = positions[far[0]]
+        raise InputError(f"{places[far[0]]}: position ({x:g}, {y:g}, {z:g}) m lies farther than {MAX_COORDINATE_M:g} m "
+                         "from the origin (no captured sequence spans that far; check the units are metres)")
+
+
 # ----------------------------------------------------------------------------- TUM RGB-D
 
 def _read_tum_list(path: Path, what: str) -> tuple[np.ndarray, list[str]]:
@@ -147,11 +159,13 @@ def _read_tum_list(path: Path, what: str) -> tuple[np.ndarray, list[str]]:
 
 def _read_tum_groundtruth(path: Path) -> tuple[np.ndarray, np.ndarray, Rotation]:
     """(timestamps (N,) s, translations (N, 3) m, rotations) of a ``groundtruth.txt``, sorted by
-    time with repeated timestamps dropped; poses are camera-to-world."""
+    time with repeated timestamps dropped; poses are camera-to-world. InputError naming the line of a position
+    too far off (:func:`check_positions`)."""
     rows = _number_rows(path, 8, "TUM ground truth")
     if not rows:
         raise InputError(f"{path}: no poses (lines 'timestamp tx ty tz qx qy qz qw' expected)")
     values = np.array([_floats(path, number, fields[:8]) for number, fields in rows])
+    check_positions(values[:, 1:4], [f"{path}:{number}" for number, _ in rows])
     times, unique = np.unique(values[:, 0], return_index=True)
     values = values[unique]
     return times, values[:, 1:4], quaternion_rotations(values[:, 4:8], str(path))  # scipy's are (x, y, z, w) too
@@ -244,8 +258,9 @@ def read_redwood_log(path: Path) -> np.ndarray:
     frame's index (Redwood's and Open3D's ``metadata``: 0 is the first image by name), so entries may come in
     any order, each frame's pose is the entry of its index; the indices must be 0 to N - 1, each once. InputError
     naming the line if malformed, a frame index listed twice, one missing (frames after it would take other
-    frames' poses) or a matrix that is not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`), or
-    naming the file when it is no regular file (a pipe: a read waits forever)."""
+    frames' poses), a matrix that is not a rigid transform (:func:`~frontiernet.geometry.rigid_pose`) or one whose
+    translation lies too far off (:func:`check_positions`), or naming the file when it is no regular file (a pipe:
+    a read waits forever)."""
     input_file(path, "Redwood trajectory")
     text = path.read_text("utf-8-sig", errors="replace")  # (a byte-order mark: _number_rows)
     lines = [(number, line.split()) for number, line in enumerate(text.splitlines(), 1) if line.strip()]
@@ -280,6 +295,9 @@ def read_redwood_log(path: Path) -> np.ndarray:
         raise InputError(f"{path}:{lines[5 * bad[0] + 4][0]}: the matrix's last row must be 0 0 0 1")
     for index, entry in enumerate(order):  # a scaled or sheared matrix: named here, not by the map
         rigid_pose(matrices[entry], f"{path}:{lines[5 * entry + 1][0]}: the pose of frame {index}")
+    translations = matrices[:, :3, 3]  # named at the matrix row holding the farthest coordinate
+    check_positions(translations, [f"{path}:{lines[5 * entry + 1 + int(np.argmax(np.abs(translation)))][0]}"
+                                   for entry, translation in enumerate(translations)])
     return matrices[order]
 
 

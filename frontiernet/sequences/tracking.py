@@ -9,10 +9,12 @@ pose). Poses are gravity-aligned and scaled to metres first (:mod:`.gravity`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from ..frontiers import FrontierTracker
 from ..mapping import OccupancyMap
 from ..timing import Stopwatch
@@ -55,6 +57,34 @@ def seen_bounds(sequence, poses: np.ndarray, cache_paths, max_range_m: float, st
         points.append(back_projected_points(depth, None, frame.camera.K, T, max_range_m, stride_px)[0])
     points = np.concatenate(points)
     return np.stack([points.min(0), points.max(0)])
+
+
+MAP_BYTES_PER_VOXEL = 5  # (float32 log-odds and an observed flag)
+
+
+def check_map_extent(sequence, poses: np.ndarray, conf, where) -> None:
+    """InputError naming `where` (the sequence), the span of the frames' camera positions and the two frames
+    farthest apart on its longest axis, when the box of those positions (`poses`: (N, 4, 4) aligned, metric
+    ``T_world_cam``) widened by ``bounds_margin_m`` a side holds more than ``max_map_voxels`` of
+    ``map.voxel_size``. That box is the least the map of :func:`track_frontiers` spans (it covers what the frames
+    see too), so this needs no frame: ``sequence`` checks it as soon as the poses are metric, before the frames are
+    perceived when the reader's are. A trajectory with a camera 1e6 m off asked for 368 GiB once every frame was
+    perceived (a MemoryError), and 1e30 m overflowed the voxel count."""
+    positions = np.asarray(poses, np.float64)[:, :3, 3]
+    span = positions.max(axis=0) - positions.min(axis=0)
+    margin, voxel = float(conf.bounds_margin_m), float(conf.map.voxel_size)
+    count = math.prod(float(n) for n in np.maximum(np.ceil((span + 2 * margin) / voxel - 1e-9), 1))
+    most = int(conf.max_map_voxels)
+    if count <= most:  # (inf is not)
+        return
+    axis = int(np.argmax(span))
+    first, last = (sequence.frames[int(index)].name for index in (positions[:, axis].argmin(),
+                                                                    positions[:, axis].argmax()))
+    raise InputError(f"{where}: the frames' camera positions span {' x '.join(f'{v:.4g}' for v in span)} m "
+                     f"(gravity-aligned; frame {first} to frame {last} on {'xyz'[axis]}): a map over them, widened by "
+                     f"bounds_margin_m {margin:g} m a side, holds {count:.3g} voxels of map.voxel_size {voxel:g} m "
+                     f"({count * MAP_BYTES_PER_VOXEL / 2 ** 30:.3g} GiB), more than the {most:,} of max_map_voxels; check "
+                     "the poses (metres), or set a larger map.voxel_size")
 
 
 def track_frontiers(sequence, poses: np.ndarray, cache_paths, stream, on_frame=None, progress: bool = True,
