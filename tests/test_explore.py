@@ -345,8 +345,12 @@ def test_map_free_mode_explores(plan_spec, tmp_path):
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(plan_spec, tmp_path, extra, message):
     (tmp_path / "corrupt.safetensors").write_bytes(b"\x08\x00\x00\x00\x00\x00\x00\x00{broken}" + bytes(64))
     out = tmp_path / "out"
-    # a later --method / --max-steps overrides the oracle run's
-    args = explore_args(plan_spec, out, 5, "--no-video") + [e.format(tmp=tmp_path) for e in extra]
+    # --method / --max-steps in `extra` replace the oracle run's (an option given twice is refused: probe 15's Q13)
+    base = explore_args(plan_spec, out, 5, "--no-video")
+    for flag in {"--method", "--max-steps"} & set(extra):
+        at = base.index(flag)
+        del base[at:at + 2]
+    args = base + [e.format(tmp=tmp_path) for e in extra]
     code, _, stderr = run_cli(args)
     assert code == 2
     assert message in stderr and stderr.count("\n") == 1 and "Traceback" not in stderr
