@@ -21,7 +21,8 @@ LOSS_WEIGHTS = ("distance_weight", "ce_weight", "dice_weight")
 def load_train_config(user_file: str | Path | None = None, overrides: Iterable[str] = ()) -> DictConfig:
     """The resolved training config (see ``configs/train.yaml``). InputError naming the key: no
     ``data.path``; a bad loss option, or every loss weight 0 (:data:`LOSS_WEIGHTS`); a
-    ``data.val_scenes`` that is not a list (or null)."""
+    ``data.val_scenes`` that is not a list (or null), or an empty one (:func:`check_scene_list`: its seed ranges
+    expanded)."""
     conf = merge_user(OmegaConf.merge({"model": load_config("model")}, load_config("train")), user_file, overrides,
                       layout={"model": "model", "": "train"})
     if not conf.data.path:
@@ -32,17 +33,29 @@ def load_train_config(user_file: str | Path | None = None, overrides: Iterable[s
     if not any(loss[key] > 0 for key in LOSS_WEIGHTS):
         raise InputError(f"{', '.join('loss.' + key for key in LOSS_WEIGHTS)}: all 0, so the loss is 0 and nothing "
                          f"trains; give at least one a weight > 0")
-    check_scene_list(conf.data.val_scenes, "data.val_scenes")
+    conf.data.val_scenes = check_scene_list(conf.data.val_scenes, "data.val_scenes")
     return conf
 
 
-def check_scene_list(value, key: str) -> None:
-    """Refuse a `key` (e.g. ``data.val_scenes``) that is neither null nor a list of scene specs: a single
-    spec given as text would be read as a list of its characters (as a list key whose default is a list,
-    e.g. ``freeze``, refuses text)."""
-    if value is not None and not isinstance(value, (ListConfig, list, tuple)):
+def check_scene_list(value, key: str) -> list[str] | None:
+    """The scene specs of `key` (e.g. ``data.val_scenes``) with procedural seed ranges expanded as ``evaluate
+    --scenes`` expands them (``procedural:11-12`` was "not a scene of the dataset"), None for null. Refused: neither
+    null nor a list (a single spec given as text would be read as a list of its characters, as a list key whose
+    default is a list, e.g. ``freeze``, refuses text), or an empty list (it fell back to the ``val_fraction`` split
+    in silence), or a malformed range."""
+    if value is None:
+        return None
+    if not isinstance(value, (ListConfig, list, tuple)):
         raise InputError(f"{key}: takes a list of scene specs (or null), got {value!r}; write one scene as a "
                          f"one-element list, e.g. '{key}=[{value}]'")
+    if not value:
+        raise InputError(f"{key} is an empty list: give scenes, or null for the val_fraction split")
+    from .evaluate import expand_scene_ranges
+
+    try:
+        return expand_scene_ranges([str(spec).strip() for spec in value])
+    except InputError as error:
+        raise InputError(f"{key}: {error}") from None
 
 
 def plain(conf) -> dict:

@@ -7,7 +7,8 @@ Outputs in ``<out>/<name>/``:
   ``checkpoint_every_n_epochs`` epochs, when training ends and on Ctrl-C) and ``checkpoints/best.ckpt`` (lowest validation loss): resume with
   ``--resume``;
 - ``metrics.csv``: losses per logging step, validation metrics per validation (a resumed run
-  moves the earlier rows to ``metrics-part1.csv``, ``metrics-part2.csv`` ...);
+  continues it; its rows as they stood at each resume are kept in ``metrics-part1.csv``, ``metrics-part2.csv`` ...:
+  :func:`~train.resume.continued_metrics`);
 - ``model.safetensors``: the best weights as a model file (``frontiernet predict --model``): the
   validated state with the lowest validation loss, the final weights always among them;
 - ``summary.json``: data, scenes, steps, time, hardware and the last validation metrics.
@@ -45,7 +46,8 @@ from .data import (FrontierDataModule, check_training_cache, gain_bins_mismatch,
                    worker_count)
 from .finetune import freeze, init_file, initial_weights, shared_base
 from .module import FiniteTraining, FrontierNetModule, TrainingDiverged, check_schedule
-from .resume import claimed_run_folder, resume_checkpoint, resumed_settings
+from .resume import (check_not_the_dataset, claimed_run_folder, continued_metrics, resume_checkpoint,
+                     resumed_settings)
 from .stopping import lightning_interrupts, run_folder  # (train.mapprediction's too)
 
 log = logging.getLogger(__name__)
@@ -130,9 +132,9 @@ def check_loop_settings(conf, train_samples: int) -> None:
 def check_settings(conf) -> None:
     """Before anything is read or written (:func:`main` calls it first): InputError naming the key of
     a setting that needs no data to be judged wrong: the run folder (``out``/``name``) a file or
-    under one; an epoch or step budget with no end (Lightning's -1 needs the other set); a crop or
-    image size outside [8, 2048] px; an augmentation probability outside [0, 1] or an amplitude
-    outside [0, 1); a crop larger than ``data.image_size`` (:func:`check_crop`); an
+    under one, or the dataset (``data.path``) or inside it; an epoch or step budget with no end (Lightning's
+    -1 needs the other set); a crop or image size outside [8, 2048] px; an augmentation probability outside
+    [0, 1] or an amplitude outside [0, 1); a crop larger than ``data.image_size`` (:func:`check_crop`); an
     ``optim.final_lr_fraction`` outside [0, 1]; threads or loader workers outside 0 (1) to 4 per core; a
     checkpoint period that is not positive; a ``trainer.max_time`` of no time (:func:`check_max_time`); a
     ``data.cache`` folder that cannot be made (:func:`~train.cache.check_cache_folder`)."""
@@ -150,6 +152,7 @@ def check_settings(conf) -> None:
         raise InputError(f"name: the run's folder name inside out= (no / or ..), got {conf.name!r}")
     check_seed(conf.seed, "seed")  # (Lightning's seed_everything raises past its range)
     check_output_folder(run_dir(conf), force=True)  # (a run resumes in it)
+    check_not_the_dataset(run_dir(conf), conf.data.path)  # (out=dsk name=shards trained among the dataset's shards)
     trainer, data, augment = conf.trainer, conf.data, conf.augment
     steps, epochs = trainer.max_steps, trainer.max_epochs
     if steps != -1:
@@ -279,7 +282,7 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     """
     check_settings(conf)
     out = run_dir(conf)
-    resume, hyper = resume_checkpoint(out, resume)
+    resume, hyper = resume_checkpoint(out, resume, trainer=conf.trainer)  # (one at max_steps already: refused)
     if resume is not None:
         resumed_settings(conf, hyper)
     init, init_labels = initial_weights(conf) if resume is None else (None, {})
@@ -340,25 +343,22 @@ def _fit(conf, out: Path, resume: str | None, init, base, datamodule, progress: 
     if base is not None:  # the frozen layers are meant to be in eval mode (their BatchNorm statistics kept)
         warnings.filterwarnings("ignore", message=r"Found \d+ module\(s\) in eval mode at the start of training")
     # every check passed: only now is anything written to the run folder
-    if resume is not None and (out / "metrics.csv").is_file():
-        # Lightning's CSV logger starts metrics.csv afresh: keep the rows of earlier sessions
-        part = 1 + len(list(out.glob("metrics-part*.csv")))
-        (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
     started = time.time()
-    with run_folder(out, trainer, made):
-        (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
-        trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code
-    with lightning_interrupts(trainer):  # a signal in the final validation ends the run as one in the fit
-        checkpoint = best.best_model_path or str(last)
-        if trainer.global_step > module.validated_at_step:
-            # Lightning skips the validation due at the last step when max_steps ends the run, so the
-            # final weights (often the best: the learning rate has decayed) would never be judged
-            final = trainer.validate(module, datamodule=datamodule, verbose=False)[0]
-            if best.best_model_score is None or final["val/loss"] < float(best.best_model_score):
-                checkpoint = str(last)
-        elapsed = time.time() - started
-        if trainer.is_global_zero:
-            _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
+    with continued_metrics(out, resume):  # (Lightning's CSV logger started metrics.csv afresh)
+        with run_folder(out, trainer, made):
+            (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
+            trainer.fit(module, datamodule=datamodule, ckpt_path=resume, weights_only=True)  # never runs pickled code
+        with lightning_interrupts(trainer):  # a signal in the final validation ends the run as one in the fit
+            checkpoint = best.best_model_path or str(last)
+            if trainer.global_step > module.validated_at_step:
+                # Lightning skips the validation due at the last step when max_steps ends the run, so the
+                # final weights (often the best: the learning rate has decayed) would never be judged
+                final = trainer.validate(module, datamodule=datamodule, verbose=False)[0]
+                if best.best_model_score is None or final["val/loss"] < float(best.best_model_score):
+                    checkpoint = str(last)
+            elapsed = time.time() - started
+            if trainer.is_global_zero:
+                _write_results(out, conf, trainer, datamodule, checkpoint, elapsed, resume)
     return out
 
 

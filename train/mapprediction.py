@@ -195,8 +195,7 @@ def open_map_training_data(conf):
     if refused:
         raise InputError(f"{conf.data.path}: holds {refused[0]}, a scene data.refuse_scenes keeps out of training "
                          f"(a benchmark test or development scene); make the training data without it")
-    check_scene_list(conf.data.val_scenes, "data.val_scenes")
-    val_scenes = list(conf.data.val_scenes) if conf.data.val_scenes else None
+    val_scenes = check_scene_list(conf.data.val_scenes, "data.val_scenes")
     train_scenes, val_scenes = split_scenes(dataset.scenes, val_scenes, float(conf.data.val_fraction), int(conf.seed))
     by_scene: dict[str, list[int]] = {}
     for index, (shard, _) in enumerate(dataset.snapshots):
@@ -216,11 +215,12 @@ def main(conf, resume: str | None = None, progress: bool = True) -> Path:
     """
     from .main import check_trainer, run_dir
     from .mapdata import make_samples
-    from .resume import claimed_run_folder, resume_checkpoint
+    from .resume import check_not_the_dataset, claimed_run_folder, resume_checkpoint
 
     check_trainer(conf.trainer)
     out = run_dir(conf)
-    resume = resume_checkpoint(out, resume, predictor_spec(conf))[0]  # (one of another kind: refused now)
+    check_not_the_dataset(out, conf.data.path)
+    resume = resume_checkpoint(out, resume, predictor_spec(conf), conf.trainer)[0]  # (of another kind: refused now)
     dataset, spec, train, val, train_scenes, val_scenes = open_map_training_data(conf)
     batch = int(conf.data.batch_size)
     train_set, val_set = make_samples(dataset, train, spec, conf, True), make_samples(dataset, val, spec, conf, False)
@@ -237,6 +237,7 @@ def _fit(conf, out: Path, resume, spec, samples, scenes, progress: bool, made) -
     from torch.utils.data import DataLoader
 
     from .main import LastCheckpoint, _trainer_args, lightning_interrupts, run_folder
+    from .resume import continued_metrics
 
     last = out / "checkpoints" / "last.ckpt"
     (train_set, val_set), (train_scenes, val_scenes) = samples, scenes
@@ -262,22 +263,20 @@ def _fit(conf, out: Path, resume, spec, samples, scenes, progress: bool, made) -
                             enable_model_summary=False, deterministic=False)
     except (ValueError, TypeError, ImportError) as error:
         raise InputError(f"trainer: {str(error).splitlines()[0]}") from None
-    if resume is not None and (out / "metrics.csv").is_file():
-        part = 1 + len(list(out.glob("metrics-part*.csv")))
-        (out / "metrics.csv").rename(out / f"metrics-part{part}.csv")
     workers = int(conf.data.num_workers)
     loaders = [DataLoader(samples, batch_size=batch, shuffle=shuffle, drop_last=shuffle, num_workers=workers,
                           persistent_workers=workers > 0) for samples, shuffle in ((train_set, True), (val_set, False))]
     started = time.time()
-    with run_folder(out, trainer, made):
-        (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
-        trainer.fit(module, *loaders, ckpt_path=resume, weights_only=True)
-    checkpoint = best.best_model_path or str(last)
-    if trainer.global_step > module.validated_at_step:
-        with lightning_interrupts(trainer):  # a signal here ends the run as one in the fit: exit 130, "interrupted"
-            final = trainer.validate(module, loaders[1], verbose=False)[0]
-        if best.best_model_score is None or final["val/miou"] > float(best.best_model_score):
-            checkpoint = str(last)  # LastCheckpoint saved the final weights when training ended
+    with continued_metrics(out, resume):  # (Lightning's CSV logger started metrics.csv afresh)
+        with run_folder(out, trainer, made):
+            (out / "config.yaml").write_text(OmegaConf.to_yaml(conf, resolve=True))
+            trainer.fit(module, *loaders, ckpt_path=resume, weights_only=True)
+        checkpoint = best.best_model_path or str(last)
+        if trainer.global_step > module.validated_at_step:
+            with lightning_interrupts(trainer):  # a signal here ends the run as one in the fit: exit 130, "interrupted"
+                final = trainer.validate(module, loaders[1], verbose=False)[0]
+            if best.best_model_score is None or final["val/miou"] > float(best.best_model_score):
+                checkpoint = str(last)  # LastCheckpoint saved the final weights when training ended
     metrics = {key: float(value) for key, value in trainer.callback_metrics.items() if value.numel() == 1}
     summary = {"dataset": str(Path(conf.data.path).resolve()), "kind": spec.kind, "members": spec.members,
                "parameters": parameter_count(module.net), "train_scenes": train_scenes, "val_scenes": val_scenes,

@@ -1,12 +1,17 @@
 """A training run's folder before its setup: the checkpoint it resumes from, checked to be one of the run's kind
-and architecture (:func:`resume_checkpoint`); a fresh run refused where an earlier run's outputs would be
-replaced (:func:`check_fresh_run`); and the folder locked for the run (:func:`claimed_run_folder`), so that a
-second training on it meanwhile is refused. Used by FrontierNet's training (:mod:`train.main`) and the map
-predictors' (:mod:`train.mapprediction`)."""
+and architecture, with steps (epochs) left to train (:func:`resume_checkpoint`); a fresh run refused where an earlier
+run's outputs would be replaced (:func:`check_fresh_run`), and a run folder that is (inside) the dataset it reads
+(:func:`check_not_the_dataset`); the folder locked for the run (:func:`claimed_run_folder`), so that a second
+training on it meanwhile is refused; and a resumed run's metrics.csv continuing the earlier sessions' rows
+(:func:`continued_metrics`). Used by FrontierNet's training (:mod:`train.main`) and the map predictors'
+(:mod:`train.mapprediction`)."""
 
 from __future__ import annotations
 
+import csv
 import os
+import re
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
@@ -22,9 +27,10 @@ RESUME_KEYS = ("pytorch-lightning_version", "state_dict", "optimizer_states", "l
                "hyper_parameters")
 """What Lightning reads from a checkpoint to resume a run (``frontiernet train`` writes them all; a
 weights-only save lacks the optimiser's and the loops' state)."""
-RUN_OUTPUTS = ("model.safetensors", "predictor.safetensors", "summary.json", "metrics.csv")
-"""The files a finished training run leaves in its folder (besides its checkpoints and ``metrics-part*.csv``):
-a fresh run there would replace them (:func:`check_fresh_run`)."""
+RUN_OUTPUTS = ("model.safetensors", "predictor.safetensors", "summary.json", "metrics.csv", "config.yaml",
+               "hparams.yaml")
+"""The files a training run writes in its folder (besides its checkpoints and ``metrics-part*.csv``): a fresh run
+there would replace them (:func:`check_fresh_run`; a config.yaml of the user's was replaced without a word)."""
 FRONTIERNET = "a FrontierNet model"
 """What a FrontierNet training trains, as the messages say it (a map predictor's: ``a seer map predictor``)."""
 
@@ -65,13 +71,31 @@ def _check_predictor(path: str, hyper: dict, state: dict, spec) -> None:
                          "(a damaged or edited checkpoint)")
 
 
-def check_checkpoint(path: str, spec=None) -> dict:
+def _check_steps_left(path: str, state: dict, trainer) -> None:
+    """InputError naming the ``trainer.max_steps`` (``max_epochs``) that checkpoint `path` (its loaded `state`) has
+    reached already, as Lightning's fit loop judges it (its global step; its epochs processed): the resumed run
+    trained nothing, said "trained 6 steps", and wrote its model, summary and metrics.csv anew."""
+    steps, epochs = trainer.max_steps, trainer.max_epochs
+    step = state.get("global_step")
+    if isinstance(step, int) and steps != -1 and step >= steps:
+        raise InputError(f"trainer.max_steps={steps}: the checkpoint {path} is at step {step} already; give more "
+                         "steps to continue it")
+    loops = state.get("loops") if isinstance(state.get("loops"), dict) else {}
+    done = ((loops.get("fit_loop") or {}).get("epoch_progress") or {}).get("current", {}).get("processed")
+    if isinstance(done, int) and epochs is not None and epochs != -1 and done >= epochs:
+        raise InputError(f"trainer.max_epochs={epochs}: the checkpoint {path} is at epoch {done} already; give "
+                         "more epochs to continue it")
+
+
+def check_checkpoint(path: str, spec=None, trainer=None) -> dict:
     """The hyperparameters of a checkpoint to resume from, which must load as one (plain data only: no
     code runs; memory-mapped, so a second look costs little). Refused, naming the file: a file that is no
     torch checkpoint, one without the state Lightning resumes from (:data:`RESUME_KEYS`), one of another kind
     than the run's (`spec`: the :class:`PredictorSpec` a map predictor's run trains, None for a FrontierNet
     training), of another architecture (a map predictor's: a FrontierNet run takes its network from the
-    checkpoint), or weights that do not fit the network it declares (:func:`load_model`) or are not all finite."""
+    checkpoint), or weights that do not fit the network it declares (:func:`load_model`) or are not all finite,
+    or (`trainer`: the run's ``trainer`` settings) one at the run's step or epoch budget already
+    (:func:`_check_steps_left`)."""
     state = load_checkpoint(path, "training checkpoint", mmap=True)
     if not isinstance(state, dict) or "state_dict" not in state:
         raise InputError(f"{path}: not a training checkpoint (no state_dict)")
@@ -90,6 +114,8 @@ def check_checkpoint(path: str, spec=None) -> dict:
     else:
         _check_predictor(path, hyper, state["state_dict"], spec)
         check_finite(state["state_dict"], path)
+    if trainer is not None:
+        _check_steps_left(path, state, trainer)
     return hyper
 
 
@@ -108,11 +134,15 @@ def resumed_settings(conf, hyper: dict) -> None:
 
 def earlier_outputs(out: Path) -> list[str]:
     """The files of an earlier training run in run folder `out` (its checkpoints, :data:`RUN_OUTPUTS`,
-    ``metrics-part*.csv``), as paths inside it; [] for a new or empty folder (or one holding only the
-    ``config.yaml`` / ``hparams.yaml`` of a run that was stopped before its first checkpoint)."""
+    ``metrics-part*.csv``), as paths inside it; [] for a new folder or one holding none of them (a run stopped
+    before its first checkpoint leaves none: :func:`~train.stopping.run_folder`). A ``checkpoints`` that is a file,
+    or a folder holding other files, counts as ``checkpoints/``."""
     if not out.is_dir():
         return []
-    found = sorted(str(path.relative_to(out)) for path in (out / "checkpoints").glob("*.ckpt"))
+    checkpoints = out / "checkpoints"
+    found = sorted(str(path.relative_to(out)) for path in checkpoints.glob("*.ckpt"))
+    if not found and (checkpoints.is_file() or checkpoints.is_dir() and any(checkpoints.iterdir())):
+        found.append("checkpoints/")
     found += [name for name in RUN_OUTPUTS if (out / name).exists()]
     return found + sorted(path.name for path in out.glob("metrics-part*.csv"))
 
@@ -135,10 +165,24 @@ def check_fresh_run(out: Path, resume: str | None) -> None:
     raise InputError(f"{out}: holds an earlier training run's files ({shown}), which a new run would replace; {advice}")
 
 
-def resume_checkpoint(out: Path, resume: str | None, spec=None) -> tuple[str | None, dict]:
+def check_not_the_dataset(out: Path, data) -> None:
+    """InputError when run folder `out` is the dataset `data` (``data.path``) or a folder inside it: ``out=dsk
+    name=shards`` wrote a run among the dataset's shards, and ``out=. name=dsk`` was refused as a folder holding "an
+    earlier training run's files (summary.json)", datagen's."""
+    if data is None or not str(data).strip():
+        return
+    run, dataset = os.path.realpath(out), os.path.realpath(str(data))
+    if run == dataset or run.startswith(dataset.rstrip(os.sep) + os.sep):
+        where = "is the dataset (data.path=" if run == dataset else "is inside the dataset (data.path="
+        raise InputError(f"{out}: the run folder (out=, name=) {where}{data}){' itself' if run == dataset else ''}, "
+                         "which the training reads; choose another out= or name=")
+
+
+def resume_checkpoint(out: Path, resume: str | None, spec=None, trainer=None) -> tuple[str | None, dict]:
     """(the checkpoint a run in folder `out` resumes from, its hyperparameters): `resume` as given
     (``"last"``: the run's last checkpoint), checked to be a training checkpoint of the run's kind (`spec`:
-    :func:`check_checkpoint`); (None, {}) for a fresh run. InputError: nothing to resume, a missing or foreign
+    :func:`check_checkpoint`) with steps left to train under the run's `trainer` settings; (None, {}) for a fresh
+    run. InputError: nothing to resume, a missing or foreign
     checkpoint, a folder another run is writing in (:func:`~frontiernet.io.check_not_locked`), or a fresh run into a folder holding
     an earlier run (:func:`check_fresh_run`)."""
     check_not_locked(out, "out= or name=")  # before its files are judged: a run in progress wrote some
@@ -150,7 +194,7 @@ def resume_checkpoint(out: Path, resume: str | None, spec=None) -> tuple[str | N
     if resume is not None:  # (a 0-byte one was "not a training checkpoint (RuntimeError)")
         input_file(resume, "checkpoint to resume from", empty_ok=False)
     check_fresh_run(out, resume)
-    return resume, (check_checkpoint(resume, spec) if resume is not None else {})
+    return resume, (check_checkpoint(resume, spec, trainer) if resume is not None else {})
 
 
 LAUNCHED_RANK = ("LOCAL_RANK", "NODE_RANK", "RANK")
@@ -179,3 +223,49 @@ def claimed_run_folder(out: Path, resume: str | None) -> Iterator[Path | None]:
     with claim_output_folder(out, force=True):
         check_fresh_run(out, resume)
         yield made
+
+
+METRICS_PART = re.compile(r"metrics-part(\d+)\.csv")
+"""The earlier rows of a resumed run's metrics.csv, as they stood at its Nth resume (:func:`continued_metrics`)."""
+
+
+@contextmanager
+def continued_metrics(out: Path, resume: str | None) -> Iterator[None]:
+    """A resumed run's ``metrics.csv`` in run folder `out` continues its earlier sessions' rows: Lightning's CSV logger
+    deletes the file it finds (after "Previous log files in this directory will be deleted"), so before the session
+    it is set aside as ``metrics-part<N>.csv`` (what it held at the Nth resume, kept: it survives a process killed
+    mid-session), and when the body ends, however it ends, metrics.csv becomes those rows then the session's
+    (:func:`_join_rows`). Nothing for a fresh run (`resume` None: a metrics.csv there was refused,
+    :func:`check_fresh_run`). Lightning's warning that the folder's "previous log files ... will be deleted", said of
+    every run (the run's config.yaml is there), is left out: untrue."""
+    warnings.filterwarnings("ignore", message=r"Experiment logs directory .* exists and is not empty")
+    earlier = None
+    if resume is not None and (out / "metrics.csv").is_file():
+        parts = [int(match.group(1)) for path in out.glob("metrics-part*.csv")
+                 if (match := METRICS_PART.fullmatch(path.name))]
+        earlier = out / f"metrics-part{max(parts, default=0) + 1}.csv"
+        (out / "metrics.csv").rename(earlier)
+    try:
+        yield
+    finally:
+        if earlier is not None:
+            _join_rows(earlier, out / "metrics.csv")
+
+
+def _join_rows(earlier: Path, metrics: Path) -> None:
+    """Write `metrics` (the CSV Lightning wrote this session, or none) as the rows of `earlier` then its own, under
+    the union of their columns, sorted as Lightning sorts them."""
+    from frontiernet.io import atomic_path
+
+    tables = []
+    for path in (earlier, metrics):
+        if path.is_file():
+            with open(path, newline="") as handle:
+                reader = csv.DictReader(handle)
+                tables.append((reader.fieldnames or [], list(reader)))
+    columns = sorted({name for names, _ in tables for name in names})
+    with atomic_path(metrics) as tmp, open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=columns, extrasaction="ignore")
+        writer.writeheader()
+        for _, rows in tables:
+            writer.writerows(rows)
