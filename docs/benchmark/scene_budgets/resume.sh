@@ -23,6 +23,8 @@
 # the way back open on ground truth too (planner.traversed_is_free), so its ground-truth runs are redone;
 # 9711f05 marks bumps in the map (planner.bumps_are_obstacles), which acts only on a collision: it redoes
 # the runs that collided (two when it was made) and keeps the others (the same to the step otherwise).
+# tracking.bury_visited (2026-12-08) is read by the map-frontier-region methods alone (classic, random-frontier,
+# mapex): --redo-changed redoes their runs and keeps the others (sessions.md).
 # Pack before committing while it runs: $FRONTIERNET bench --pack --out docs/benchmark/scene_budgets
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
