@@ -184,7 +184,8 @@ class FrontierTracker:
     def _buried(self, position, direction, max_distance, min_cos) -> bool:
         return any(float(np.linalg.norm(p - position)) < max_distance and float(d @ direction) > min_cos
                    for p, d in self.tombstones) \
-            or any(float(np.linalg.norm(p - position)) < max_distance for p in self.buried_visits)
+            or (len(self.buried_visits) > 0  # (one array op: the places grow with the run, the proposals come each frame)
+                and float(np.linalg.norm(np.asarray(self.buried_visits) - position, axis=1).min()) < max_distance)
 
     def _closest_match(self, position, direction, max_distance, min_cos) -> Frontier | None:
         best, best_distance = None, max_distance
